@@ -1,0 +1,627 @@
+"""Maximum cliques: the association step of the matcher (paper §5.3), as a general tool.
+
+The correspondence graph of two scans has one vertex per feature pairing and an edge where
+two pairings agree geometrically; its maximum clique is the largest mutually consistent
+association (Bailey et al. 2000, after Barrow & Burstall 1976). The paper enumerated
+maximal cliques with Bron–Kerbosch; this module keeps that as the slow reference
+(:func:`bron_kerbosch`) and answers the questions the matcher asks with exact branch and
+bound over bitsets (:func:`max_clique`, :func:`all_maximum_cliques`, :func:`top_cliques`).
+
+Any undirected graph will do: a boolean adjacency matrix (the pipeline's case), an edge
+list, a networkx graph or a DIMACS ``.clq`` file (see :func:`as_adjacency`). Vertices are
+reported as 0-based indices (for networkx graphs: positions in ``list(G)``).
+
+Examples
+--------
+>>> adj = np.zeros((5, 5), dtype=bool)
+>>> for u, v in [(0, 1), (0, 2), (1, 2), (2, 3), (3, 4)]:
+...     adj[u, v] = adj[v, u] = True
+>>> r = max_clique(adj)
+>>> r.vertices.tolist(), r.size, r.optimal
+([0, 1, 2], 3, True)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import GraphError
+
+__all__ = [
+    "CliqueResult",
+    "AllCliquesResult",
+    "max_clique",
+    "all_maximum_cliques",
+    "top_cliques",
+    "bron_kerbosch",
+    "as_adjacency",
+    "bitsets_from_adjacency",
+    "solve_file",
+]
+
+log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------
+def _frozen_vertices(v) -> np.ndarray:
+    a = np.array(v, dtype=np.int64).reshape(-1)
+    a.sort()
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CliqueResult:
+    """A clique and how it was found.
+
+    Attributes
+    ----------
+    vertices : (k,) int64 ndarray, read-only
+        The clique's vertices, sorted.
+    optimal : bool
+        True when the search proved that no larger (heavier, when weighted) clique exists;
+        False when the time limit stopped it first, or when ``lower_bound`` was above the
+        clique number.
+    nodes : int
+        Search-tree nodes expanded.
+    elapsed : float
+        Wall-clock seconds, including input conversion.
+    weight : float or None
+        Total vertex weight of the clique when weights were given, else None.
+    """
+
+    vertices: np.ndarray
+    optimal: bool
+    nodes: int
+    elapsed: float
+    weight: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vertices", _frozen_vertices(self.vertices))
+
+    @property
+    def size(self) -> int:
+        """Number of vertices in the clique."""
+        return int(self.vertices.shape[0])
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class AllCliquesResult:
+    """Every maximum clique of a graph (or as many as the limit allowed).
+
+    Attributes
+    ----------
+    cliques : tuple of (omega,) int64 ndarrays, read-only
+        The maximum cliques, each sorted, the tuple in lexicographic order.
+    omega : int
+        The clique number (the largest size found when ``optimal`` is False).
+    complete : bool
+        True when ``cliques`` holds every maximum clique; False when the limit cut the list
+        or the time ran out.
+    optimal : bool
+        True when ``omega`` is proven to be the clique number.
+    elapsed : float
+        Wall-clock seconds.
+    """
+
+    cliques: tuple[np.ndarray, ...]
+    omega: int
+    complete: bool
+    optimal: bool
+    elapsed: float
+
+    def __post_init__(self) -> None:
+        cl = [_frozen_vertices(c) for c in self.cliques]
+        cl.sort(key=lambda c: c.tolist())
+        object.__setattr__(self, "cliques", tuple(cl))
+
+
+# --------------------------------------------------------------------------------------
+# Input
+# --------------------------------------------------------------------------------------
+def as_adjacency(graph) -> np.ndarray:
+    """Normalise a graph to its boolean adjacency matrix.
+
+    Parameters
+    ----------
+    graph : one of
+        - ``(n, n)`` boolean ndarray: symmetric, False diagonal (returned as is);
+        - ``(m, 2)`` integer ndarray of 0-based edges (``n = max + 1``), or a tuple
+          ``(edges, n)``;
+        - a ``networkx.Graph``: vertex ``i`` is ``list(G)[i]``;
+        - a path (``str`` or path-like) to a DIMACS ``.clq`` file.
+
+    Returns
+    -------
+    (n, n) bool ndarray
+        Symmetric with a False diagonal.
+
+    Raises
+    ------
+    GraphError
+        Not square, not symmetric, self loops, a directed networkx graph, an edge index
+        out of range, or a type that is not a graph.
+
+    Examples
+    --------
+    >>> as_adjacency((np.array([[0, 1], [1, 2]]), 4)).astype(int)
+    array([[0, 1, 0, 0],
+           [1, 0, 1, 0],
+           [0, 1, 0, 0],
+           [0, 0, 0, 0]])
+    >>> as_adjacency(np.array([[False, True], [False, False]]))
+    Traceback (most recent call last):
+    ...
+    scanclique.errors.GraphError: adjacency matrix is not symmetric: (0, 1) is True, (1, 0) is False
+    """
+    if isinstance(graph, (str, os.PathLike)):
+        from .io.dimacs import read_dimacs  # the one file format the solver reads
+
+        return read_dimacs(graph).adjacency()
+    if isinstance(graph, tuple) and len(graph) == 2:
+        return _from_edges(graph[0], int(graph[1]))
+    if isinstance(graph, np.ndarray):
+        if graph.dtype == np.bool_:
+            return _check_adjacency(graph)
+        if graph.ndim == 2 and graph.shape[1] == 2 and np.issubdtype(graph.dtype, np.integer):
+            n = int(graph.max()) + 1 if graph.size else 0
+            return _from_edges(graph, n)
+        raise GraphError(
+            f"expected a bool (n, n) adjacency or an integer (m, 2) edge list, got dtype "
+            f"{graph.dtype} shape {graph.shape}; convert 0/1 matrices with .astype(bool)"
+        )
+    if hasattr(graph, "adj") and hasattr(graph, "nodes") and hasattr(graph, "is_directed"):
+        return _from_networkx(graph)
+    raise GraphError(f"cannot read a graph from {type(graph).__name__}")
+
+
+def _check_adjacency(adj: np.ndarray) -> np.ndarray:
+    if adj.ndim != 2 or adj.shape[0] != adj.shape[1]:
+        raise GraphError(f"adjacency matrix must be square, got shape {adj.shape}")
+    if adj.shape[0] and adj.diagonal().any():
+        v = int(np.flatnonzero(adj.diagonal())[0])
+        raise GraphError(f"adjacency matrix has a self loop at vertex {v}")
+    if not np.array_equal(adj, adj.T):
+        u, v = (int(x[0]) for x in np.nonzero(adj != adj.T))
+        raise GraphError(
+            f"adjacency matrix is not symmetric: ({u}, {v}) is {bool(adj[u, v])}, "
+            f"({v}, {u}) is {bool(adj[v, u])}"
+        )
+    return adj
+
+
+def _from_edges(edges, n: int) -> np.ndarray:
+    e = np.asarray(edges)
+    if e.size == 0:
+        e = np.zeros((0, 2), dtype=np.int64)
+    if e.ndim != 2 or e.shape[1] != 2 or not np.issubdtype(e.dtype, np.integer):
+        raise GraphError(f"edge list must be an integer (m, 2) array, got {e.dtype} {e.shape}")
+    if n < 0:
+        raise GraphError(f"vertex count must be non-negative, got {n}")
+    if e.size and (e.min() < 0 or e.max() >= n):
+        raise GraphError(f"edge list refers to vertices outside 0..{n - 1}")
+    if (e[:, 0] == e[:, 1]).any():
+        v = int(e[e[:, 0] == e[:, 1]][0, 0])
+        raise GraphError(f"edge list has a self loop at vertex {v}")
+    adj = np.zeros((n, n), dtype=bool)
+    adj[e[:, 0], e[:, 1]] = True
+    adj[e[:, 1], e[:, 0]] = True
+    return adj
+
+
+def _from_networkx(G) -> np.ndarray:
+    if G.is_directed():
+        raise GraphError("the clique solver takes undirected graphs; got a directed networkx graph")
+    index = {v: i for i, v in enumerate(G)}
+    n = len(index)
+    adj = np.zeros((n, n), dtype=bool)
+    for u, nbrs in G.adj.items():
+        i = index[u]
+        for v in nbrs:
+            if v == u:
+                raise GraphError(f"networkx graph has a self loop at node {u!r}")
+            adj[i, index[v]] = True
+    return adj
+
+
+def bitsets_from_adjacency(adj: np.ndarray) -> np.ndarray:
+    """Pack a boolean adjacency matrix into bitset rows, vectorised.
+
+    Parameters
+    ----------
+    adj : (n, n) bool ndarray
+
+    Returns
+    -------
+    (n, ceil(n / 64)) uint64 ndarray
+        Bit ``j % 64`` of word ``j // 64`` of row ``i`` is ``adj[i, j]``.
+
+    Examples
+    --------
+    >>> adj = np.zeros((3, 70), dtype=bool); adj[0, [0, 2]] = True; adj[1, 65] = True
+    >>> bitsets_from_adjacency(adj)[:2].tolist()
+    [[5, 0], [0, 2]]
+    """
+    adj = np.asarray(adj, dtype=bool)
+    n, ncols = adj.shape
+    words = (ncols + 63) // 64
+    packed = np.packbits(adj, axis=1, bitorder="little")
+    if packed.shape[1] != words * 8:  # pad each row to whole 64-bit words
+        full = np.zeros((n, words * 8), dtype=np.uint8)
+        full[:, : packed.shape[1]] = packed
+        packed = full
+    out = np.ascontiguousarray(packed).view("<u8")
+    return out.astype(np.uint64, copy=False).reshape(n, words)
+
+
+# --------------------------------------------------------------------------------------
+# Exact maximum clique
+# --------------------------------------------------------------------------------------
+def _limit(time_limit) -> float:
+    if time_limit is None:
+        return math.inf
+    t = float(time_limit)
+    if not t >= 0:
+        raise GraphError(f"time_limit must be a non-negative number of seconds, got {time_limit}")
+    return t
+
+
+def _run(adj, floor, mode, limit, time_limit, t0):
+    from . import _clique_kernels as K
+
+    n = adj.shape[0]
+    A = bitsets_from_adjacency(adj)
+    return K.solve(A, n, int(floor), int(mode), int(limit), float(time_limit), float(t0))
+
+
+def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> CliqueResult:
+    """A maximum clique (maximum-weight clique when ``weights`` are given).
+
+    Parameters
+    ----------
+    graph : bool (n, n) ndarray, edge list, networkx graph or DIMACS path
+        See :func:`as_adjacency`.
+    time_limit : float, optional
+        Seconds. When reached, the best clique found so far is returned with
+        ``optimal=False``.
+    lower_bound : int, optional
+        A clique size known to be reachable (e.g. from the previous scan pair). Branches
+        that cannot reach it are pruned from the start. If the graph has no clique that
+        large, the best clique found is returned with ``optimal=False``.
+    weights : (n,) array of non-negative numbers, optional
+        Vertex weights; the clique then maximises total weight.
+
+    Returns
+    -------
+    CliqueResult
+        ``vertices`` sorted, ``optimal``, ``nodes``, ``elapsed`` and ``weight``.
+
+    Notes
+    -----
+    Exact branch and bound over bitsets (BBMC, San Segundo et al. 2011, after Tomita's
+    MCQ/MCS): vertices renumbered in degeneracy order so that bit order is branching
+    order, a greedy initial clique, k-core pruning of vertices that cannot reach the
+    incumbent, and at each node a greedy colouring whose class count bounds the clique
+    size. Worst case exponential (the problem is NP-hard); each node costs
+    O(|P| n / 64) word operations.
+
+    References
+    ----------
+    .. [1] E. Tomita, T. Kameda, "An efficient branch-and-bound algorithm for finding a
+       maximum clique with computational experiments", J. Global Optim. 37 (2007).
+    .. [2] P. San Segundo, D. Rodríguez-Losada, A. Jiménez, "An exact bit-parallel
+       algorithm for the maximum clique problem", Comput. Oper. Res. 38 (2011).
+
+    Examples
+    --------
+    >>> import networkx as nx
+    >>> max_clique(nx.petersen_graph()).size
+    2
+    >>> r = max_clique(nx.complete_graph(4), weights=[1, 2, 3, 4])
+    >>> r.vertices.tolist(), r.weight
+    ([0, 1, 2, 3], 10.0)
+    """
+    t0 = time.perf_counter()
+    adj = as_adjacency(graph)
+    return _max_clique(adj, t0, _limit(time_limit), lower_bound, weights)
+
+
+def _max_clique(adj, t0, tl, lower_bound, weights) -> CliqueResult:
+    n = adj.shape[0]
+    if weights is not None:
+        w = np.asarray(weights, dtype=np.float64).reshape(-1)
+        if w.shape[0] != n or not np.isfinite(w).all() or (w < 0).any():
+            raise GraphError(f"weights must be {n} finite non-negative numbers")
+        verts, nodes, optimal = _max_weight_clique_py(adj, w, t0, tl)
+        return CliqueResult(verts, optimal, nodes, time.perf_counter() - t0, float(w[verts].sum()))
+    floor = 0 if lower_bound is None else max(int(lower_bound) - 1, 0)
+    if n == 0:
+        return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0)
+    best, nodes, timed_out, _, _, _ = _run(adj, floor, 0, 0, tl, t0)
+    optimal = (not timed_out) and best.shape[0] > floor
+    if best.shape[0] == 0:  # n >= 1: a single vertex is always a clique
+        best = np.zeros(1, np.int64)
+        optimal = optimal or floor == 0
+    return CliqueResult(best, bool(optimal), int(nodes), time.perf_counter() - t0)
+
+
+def all_maximum_cliques(graph, *, limit=100, time_limit=None) -> AllCliquesResult:
+    """Every maximum clique: first the clique number, then all cliques of that size.
+
+    Parameters
+    ----------
+    graph : bool (n, n) ndarray, edge list, networkx graph or DIMACS path
+    limit : int
+        At most this many cliques are returned; ``complete`` is False if there are more.
+    time_limit : float, optional
+        Seconds for both phases together.
+
+    Returns
+    -------
+    AllCliquesResult
+
+    Notes
+    -----
+    Phase 1 is :func:`max_clique`. Phase 2 reruns the branch and bound with the bar fixed
+    at ``omega - 1``, so that every branch that could hold an ``omega``-clique is explored
+    and each such clique is met exactly once (branching on ``v`` then removing it
+    partitions the search space). Symmetric environments show up here as several cliques.
+
+    Examples
+    --------
+    >>> import networkx as nx
+    >>> r = all_maximum_cliques(nx.cycle_graph(4))
+    >>> [c.tolist() for c in r.cliques], r.omega, r.complete
+    ([[0, 1], [0, 3], [1, 2], [2, 3]], 2, True)
+    """
+    t0 = time.perf_counter()
+    adj = as_adjacency(graph)
+    return _all_maximum(adj, t0, _limit(time_limit), int(limit))
+
+
+def _all_maximum(adj, t0, tl, limit) -> AllCliquesResult:
+    n = adj.shape[0]
+    if n == 0:
+        return AllCliquesResult((), 0, True, True, time.perf_counter() - t0)
+    first = _max_clique(adj, t0, tl, None, None)
+    omega = first.size
+    if limit <= 0:
+        return AllCliquesResult((), omega, False, first.optimal, time.perf_counter() - t0)
+    if omega == 1:  # every vertex
+        cl = [np.array([v]) for v in range(min(n, limit))]
+        return AllCliquesResult(tuple(cl), 1, n <= limit, first.optimal, time.perf_counter() - t0)
+    _, _, timed_out, found, nfound, overflow = _run(adj, omega - 1, 1, limit, tl, t0)
+    cl = [found[i] for i in range(nfound)]
+    if not cl:  # time ran out before the enumeration met the known clique
+        cl = [first.vertices]
+    complete = first.optimal and not timed_out and not overflow
+    return AllCliquesResult(tuple(cl), omega, complete, first.optimal, time.perf_counter() - t0)
+
+
+def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
+    """The ``k`` largest distinct maximal cliques, largest first.
+
+    For ranking association hypotheses when the true one is not the unique maximum. Ties
+    in size are ordered lexicographically.
+
+    Parameters
+    ----------
+    graph : bool (n, n) ndarray, edge list, networkx graph or DIMACS path
+    k : int
+        How many cliques (fewer if the graph has fewer maximal cliques).
+    time_limit : float, optional
+        Seconds; when reached the best cliques seen so far are returned.
+
+    Returns
+    -------
+    tuple of int64 ndarrays
+        Sorted vertex arrays, in non-increasing size.
+
+    Examples
+    --------
+    >>> import networkx as nx
+    >>> G = nx.Graph([(0, 1), (0, 2), (1, 2), (2, 3), (3, 4)])
+    >>> [c.tolist() for c in top_cliques(G, 2)]
+    [[0, 1, 2], [2, 3]]
+    """
+    t0 = time.perf_counter()
+    adj = as_adjacency(graph)
+    tl = _limit(time_limit)
+    cl = []
+    for c in bron_kerbosch(adj):
+        cl.append(c)
+        if time.perf_counter() - t0 > tl:
+            break
+    cl.sort(key=lambda c: (-c.shape[0], c.tolist()))
+    return tuple(_frozen_vertices(c) for c in cl[: max(int(k), 0)])
+
+
+# --------------------------------------------------------------------------------------
+# Reference
+# --------------------------------------------------------------------------------------
+def bron_kerbosch(graph) -> Iterator[np.ndarray]:
+    """Every maximal clique, by Bron–Kerbosch with Tomita's pivot: the slow reference.
+
+    Parameters
+    ----------
+    graph : bool (n, n) ndarray, edge list, networkx graph or DIMACS path
+
+    Yields
+    ------
+    (k,) int64 ndarray
+        Each maximal clique once, sorted. The empty graph has none.
+
+    Notes
+    -----
+    The algorithm the paper used (§5.3). ``R`` is the growing clique, ``P`` the
+    candidates that extend it, ``X`` the vertices that extend it but were already
+    explored. The pivot ``u`` maximises ``|P ∩ N(u)|``; only ``P \\ N(u)`` is branched on,
+    which bounds the run time by O(3^(n/3)), the number of maximal cliques in the worst
+    case (Tomita, Tanaka, Takahashi 2006).
+
+    References
+    ----------
+    .. [1] C. Bron, J. Kerbosch, "Algorithm 457: finding all cliques of an undirected
+       graph", Comm. ACM 16 (1973).
+    .. [2] E. Tomita, A. Tanaka, H. Takahashi, "The worst-case time complexity for
+       generating all maximal cliques", Theor. Comput. Sci. 363 (2006).
+
+    Examples
+    --------
+    >>> import networkx as nx
+    >>> sorted(c.tolist() for c in bron_kerbosch(nx.path_graph(3)))
+    [[0, 1], [1, 2]]
+    """
+    adj = as_adjacency(graph)
+    N = [set(np.flatnonzero(row).tolist()) for row in adj]
+    if not N:
+        return
+    # explicit stack of (R, P, X, branch list); invariant: every vertex of P and X is
+    # adjacent to all of R, and R + [v] for v in P has not been reported as a subset yet
+    R: list[int] = []
+    P = set(range(len(N)))
+    X: set[int] = set()
+    stack = []
+    while True:
+        if not P and not X:
+            yield np.array(sorted(R), dtype=np.int64)
+        if P:
+            u = max(P | X, key=lambda x: len(P & N[x]))
+            stack.append((R, P, X, list(P - N[u])))
+        while stack:
+            R, P, X, todo = stack[-1]
+            if todo:
+                v = todo.pop()
+                newR, newP, newX = R + [v], P & N[v], X & N[v]
+                P.remove(v)
+                X.add(v)
+                R, P, X = newR, newP, newX
+                break
+            stack.pop()
+        else:
+            return
+
+
+# --------------------------------------------------------------------------------------
+# Weighted (maximum-weight clique)
+# --------------------------------------------------------------------------------------
+def _max_weight_clique_py(adj, w, t0, tl):
+    """Branch and bound with a weighted colouring bound, on Python int bitsets.
+
+    Each colour class contributes its heaviest vertex; the bound of the ``i``-th vertex of
+    the colour order is the sum over earlier classes plus its own class's heaviest vertex
+    up to ``i`` (Kumlander 2004; networkx's ``max_weight_clique`` uses the same idea).
+    """
+    n = adj.shape[0]
+    if n == 0:
+        return np.empty(0, np.int64), 0, True
+    order = np.argsort(-w, kind="stable")
+    pos = np.empty(n, np.int64)
+    pos[order] = np.arange(n)
+    nbr = []
+    for v in order:
+        m = 0
+        for j in pos[np.flatnonzero(adj[v])].tolist():
+            m |= 1 << j
+        nbr.append(m)
+    wt = w[order].tolist()
+    best_w = -1.0
+    best: list[int] = []
+    nodes = 0
+    timed_out = False
+
+    def expand(C, wC, P):
+        nonlocal best_w, best, nodes, timed_out
+        nodes += 1
+        if (nodes & 255) == 0 and time.perf_counter() - t0 > tl:
+            timed_out = True
+        if timed_out:
+            return
+        if P == 0:
+            if wC > best_w:
+                best_w, best = wC, list(C)
+            return
+        # colour P greedily; entries (v, bound)
+        ents = []
+        U = P
+        acc = 0.0
+        while U:
+            Q = U
+            cmax = 0.0
+            while Q:
+                low = Q & -Q
+                v = low.bit_length() - 1
+                Q &= ~low & ~nbr[v]
+                U &= ~low
+                cmax = max(cmax, wt[v])
+                ents.append((v, acc + cmax))
+            acc += cmax
+        for v, bound in reversed(ents):
+            if wC + bound <= best_w:
+                return
+            C.append(v)
+            expand(C, wC + wt[v], P & nbr[v])
+            C.pop()
+            P &= ~(1 << v)
+            if timed_out:
+                return
+
+    expand([], 0.0, (1 << n) - 1)
+    verts = np.sort(order[np.array(best, dtype=np.int64)]) if best else np.zeros(0, np.int64)
+    return verts, nodes, not timed_out
+
+
+# --------------------------------------------------------------------------------------
+# Command-line helper
+# --------------------------------------------------------------------------------------
+def solve_file(path, *, all=False, time_limit=None) -> dict:  # noqa: A002 (CLI flag name)
+    """Solve a DIMACS file and return a JSON-ready summary (used by ``scanclique clique``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        A DIMACS ``.clq`` file.
+    all : bool
+        Also enumerate every maximum clique (up to 1000).
+    time_limit : float, optional
+        Seconds.
+
+    Returns
+    -------
+    dict
+        ``file, n, m, omega, optimal, clique`` (1-based vertex numbers, as in the file),
+        ``nodes, elapsed``; with ``all``: ``cliques`` (1-based) and ``complete``.
+    """
+    from .io.dimacs import read_dimacs
+
+    g = read_dimacs(path)
+    adj = g.adjacency()
+    t0 = time.perf_counter()
+    tl = _limit(time_limit)
+    r = _max_clique(adj, t0, tl, None, None)
+    out = {
+        "file": os.fspath(path),
+        "n": g.n,
+        "m": g.m,
+        "omega": r.size,
+        "optimal": r.optimal,
+        "clique": (r.vertices + 1).tolist(),
+        "nodes": r.nodes,
+        "elapsed": r.elapsed,
+    }
+    if all:
+        a = _all_maximum(adj, t0, tl, 1000)
+        out["cliques"] = [(c + 1).tolist() for c in a.cliques]
+        out["complete"] = a.complete
+        out["optimal"] = a.optimal
+        out["elapsed"] = a.elapsed
+    return out

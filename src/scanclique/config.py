@@ -1,0 +1,288 @@
+"""Configuration: one frozen dataclass per stage, composed into :class:`MatchConfig`.
+
+Defaults are the paper's (Bailey et al. 2000, §4 and §6) where the paper gives one; the
+rest were chosen on simulated scans and checked on the real logs by
+``benchmarks/accuracy.py``. :func:`paper_config` returns the paper's behaviour exactly
+(unsigned invariants, untyped points, median pose, no refinement).
+
+Reading from / writing to TOML lives at the edge (:mod:`scanclique.io.config`); this
+module only defines values and checks them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields
+
+from .errors import ConfigError
+
+__all__ = [
+    "ClusterConfig",
+    "FeatureConfig",
+    "CorrespondenceConfig",
+    "CliqueConfig",
+    "PoseConfig",
+    "RefineConfig",
+    "MatchConfig",
+    "paper_config",
+    "config_to_dict",
+    "config_from_dict",
+]
+
+
+def _positive(obj, *names: str) -> None:
+    for name in names:
+        v = getattr(obj, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{type(obj).__name__}.{name} must be a positive number, got {v!r}")
+
+
+def _nonneg(obj, *names: str) -> None:
+    for name in names:
+        v = getattr(obj, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ConfigError(f"{type(obj).__name__}.{name} must be >= 0, got {v!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class ClusterConfig:
+    """Paper §4: consecutive ranges join a cluster when |Ri - Ri+1| < c1 + c2 * min(Ri, Ri+1).
+
+    ``max_gap_beams`` is how many consecutive invalid beams may be bridged inside a cluster
+    (0, the paper's rule: any invalid return breaks the cluster).
+    """
+
+    c1: float = 0.07  # metres
+    c2: float = 0.04  # metres per metre
+    max_gap_beams: int = 0
+
+    def __post_init__(self) -> None:
+        _nonneg(self, "c1", "c2", "max_gap_beams")
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureConfig:
+    """Paper §4 feature extraction.
+
+    Attributes
+    ----------
+    foreground_edges, foreground_points, lines, corners : bool
+        Which feature kinds to extract. Corners (the split point between two fitted lines
+        meeting at a large angle) go beyond the paper.
+    point_max_extent : float
+        A cluster no longer than this (metres, end to end) that is nearer than both
+        neighbours is a foreground point (a pole, a leg).
+    split_distance : float
+        Recursive split: a cluster is split at the point farthest from its chord when that
+        distance exceeds ``split_distance + split_ratio * range`` (metres).
+    line_min_points, line_min_length : int, float
+        A fitted piece becomes a line feature when it has this many points and this length.
+    line_max_gap, line_gap_ratio : float
+        Lines are fitted on chains of consecutive valid points closer than
+        ``line_max_gap + line_gap_ratio * range`` (metres): looser than the clusters, so a
+        wall seen at grazing incidence still yields its line.
+    line_max_rms : float
+        ...and its total-least-squares residual RMS is below this (metres).
+    merge_angle, merge_distance : float
+        Collinear neighbours (normal angle within ``merge_angle`` rad, offset within
+        ``merge_distance`` m) of the same or adjacent clusters are merged.
+    corner_min_angle : float
+        Two lines meeting at an angle (between directions) of at least this many radians
+        form a corner point at their intersection...
+    corner_reach : float
+        ...when both segments end within this distance (metres) of the intersection.
+    range_sigma : float
+        Range noise standard deviation (metres) used for feature covariances.
+    typed_edges : bool
+        Label foreground edges as left / right (which side the occluded background is on);
+        ``False`` lumps every point feature into one label, as in the paper.
+    min_edge_jump : float
+        A foreground edge needs its neighbour at least this much farther (metres).
+    crowd_radius : float
+        Foreground points with another foreground point nearer than this (metres) are
+        dropped: points closer than the matching tolerance cannot be told apart by the
+        invariants, and rows of them (railings, balusters) match themselves under any
+        shift. 0 keeps them all.
+    min_cluster_beams : int
+        Clusters with fewer valid beams yield no feature: a lone return between two
+        farther ones is as likely a mixed pixel or a gap in a railing as an object.
+    """
+
+    foreground_edges: bool = True
+    foreground_points: bool = True
+    lines: bool = True
+    corners: bool = True
+    point_max_extent: float = 0.3
+    split_distance: float = 0.05
+    split_ratio: float = 0.01
+    line_min_points: int = 6
+    line_min_length: float = 0.4
+    line_max_gap: float = 0.3
+    line_gap_ratio: float = 0.1
+    line_max_rms: float = 0.05
+    merge_angle: float = 0.08
+    merge_distance: float = 0.10
+    corner_min_angle: float = math.radians(45)
+    corner_reach: float = 0.5
+    range_sigma: float = 0.02
+    typed_edges: bool = True
+    min_edge_jump: float = 0.3
+    min_cluster_beams: int = 2
+    crowd_radius: float = 0.3
+
+    def __post_init__(self) -> None:
+        _positive(self, "min_cluster_beams", "point_max_extent", "split_distance", "line_min_length", "line_max_rms")
+        _positive(self, "merge_angle", "merge_distance", "corner_min_angle", "range_sigma")
+        _nonneg(self, "corner_reach")
+        _nonneg(self, "split_ratio", "min_edge_jump", "crowd_radius", "line_max_gap", "line_gap_ratio")
+        if not (isinstance(self.line_min_points, int) and self.line_min_points >= 2):
+            raise ConfigError(f"FeatureConfig.line_min_points must be an int >= 2, got {self.line_min_points!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class CorrespondenceConfig:
+    """Paper §5.2 and §6: tolerances on the edge invariants of the correspondence graph.
+
+    Attributes
+    ----------
+    point_point : float
+        |d_a - d_b| tolerance on point–point distances (metres; paper ±0.30).
+    point_line : float
+        Tolerance on point–line perpendicular distances (metres; paper ±0.40).
+    line_line : float
+        Tolerance on line–line angles (radians; paper ±0.1).
+    signed : bool
+        Use invariants that are not blind to mirror images: signed point–line distance with
+        the line's normal pointing towards the sensor, and the signed angle between oriented
+        lines. ``False`` gives the paper's unsigned invariants.
+    parallel_offset : bool
+        For two (nearly) parallel lines also compare the signed distance between them.
+    max_nodes : int
+        Refuse to build a correspondence graph with more nodes than this
+        (a :class:`~scanclique.errors.GraphError` names the sizes).
+    """
+
+    point_point: float = 0.30
+    point_line: float = 0.40
+    line_line: float = 0.10
+    signed: bool = True
+    parallel_offset: bool = True
+    max_nodes: int = 20000
+
+    def __post_init__(self) -> None:
+        _positive(self, "point_point", "point_line", "line_line", "max_nodes")
+
+
+@dataclass(frozen=True, slots=True)
+class CliqueConfig:
+    """Paper §5.3: the maximum clique search.
+
+    ``time_limit`` (seconds) bounds the whole search; past it the best cliques found are
+    used and the result says ``optimal=False``. ``max_hypotheses`` bounds how many maximum
+    cliques are turned into pose hypotheses (several maximum cliques are the paper's §7
+    symmetry). ``peel`` more hypotheses come from removing the vertices of the cliques
+    found so far and taking the maximum clique of what remains: disjoint associations,
+    which the raw scans then judge (0: the maximum clique alone, as in the paper).
+    """
+
+    time_limit: float = 2.0
+    max_hypotheses: int = 8
+    peel: int = 6
+
+    def __post_init__(self) -> None:
+        _positive(self, "time_limit", "max_hypotheses")
+        _nonneg(self, "peel")
+
+
+@dataclass(frozen=True, slots=True)
+class PoseConfig:
+    """Paper §6: pose from the mapped features.
+
+    ``method`` is ``"lsq"`` (weighted least squares: Arun et al. 1987 for points, lines add
+    normal and offset constraints; with covariance) or ``"median"`` (the paper's median
+    rotation then median translation). ``min_pairs`` is the smallest clique that yields a
+    pose hypothesis (two point or line pairs fix a planar pose; the raw scans then judge
+    it).
+    """
+
+    method: str = "lsq"
+    min_pairs: int = 2
+
+    def __post_init__(self) -> None:
+        if self.method not in ("lsq", "median"):
+            raise ConfigError(f"PoseConfig.method must be 'lsq' or 'median', got {self.method!r}")
+        if not (isinstance(self.min_pairs, int) and self.min_pairs >= 2):
+            raise ConfigError(f"PoseConfig.min_pairs must be an int >= 2, got {self.min_pairs!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class RefineConfig:
+    """Optional refinement on the raw points (point-to-line ICP) seeded by the clique's pose,
+    and the raw-scan agreement score used to rank hypotheses.
+
+    ``inlier_distance`` (metres): a point of B counts as agreeing with A when its nearest
+    neighbour in A (under the pose) is closer than this. ``conflict_weight``: the score of a
+    pose is the agreement minus this weight times the fraction of points that fall in the
+    other scan's observed free space (see :func:`scanclique.refine.free_space_conflicts`).
+    """
+
+    enabled: bool = True
+    iterations: int = 15
+    max_correspondence: float = 0.5
+    inlier_distance: float = 0.15
+    conflict_weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        _positive(self, "max_correspondence", "inlier_distance")
+        _nonneg(self, "conflict_weight")
+        _nonneg(self, "iterations")
+
+
+@dataclass(frozen=True, slots=True)
+class MatchConfig:
+    """The whole pipeline's configuration: one section per stage."""
+
+    clustering: ClusterConfig = field(default_factory=ClusterConfig)
+    features: FeatureConfig = field(default_factory=FeatureConfig)
+    correspondence: CorrespondenceConfig = field(default_factory=CorrespondenceConfig)
+    clique: CliqueConfig = field(default_factory=CliqueConfig)
+    pose: PoseConfig = field(default_factory=PoseConfig)
+    refine: RefineConfig = field(default_factory=RefineConfig)
+
+
+def paper_config() -> MatchConfig:
+    """The paper's exact behaviour: §4 features (no corners, untyped points), §6 tolerances,
+    unsigned invariants, maximum clique only, median pose, no refinement."""
+    return MatchConfig(
+        features=FeatureConfig(corners=False, typed_edges=False),
+        correspondence=CorrespondenceConfig(signed=False, parallel_offset=False),
+        clique=CliqueConfig(peel=0),
+        pose=PoseConfig(method="median"),
+        refine=RefineConfig(enabled=False),
+    )
+
+
+def config_to_dict(cfg) -> dict:
+    """A nested plain dict of a config (for TOML/JSON)."""
+    return dataclasses.asdict(cfg)
+
+
+def config_from_dict(data: dict, cls=MatchConfig):
+    """Build a config from a nested dict; unknown keys raise :class:`ConfigError`."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{cls.__name__}: expected a table, got {type(data).__name__}")
+    known = {f.name: f for f in fields(cls)}
+    kwargs = {}
+    for key, value in data.items():
+        if key not in known:
+            raise ConfigError(f"{cls.__name__}: unknown key {key!r} (known: {', '.join(known)})")
+        sub = known[key].default_factory if known[key].default_factory is not dataclasses.MISSING else None
+        if sub is not None and dataclasses.is_dataclass(sub):
+            kwargs[key] = config_from_dict(value, sub)
+        else:
+            kwargs[key] = value
+    try:
+        return cls(**kwargs)
+    except TypeError as exc:
+        raise ConfigError(f"{cls.__name__}: {exc}") from None

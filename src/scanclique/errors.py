@@ -1,0 +1,63 @@
+"""One exception hierarchy for everything scanclique raises on purpose.
+
+Every error a user can cause derives from :class:`ScanCliqueError`, so a caller can
+catch that one class. Messages name the file, line and field where there is one,
+and say what was expected and what was found, e.g.
+``"intel.log:1042: FLASER expects 180 ranges, found 179"``.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ScanCliqueError",
+    "ParseError",
+    "ScanError",
+    "ConfigError",
+    "DataNotFoundError",
+    "GraphError",
+]
+
+
+class ScanCliqueError(Exception):
+    """Root of every exception scanclique raises deliberately."""
+
+
+class ParseError(ScanCliqueError, ValueError):
+    """A file could not be read: names the file, the 1-based line and the field.
+
+    Parameters
+    ----------
+    path : str
+        The file (as given by the user).
+    line : int or None
+        1-based line number, None when the error concerns the file as a whole.
+    message : str
+        What was expected and what was found.
+    field : str or None
+        The field of the record that was wrong, when there is one.
+    """
+
+    def __init__(self, path: str, line: int | None, message: str, field: str | None = None):
+        self.path = str(path)
+        self.line = line
+        self.field = field
+        self.reason = message
+        where = self.path if line is None else f"{self.path}:{line}"
+        what = f"{field}: {message}" if field else message
+        super().__init__(f"{where}: {what}")
+
+
+class ScanError(ScanCliqueError, ValueError):
+    """A scan (or a pair of arrays meant as one) is inconsistent: shapes, limits, poses."""
+
+
+class ConfigError(ScanCliqueError, ValueError):
+    """A configuration value is out of range, of the wrong type, or unknown."""
+
+
+class DataNotFoundError(ScanCliqueError, FileNotFoundError):
+    """A data set or file that was asked for is not where it was looked for."""
+
+
+class GraphError(ScanCliqueError, ValueError):
+    """A graph given to the clique solver is malformed (not square, not symmetric, self loops)."""

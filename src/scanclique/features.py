@@ -1,0 +1,547 @@
+"""Clustering and feature extraction from one laser scan (paper §4; pipeline stages 2–3).
+
+Three feature kinds of the paper, plus corners:
+
+* **foreground edges** — a cluster end point nearer than the adjacent cluster's end
+  point. The far end point next to a nearer object is occluded and is *not* a feature.
+  With typed labels an edge remembers on which side its background lies
+  (:data:`EDGE_CW`: the farther neighbour is clockwise, at a smaller beam angle;
+  :data:`EDGE_CCW`: counter-clockwise).
+* **foreground points** — a small cluster nearer than both neighbours (poles, legs).
+* **lines** — recursive split of each cluster at the point farthest from its chord, then a
+  total-least-squares fit of each piece, in Hesse normal form ``x cos(alpha) + y sin(alpha)
+  = rho`` with ``rho >= 0`` (the normal points from the sensor towards the line), with end
+  points and the fit's covariance; collinear lines are merged (the paper notes that unmerged
+  collinear segments make the mapping ill-defined).
+* **corners** (beyond the paper) — the intersection of two lines fitted to adjacent pieces
+  of one cluster that meet at a large angle: a point feature as stable as the walls.
+
+All coordinates are in the sensor frame, metres and radians.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import ClusterConfig, FeatureConfig
+from .scan import Scan
+
+__all__ = [
+    "FOREGROUND_POINT",
+    "EDGE_CW",
+    "EDGE_CCW",
+    "CORNER",
+    "POINT_LABEL_NAMES",
+    "Features",
+    "cluster_scan",
+    "extract_features",
+    "fit_line_tls",
+    "split_and_merge",
+]
+
+log = logging.getLogger(__name__)
+
+FOREGROUND_POINT = 0
+EDGE_CW = 1
+EDGE_CCW = 2
+CORNER = 3
+POINT_LABEL_NAMES = {
+    FOREGROUND_POINT: "foreground_point",
+    EDGE_CW: "edge_cw",
+    EDGE_CCW: "edge_ccw",
+    CORNER: "corner",
+}
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Features:
+    """The features of one scan, in the sensor frame.
+
+    Point features (foreground points, edges, corners) and line features are kept in two
+    groups of parallel arrays.
+
+    Attributes
+    ----------
+    points_xy : ndarray, shape (P, 2)
+        Point feature positions (metres).
+    points_label : ndarray, shape (P,), int8
+        One of :data:`FOREGROUND_POINT`, :data:`EDGE_CW`, :data:`EDGE_CCW`, :data:`CORNER`.
+    points_cov : ndarray, shape (P, 2, 2)
+        Position covariance (m²).
+    points_beam : ndarray, shape (P,), int64
+        Index of the beam the point came from (for a foreground point, its middle beam).
+    lines_rho_alpha : ndarray, shape (L, 2)
+        Hesse normal form ``(rho, alpha)``: ``x cos(alpha) + y sin(alpha) = rho``, rho >= 0.
+    lines_ends : ndarray, shape (L, 2, 2)
+        Segment end points (the extreme projections of the fitted points on the line).
+    lines_cov : ndarray, shape (L, 2, 2)
+        Covariance of ``(rho, alpha)`` (m², m·rad, rad²).
+    lines_beams : ndarray, shape (L, 2), int64
+        First and last beam index of the points the line was fitted to.
+    lines_n_points : ndarray, shape (L,), int64
+        Number of scan points behind each line.
+    clusters : ndarray, shape (C, 2), int64
+        Beam index ranges ``[start, stop)`` of the clusters (valid beams only).
+    """
+
+    points_xy: np.ndarray
+    points_label: np.ndarray
+    points_cov: np.ndarray
+    points_beam: np.ndarray
+    lines_rho_alpha: np.ndarray
+    lines_ends: np.ndarray
+    lines_cov: np.ndarray
+    lines_beams: np.ndarray
+    lines_n_points: np.ndarray
+    clusters: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in self.__dataclass_fields__:
+            object.__setattr__(self, name, _ro(np.asarray(getattr(self, name))))
+
+    @property
+    def n_points(self) -> int:
+        return int(self.points_xy.shape[0])
+
+    @property
+    def n_lines(self) -> int:
+        return int(self.lines_rho_alpha.shape[0])
+
+    def __len__(self) -> int:
+        return self.n_points + self.n_lines
+
+    def counts(self) -> dict[str, int]:
+        """Number of features of each kind."""
+        out = {name: int(np.sum(self.points_label == k)) for k, name in POINT_LABEL_NAMES.items()}
+        out["line"] = self.n_lines
+        return out
+
+    def __repr__(self) -> str:
+        kinds = ", ".join(f"{k}={v}" for k, v in self.counts().items())
+        return f"Features({kinds})"
+
+
+# --------------------------------------------------------------------------------------
+# Stage 2: clustering (paper §4)
+# --------------------------------------------------------------------------------------
+def cluster_scan(scan: Scan, config: ClusterConfig | None = None) -> np.ndarray:
+    """Split a scan's valid beams into clusters (paper §4).
+
+    Consecutive valid ranges ``R_i, R_{i+1}`` join one cluster when
+    ``|R_i - R_{i+1}| < c1 + c2 * min(R_i, R_{i+1})``. Invalid returns (NaN, inf,
+    out of limits, max range) break clusters; with ``config.max_gap_beams = k > 0``, up to
+    ``k`` invalid beams between two valid ones are bridged when the rule holds across them.
+
+    Returns
+    -------
+    ndarray, shape (C, 2), int64
+        ``[start, stop)`` beam indices of each cluster, in beam order. Invalid beams inside
+        a bridged gap lie inside a range but never become points.
+
+    Examples
+    --------
+    >>> s = Scan.from_ranges([1.0, 1.01, 1.02, 3.0, 3.02, np.nan, 2.0])
+    >>> cluster_scan(s).tolist()
+    [[0, 3], [3, 5], [6, 7]]
+    """
+    cfg = config or ClusterConfig()
+    idx = np.flatnonzero(scan.valid)
+    if idx.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    r = scan.ranges[idx]
+    dr = np.abs(np.diff(r))
+    limit = cfg.c1 + cfg.c2 * np.minimum(r[:-1], r[1:])
+    join = (dr < limit) & (np.diff(idx) <= 1 + cfg.max_gap_beams)
+    breaks = np.flatnonzero(~join) + 1
+    starts = np.concatenate(([0], breaks))
+    stops = np.concatenate((breaks, [idx.size]))
+    return np.column_stack((idx[starts], idx[stops - 1] + 1)).astype(np.int64)
+
+
+# --------------------------------------------------------------------------------------
+# Lines: total least squares and recursive split (paper §4)
+# --------------------------------------------------------------------------------------
+def fit_line_tls(points: np.ndarray, sigma: float = 0.02):
+    """Total-least-squares line through ``(N, 2)`` points, in Hesse normal form.
+
+    Returns ``(rho, alpha, cov, rms, ends)``: ``x cos(alpha) + y sin(alpha) = rho`` with
+    ``rho >= 0``; ``cov`` the 2x2 covariance of ``(rho, alpha)`` for isotropic point noise
+    ``sigma`` (metres); ``rms`` the RMS orthogonal residual; ``ends`` (2, 2) the extreme
+    projections of the points on the line, in point order.
+
+    The normal is the eigenvector of the scatter matrix with the smallest eigenvalue.
+    Writing ``u_i`` for the along-line coordinate of point i about the centroid and ``m``
+    for the centroid's along-line coordinate from the foot of the normal,
+    ``var(alpha) = sigma² / sum(u²)``, ``var(rho) = sigma²/N + m² var(alpha)``,
+    ``cov(rho, alpha) = m var(alpha)``.
+
+    Examples
+    --------
+    >>> pts = np.column_stack((np.full(5, 2.0), np.linspace(-1, 1, 5)))
+    >>> rho, alpha, cov, rms, ends = fit_line_tls(pts)
+    >>> round(rho, 6), round(alpha, 6), round(rms, 6)
+    (2.0, 0.0, 0.0)
+    """
+    p = np.asarray(points, dtype=float)
+    c = p.mean(axis=0)
+    q = p - c
+    s = q.T @ q
+    # smallest-eigenvalue eigenvector of the 2x2 scatter: the normal
+    w, v = np.linalg.eigh(s)
+    n = v[:, 0]
+    rho = float(n @ c)
+    if rho < 0:
+        n, rho = -n, -rho
+    alpha = math.atan2(n[1], n[0])
+    t = np.array([-n[1], n[0]])
+    u = q @ t
+    resid = q @ n
+    rms = float(np.sqrt(np.mean(resid**2)))
+    suu = float(u @ u)
+    var_alpha = sigma**2 / max(suu, 1e-12)
+    m = float(c @ t)
+    cov = np.array(
+        [[sigma**2 / len(p) + m * m * var_alpha, m * var_alpha], [m * var_alpha, var_alpha]]
+    )
+    foot = rho * n
+    ends = np.array([foot + (m + u[0]) * t, foot + (m + u[-1]) * t])
+    return rho, alpha, cov, rms, ends
+
+
+def split_and_merge(points: np.ndarray, ranges: np.ndarray, cfg: FeatureConfig) -> list[tuple[int, int]]:
+    """Recursive split of one cluster's ordered points (paper §4).
+
+    The chord joins the first and last point; the cluster is split at the point farthest
+    from it while that distance exceeds ``cfg.split_distance + cfg.split_ratio * range``.
+
+    Returns the ``[start, stop)`` index ranges of the pieces, in order (adjacent pieces
+    share their split point).
+    """
+    out: list[tuple[int, int]] = []
+    stack = [(0, len(points))]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 3:
+            out.append((a, b))
+            continue
+        p0, p1 = points[a], points[b - 1]
+        d = p1 - p0
+        norm = math.hypot(d[0], d[1])
+        seg = points[a:b] - p0
+        if norm < 1e-9:
+            dist = np.hypot(seg[:, 0], seg[:, 1])
+        else:
+            dist = np.abs(seg[:, 0] * d[1] - seg[:, 1] * d[0]) / norm
+        k = int(np.argmax(dist))
+        if dist[k] > cfg.split_distance + cfg.split_ratio * ranges[a + k] and 0 < k < b - a - 1:
+            # the split point belongs to both halves; push right first so left pops first
+            stack.append((a + k, b))
+            stack.append((a, a + k + 1))
+        else:
+            out.append((a, b))
+    out.sort()
+    return out
+
+
+def _line_record(pts: np.ndarray, beams: np.ndarray, cfg: FeatureConfig):
+    rho, alpha, cov, rms, ends = fit_line_tls(pts, cfg.range_sigma)
+    return {
+        "rho": rho,
+        "alpha": alpha,
+        "cov": cov,
+        "rms": rms,
+        "ends": ends,
+        "pts": pts,
+        "beams": beams,
+    }
+
+
+def _accept_line(rec, cfg: FeatureConfig) -> bool:
+    length = float(np.linalg.norm(rec["ends"][1] - rec["ends"][0]))
+    return (
+        len(rec["pts"]) >= cfg.line_min_points
+        and length >= cfg.line_min_length
+        and rec["rms"] <= cfg.line_max_rms
+    )
+
+
+def _merge_collinear(lines: list[dict], cfg: FeatureConfig) -> list[dict]:
+    """Merge lines whose normals agree within ``merge_angle`` and whose offsets agree within
+    ``merge_distance``, refitting on the union of their points (greedy, repeated until no
+    pair merges). The merged fit must still pass the RMS test."""
+    lines = list(lines)
+    merged = True
+    while merged and len(lines) > 1:
+        merged = False
+        for i in range(len(lines)):
+            for j in range(i + 1, len(lines)):
+                a, b = lines[i], lines[j]
+                dalpha = abs((a["alpha"] - b["alpha"] + math.pi) % (2 * math.pi) - math.pi)
+                if dalpha > cfg.merge_angle:
+                    continue
+                # offsets of each segment's points from the other line
+                na = np.array([math.cos(a["alpha"]), math.sin(a["alpha"])])
+                nb = np.array([math.cos(b["alpha"]), math.sin(b["alpha"])])
+                da = np.abs(b["ends"] @ na - a["rho"]).max()
+                db = np.abs(a["ends"] @ nb - b["rho"]).max()
+                if max(da, db) > cfg.merge_distance:
+                    continue
+                order = np.argsort(np.concatenate((a["beams"], b["beams"])), kind="stable")
+                pts = np.concatenate((a["pts"], b["pts"]))[order]
+                beams = np.concatenate((a["beams"], b["beams"]))[order]
+                rec = _line_record(pts, beams, cfg)
+                if rec["rms"] > cfg.line_max_rms:
+                    continue
+                lines[i] = rec
+                del lines[j]
+                merged = True
+                break
+            if merged:
+                break
+    return lines
+
+
+def _corners(lines: list[dict], scan: Scan, cfg: FeatureConfig):
+    """Corners: intersections of two lines that meet at ``corner_min_angle`` or more and
+    whose segments both end within ``corner_reach`` of the intersection. The point is the
+    intersection of the two fitted (infinite) lines, so it stays put when the corner
+    itself is hidden; its covariance propagates both lines' (rho, alpha) covariances."""
+    out = []
+    for i in range(len(lines)):
+        for j in range(i + 1, len(lines)):
+            r1, r2 = lines[i], lines[j]
+            d = abs((r1["alpha"] - r2["alpha"] + math.pi) % (2 * math.pi) - math.pi)
+            if min(d, math.pi - d) < cfg.corner_min_angle:
+                continue
+            n1 = np.array([math.cos(r1["alpha"]), math.sin(r1["alpha"])])
+            n2 = np.array([math.cos(r2["alpha"]), math.sin(r2["alpha"])])
+            m = np.vstack((n1, n2))
+            corner = np.linalg.solve(m, np.array([r1["rho"], r2["rho"]]))
+            reach1 = np.linalg.norm(r1["ends"] - corner, axis=1).min()
+            reach2 = np.linalg.norm(r2["ends"] - corner, axis=1).min()
+            if max(reach1, reach2) > cfg.corner_reach:
+                continue
+            # corner = M^-1 rho; d corner / d alpha_k = -M^-1 (e_k t_k . corner)
+            minv = np.linalg.inv(m)
+            t1 = np.array([-n1[1], n1[0]])
+            t2 = np.array([-n2[1], n2[0]])
+            jac = np.zeros((2, 4))
+            jac[:, 0] = minv[:, 0]
+            jac[:, 2] = minv[:, 1]
+            jac[:, 1] = -minv[:, 0] * (t1 @ corner)
+            jac[:, 3] = -minv[:, 1] * (t2 @ corner)
+            big = np.zeros((4, 4))
+            big[:2, :2], big[2:, 2:] = r1["cov"], r2["cov"]
+            cov = jac @ big @ jac.T + np.eye(2) * cfg.range_sigma**2
+            phi = math.atan2(corner[1], corner[0])
+            beam = int(np.argmin(np.abs(scan.angles - phi)))
+            out.append((corner, beam, cov))
+    return out
+
+
+def _chains(scan: Scan, xy: np.ndarray, cfg: FeatureConfig) -> list[np.ndarray]:
+    """Runs of consecutive valid beams whose points are closer than
+    ``cfg.line_max_gap + cfg.line_gap_ratio * range`` to their predecessor."""
+    idx = np.flatnonzero(scan.valid)
+    if idx.size == 0:
+        return []
+    p = xy[idx]
+    gap = np.hypot(*(np.diff(p, axis=0).T))
+    r = scan.ranges[idx]
+    join = gap < cfg.line_max_gap + cfg.line_gap_ratio * np.minimum(r[:-1], r[1:])
+    return np.split(idx, np.flatnonzero(~join) + 1)
+
+
+# --------------------------------------------------------------------------------------
+# Stage 3: features (paper §4)
+# --------------------------------------------------------------------------------------
+def _point_cov(r: float, a: float, cfg: FeatureConfig, beam_width: float) -> np.ndarray:
+    """Covariance of a point at range r, bearing a: range noise along the beam, half a beam
+    width of bearing uncertainty across it (an edge is only known to the beam)."""
+    u = np.array([math.cos(a), math.sin(a)])
+    v = np.array([-u[1], u[0]])
+    s_across = max(r * beam_width / 2.0, cfg.range_sigma)
+    return cfg.range_sigma**2 * np.outer(u, u) + s_across**2 * np.outer(v, v)
+
+
+def _continues(points_xy: np.ndarray, start: int, stop: int, at_end: bool, far: np.ndarray) -> bool:
+    """True when ``far`` lies on the continuation of the cluster's surface near one end:
+    the gap is a wall seen at grazing incidence, not an occlusion."""
+    k = min(5, stop - start)
+    if k < 2:
+        return False
+    seg = points_xy[stop - k : stop] if at_end else points_xy[start : start + k]
+    d = seg[-1] - seg[0]
+    norm = math.hypot(d[0], d[1])
+    if norm < 1e-6:
+        return False
+    end = seg[-1] if at_end else seg[0]
+    w = far - end
+    dist = math.hypot(w[0], w[1])
+    perp = abs(w[0] * d[1] - w[1] * d[0]) / norm
+    return perp < 0.05 + 0.1 * dist
+
+
+def extract_features(
+    scan: Scan,
+    config: FeatureConfig | None = None,
+    cluster_config: ClusterConfig | None = None,
+) -> Features:
+    """Extract foreground edges, foreground points, lines and corners from a scan (paper §4).
+
+    Parameters
+    ----------
+    scan : Scan
+        The observation; only its valid beams are used.
+    config, cluster_config : FeatureConfig, ClusterConfig, optional
+        Defaults are the paper's where it gives one.
+
+    Returns
+    -------
+    Features
+        Possibly empty (a scan with no valid returns has no features; that is not an error).
+
+    Examples
+    --------
+    A wall 2 m ahead with a pole in front of it:
+
+    >>> ang = np.radians(np.arange(-90, 91, 1.0))
+    >>> r = 2.0 / np.cos(np.clip(ang, -1.2, 1.2))
+    >>> r[88:92] = 1.0
+    >>> f = extract_features(Scan(r, ang))
+    >>> f.counts()["foreground_point"], f.n_lines >= 1
+    (1, True)
+    """
+    cfg = config or FeatureConfig()
+    clusters = cluster_scan(scan, cluster_config)
+    xy = scan.xy()
+    r_all = scan.ranges
+    valid = scan.valid
+    n_beams = scan.n_beams
+    beam_width = float(np.median(np.diff(scan.angles))) if n_beams > 1 else 0.0
+    no_return = ~valid & np.isfinite(r_all) & (r_all >= scan.range_max)
+
+    pts, labels, covs, pbeams = [], [], [], []
+
+    def add_point(p, label, beam, cov):
+        pts.append(np.asarray(p, dtype=float))
+        labels.append(label)
+        pbeams.append(int(beam))
+        covs.append(cov)
+
+    # -- lines (paper §4), fitted on chains looser than the clusters ---------------------
+    # A wall seen at grazing incidence breaks into single points under the clustering
+    # rule; lines only need collinearity, which the split and the fit test, so they are
+    # fitted on chains of consecutive valid points closer than line_max_gap + ratio * r.
+    lines: list[dict] = []
+    interior = np.zeros(n_beams, dtype=bool)  # beams strictly inside a fitted piece
+    if cfg.lines or cfg.corners:
+        for beams in _chains(scan, xy, cfg):
+            if beams.size < cfg.line_min_points:
+                continue
+            cpts = xy[beams]
+            for a, b in split_and_merge(cpts, r_all[beams], cfg):
+                if b - a < 2:
+                    continue
+                rec = _line_record(cpts[a:b], beams[a:b], cfg)
+                if _accept_line(rec, cfg):
+                    lines.append(rec)
+                    interior[beams[a + 1 : b - 1]] = True
+        lines = _merge_collinear(lines, cfg)
+
+    # -- foreground edges and points --------------------------------------------------
+    def neighbour_range(beam: int, step: int) -> float | None:
+        """Range on the far side of a cluster end: the next valid beam (or a run of
+        no-returns, which counts as infinitely far). None when unknown (scan border, or
+        an invalid return that is not a no-return)."""
+        j = beam + step
+        while 0 <= j < n_beams:
+            if valid[j]:
+                return float(r_all[j])
+            if not no_return[j]:
+                return None
+            # a no-return: the background is beyond the sensor's reach
+            return math.inf
+        return None
+
+    for start, stop in clusters:
+        if int(np.count_nonzero(valid[start:stop])) < cfg.min_cluster_beams:
+            continue
+        first, last = int(start), int(stop) - 1
+        r_first, r_last = float(r_all[first]), float(r_all[last])
+        left = neighbour_range(first, -1)  # clockwise neighbour (smaller angle)
+        right = neighbour_range(last, +1)  # counter-clockwise neighbour
+        near_cw = left is not None and left - r_first >= cfg.min_edge_jump
+        near_ccw = right is not None and right - r_last >= cfg.min_edge_jump
+        # grazing-incidence walls break into clusters whose "edges" are not occlusions:
+        # the far neighbour continues the surface, or the end lies inside a fitted line
+        near_cw = near_cw and not interior[first]
+        near_ccw = near_ccw and not interior[last]
+        if near_cw and math.isfinite(left) and _continues(xy, first, stop, False, xy[first - 1]):
+            near_cw = False
+        if near_ccw and math.isfinite(right) and _continues(xy, first, stop, True, xy[last + 1]):
+            near_ccw = False
+        extent = float(np.linalg.norm(xy[last] - xy[first]))
+        if near_cw and near_ccw and extent <= cfg.point_max_extent:
+            if cfg.foreground_points:
+                mid = (first + last) // 2
+                centre = np.nanmean(xy[first : last + 1], axis=0)
+                rng = float(np.hypot(*centre))
+                cov = _point_cov(rng, math.atan2(centre[1], centre[0]), cfg, beam_width)
+                add_point(centre, FOREGROUND_POINT, mid, cov + np.eye(2) * (extent / 4) ** 2)
+            continue
+        if cfg.foreground_edges and stop - start >= 2:
+            if near_cw:
+                a = scan.angles[first]
+                add_point(xy[first], EDGE_CW, first, _point_cov(r_first, a, cfg, beam_width))
+            if near_ccw:
+                a = scan.angles[last]
+                add_point(xy[last], EDGE_CCW, last, _point_cov(r_last, a, cfg, beam_width))
+
+    if cfg.crowd_radius > 0 and pts:
+        is_fp = np.array(labels) == FOREGROUND_POINT
+        if is_fp.sum() > 1:
+            fp = np.array(pts)[is_fp]
+            d = np.linalg.norm(fp[:, None] - fp[None, :], axis=2)
+            np.fill_diagonal(d, np.inf)
+            crowded = np.zeros(len(pts), dtype=bool)
+            crowded[np.flatnonzero(is_fp)] = d.min(axis=1) < cfg.crowd_radius
+            keep = np.flatnonzero(~crowded)
+            pts = [pts[i] for i in keep]
+            labels = [labels[i] for i in keep]
+            covs = [covs[i] for i in keep]
+            pbeams = [pbeams[i] for i in keep]
+
+    # -- corners (beyond the paper) ------------------------------------------------------
+    if cfg.corners:
+        for corner, beam, cov in _corners(lines, scan, cfg):
+            add_point(corner, CORNER, beam, cov)
+    if not cfg.lines:
+        lines = []
+
+    P = len(pts)
+    L = len(lines)
+    return Features(
+        points_xy=np.array(pts, dtype=float).reshape(P, 2),
+        points_label=np.array(labels, dtype=np.int8).reshape(P),
+        points_cov=np.array(covs, dtype=float).reshape(P, 2, 2),
+        points_beam=np.array(pbeams, dtype=np.int64).reshape(P),
+        lines_rho_alpha=np.array([[ln["rho"], ln["alpha"]] for ln in lines], dtype=float).reshape(L, 2),
+        lines_ends=np.array([ln["ends"] for ln in lines], dtype=float).reshape(L, 2, 2),
+        lines_cov=np.array([ln["cov"] for ln in lines], dtype=float).reshape(L, 2, 2),
+        lines_beams=np.array(
+            [[ln["beams"].min(), ln["beams"].max()] for ln in lines], dtype=np.int64
+        ).reshape(L, 2),
+        lines_n_points=np.array([len(ln["pts"]) for ln in lines], dtype=np.int64).reshape(L),
+        clusters=clusters,
+    )

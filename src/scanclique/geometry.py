@@ -1,0 +1,153 @@
+"""Rigid motions of the plane: the :class:`Pose2` value type and angle helpers.
+
+A ``Pose2`` ``T_a_b`` (read "pose of frame b in frame a") maps points expressed in
+frame b into frame a::
+
+    p_a = R(theta) @ p_b + (x, y)
+
+Composition follows the same convention: ``T_a_c = T_a_b @ T_b_c``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ScanError
+
+__all__ = ["Pose2", "wrap_angle", "rotation_matrix"]
+
+
+def wrap_angle(angle):
+    """Wrap angles (radians, scalar or array) into [-pi, pi).
+
+    >>> float(wrap_angle(3 * np.pi / 2))
+    -1.5707963267948966
+    """
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def rotation_matrix(theta: float) -> np.ndarray:
+    """The 2x2 rotation matrix R(theta), counter-clockwise, radians."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+@dataclass(frozen=True, slots=True)
+class Pose2:
+    """A rigid motion of the plane, ``p_a = R(theta) p_b + (x, y)``.
+
+    Build it through the named constructors (:meth:`from_xytheta`, :meth:`from_matrix`,
+    :meth:`identity`); read it through :meth:`as_matrix`, :meth:`as_array` or the
+    attributes. ``theta`` is kept wrapped to [-pi, pi).
+
+    Attributes
+    ----------
+    x, y : float
+        Translation, metres: the origin of frame b expressed in frame a.
+    theta : float
+        Rotation, radians: the heading of frame b's x axis in frame a.
+
+    Examples
+    --------
+    >>> T_a_b = Pose2.from_xytheta(1.0, 0.0, np.pi / 2)
+    >>> T_a_b.transform(np.array([[1.0, 0.0]])).round(12)
+    array([[1., 1.]])
+    >>> (T_a_b @ T_a_b.inverse()).as_array().round(12)
+    array([0., 0., 0.])
+    """
+
+    x: float
+    y: float
+    theta: float
+
+    def __post_init__(self) -> None:
+        vals = (self.x, self.y, self.theta)
+        if not all(math.isfinite(float(v)) for v in vals):
+            raise ScanError(f"Pose2 needs finite x, y, theta; got {vals}")
+        object.__setattr__(self, "x", float(self.x))
+        object.__setattr__(self, "y", float(self.y))
+        object.__setattr__(self, "theta", float(wrap_angle(float(self.theta))))
+
+    # -- constructors ---------------------------------------------------------------
+    @classmethod
+    def from_xytheta(cls, x: float, y: float, theta: float) -> Pose2:
+        """Pose from translation (metres) and rotation (radians)."""
+        return cls(x, y, theta)
+
+    @classmethod
+    def from_array(cls, xytheta) -> Pose2:
+        """Pose from a length-3 array ``(x, y, theta)``."""
+        a = np.asarray(xytheta, dtype=float).reshape(-1)
+        if a.shape != (3,):
+            raise ScanError(f"Pose2.from_array expects 3 values, got shape {np.shape(xytheta)}")
+        return cls(a[0], a[1], a[2])
+
+    @classmethod
+    def from_matrix(cls, matrix) -> Pose2:
+        """Pose from a 3x3 homogeneous matrix (the rotation block is re-orthonormalised)."""
+        m = np.asarray(matrix, dtype=float)
+        if m.shape != (3, 3):
+            raise ScanError(f"Pose2.from_matrix expects a 3x3 matrix, got {m.shape}")
+        return cls(m[0, 2], m[1, 2], math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1]))
+
+    @classmethod
+    def identity(cls) -> Pose2:
+        """The identity motion."""
+        return cls(0.0, 0.0, 0.0)
+
+    # -- converters -----------------------------------------------------------------
+    def as_array(self) -> np.ndarray:
+        """``(x, y, theta)`` as a float64 array."""
+        return np.array([self.x, self.y, self.theta])
+
+    def as_matrix(self) -> np.ndarray:
+        """The 3x3 homogeneous matrix mapping b-frame points into frame a."""
+        m = np.eye(3)
+        m[:2, :2] = rotation_matrix(self.theta)
+        m[0, 2], m[1, 2] = self.x, self.y
+        return m
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """R(theta), 2x2."""
+        return rotation_matrix(self.theta)
+
+    @property
+    def translation(self) -> np.ndarray:
+        """(x, y), shape (2,)."""
+        return np.array([self.x, self.y])
+
+    # -- algebra --------------------------------------------------------------------
+    def inverse(self) -> Pose2:
+        """``T_b_a`` from ``T_a_b``: maps frame-a points into frame b."""
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return Pose2(-(c * self.x + s * self.y), s * self.x - c * self.y, -self.theta)
+
+    def __matmul__(self, other: Pose2) -> Pose2:
+        """Composition ``T_a_c = T_a_b @ T_b_c``."""
+        if not isinstance(other, Pose2):
+            return NotImplemented
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return Pose2(
+            self.x + c * other.x - s * other.y,
+            self.y + s * other.x + c * other.y,
+            self.theta + other.theta,
+        )
+
+    def transform(self, points_b) -> np.ndarray:
+        """Map ``(N, 2)`` points from frame b into frame a."""
+        p = np.asarray(points_b, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 2:
+            raise ScanError(f"transform expects (N, 2) points, got shape {p.shape}")
+        return p @ self.rotation.T + self.translation
+
+    def distance_to(self, other: Pose2) -> tuple[float, float]:
+        """``(translation error in metres, |rotation error| in radians)`` between two poses."""
+        d = self.inverse() @ other
+        return math.hypot(d.x, d.y), abs(d.theta)
+
+    def __repr__(self) -> str:
+        return f"Pose2(x={self.x:.4f}, y={self.y:.4f}, theta={self.theta:.4f})"

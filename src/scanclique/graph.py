@@ -1,0 +1,181 @@
+"""Feature graphs (paper §5.1; pipeline stage 4).
+
+Each feature is a typed node; every pair of nodes carries invariant edge labels, values
+that a rigid motion of the sensor does not change. The paper's relations:
+
+==============  =====================================  ==================================
+node types      paper (unsigned)                       default (signed, not mirror-blind)
+==============  =====================================  ==================================
+point–point     distance                               distance
+point–line      perpendicular distance                 signed distance, the line's normal
+                                                       pointing from the sensor to the line
+line–line       acute angle magnitude                  signed angle between the oriented
+                                                       normals, in [-pi, pi)
+line–line (‖)   —                                      signed offset between (anti)parallel
+                                                       lines (``parallel_offset``)
+==============  =====================================  ==================================
+
+A graph is stored as *layers*: ``invariants[k, i, j]`` is the value of relation k
+between nodes i and j (NaN where relation k does not apply to that type pair),
+``tolerances[k, i, j]`` its matching tolerance, and ``circular[k]`` says whether layer k
+is an angle compared modulo 2π. The correspondence stage only reads these arrays, so a new
+feature type (3D points and planes, radar reflectors) adds its layers here without
+touching the matcher.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import CorrespondenceConfig, FeatureConfig
+from .features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
+
+__all__ = ["LINE", "NODE_KIND_NAMES", "FeatureGraph", "feature_graph"]
+
+LINE = 8  #: node label of line features (point labels are 0..3, see :mod:`.features`)
+NODE_KIND_NAMES = {
+    FOREGROUND_POINT: "foreground_point",
+    EDGE_CW: "edge_cw",
+    EDGE_CCW: "edge_ccw",
+    CORNER: "corner",
+    LINE: "line",
+}
+_PARALLEL_SIN = np.sin(0.15)  # lines within ~8.6 degrees of (anti)parallel get an offset
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class FeatureGraph:
+    """A complete graph over the features of one scan, with invariant edge labels.
+
+    Nodes are ordered points first (the ``P`` point features), then the ``L`` lines.
+
+    Attributes
+    ----------
+    labels : ndarray, shape (N,), int64
+        Node labels; only same-label nodes may correspond.
+    kinds : ndarray, shape (N,), int64
+        The feature kind of each node (a key of :data:`NODE_KIND_NAMES`), kept even when
+        ``labels`` lumps kinds together (the paper's untyped points).
+    invariants : ndarray, shape (K, N, N)
+        Layered relation values, symmetric in (i, j) up to sign for angles; NaN = n/a.
+    tolerances : ndarray, shape (K, N, N)
+        Matching tolerance of each relation.
+    circular : ndarray, shape (K,), bool
+        Layers that are angles compared modulo 2π.
+    n_points : int
+        Number of point nodes (the first ``n_points`` nodes).
+    """
+
+    labels: np.ndarray
+    kinds: np.ndarray
+    invariants: np.ndarray
+    tolerances: np.ndarray
+    circular: np.ndarray
+    n_points: int
+
+    def __post_init__(self) -> None:
+        for name in ("labels", "kinds", "invariants", "tolerances", "circular"):
+            a = np.ascontiguousarray(getattr(self, name))
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.labels.size)
+
+
+def _line_normals(alpha: np.ndarray) -> np.ndarray:
+    return np.column_stack((np.cos(alpha), np.sin(alpha)))
+
+
+def feature_graph(
+    features: Features,
+    config: CorrespondenceConfig | None = None,
+    feature_config: FeatureConfig | None = None,
+) -> FeatureGraph:
+    """Build the invariant-labelled complete graph of one scan's features (paper §5.1).
+
+    Parameters
+    ----------
+    features : Features
+        The scan's features.
+    config : CorrespondenceConfig, optional
+        Tolerances, and ``signed`` / ``parallel_offset`` choices of invariants.
+    feature_config : FeatureConfig, optional
+        ``typed_edges=False`` lumps all point kinds into one label, as in the paper.
+
+    Returns
+    -------
+    FeatureGraph
+        Three layers: 0 distances (point–point, point–line), 1 line–line angle,
+        2 line–line parallel offset.
+
+    Examples
+    --------
+    >>> from scanclique.features import Features
+    >>> f = Features(np.array([[0.0, 1.0], [3.0, 5.0]]), np.array([0, 0], np.int8),
+    ...              np.zeros((2, 2, 2)), np.array([0, 1]), np.zeros((0, 2)),
+    ...              np.zeros((0, 2, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2), int),
+    ...              np.zeros(0, int), np.zeros((0, 2), int))
+    >>> float(feature_graph(f).invariants[0, 0, 1])
+    5.0
+    """
+    cfg = config or CorrespondenceConfig()
+    fcfg = feature_config or FeatureConfig()
+    P, L = features.n_points, features.n_lines
+    N = P + L
+    kinds = np.concatenate((features.points_label.astype(np.int64), np.full(L, LINE, np.int64)))
+    labels = kinds.copy() if fcfg.typed_edges else np.where(kinds == LINE, LINE, 0)
+
+    inv = np.full((3, N, N), np.nan)
+    tol = np.zeros((3, N, N))
+    xy = features.points_xy
+    rho = features.lines_rho_alpha[:, 0]
+    alpha = features.lines_rho_alpha[:, 1]
+    nrm = _line_normals(alpha)
+
+    # layer 0: point–point distance
+    if P:
+        d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
+        inv[0, :P, :P] = d
+        tol[0, :P, :P] = cfg.point_point
+    # layer 0: point–line (signed) perpendicular distance, normal from sensor to line
+    if P and L:
+        s = xy @ nrm.T - rho[None, :]  # (P, L); negative: the point is on the sensor's side
+        if not cfg.signed:
+            s = np.abs(s)
+        inv[0, :P, P:] = s
+        inv[0, P:, :P] = s.T
+        tol[0, :P, P:] = cfg.point_line
+        tol[0, P:, :P] = cfg.point_line
+    if L:
+        da = alpha[None, :] - alpha[:, None]  # angle from line i's normal to line j's
+        if cfg.signed:
+            ang = (da + np.pi) % (2 * np.pi) - np.pi
+        else:
+            a = np.abs(da) % np.pi
+            ang = np.minimum(a, np.pi - a)  # acute angle magnitude in [0, pi/2]
+        inv[1, P:, P:] = ang
+        tol[1, P:, P:] = cfg.line_line
+        if cfg.parallel_offset:
+            cosd = np.cos(da)
+            par = np.abs(np.sin(da)) < _PARALLEL_SIN
+            # parallel: rho_j - rho_i is invariant; antiparallel: rho_j + rho_i
+            off = np.where(cosd > 0, rho[None, :] - rho[:, None], rho[None, :] + rho[:, None])
+            if not cfg.signed:
+                off = np.abs(off)
+            off = np.where(par, off, np.nan)
+            inv[2, P:, P:] = off
+            tol[2, P:, P:] = cfg.point_line
+        idx = np.arange(P, N)
+        inv[:, idx, idx] = np.nan
+    return FeatureGraph(
+        labels=labels,
+        kinds=kinds,
+        invariants=inv,
+        tolerances=tol,
+        circular=np.array([False, cfg.signed, False]),
+        n_points=P,
+    )

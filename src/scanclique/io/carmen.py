@@ -1,0 +1,585 @@
+"""Reader for CARMEN log files (plain or gzip): laser messages become :class:`Scan` records.
+
+Messages read (one per line, fields separated by white space)::
+
+    FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp
+    RLASER (same layout as FLASER)
+    ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode
+        n r_1 .. r_n m rem_1 .. rem_m laser_x laser_y laser_theta robot_x robot_y robot_theta
+        tv rv forward_safety side_safety turn_axis timestamp hostname logger_timestamp
+    RAWLASER1 .. RAWLASER4 laser_type start_angle fov angular_res max_range accuracy
+        remission_mode n r_1 .. r_n m rem_1 .. rem_m timestamp hostname logger_timestamp
+    ODOM x y theta tv rv accel timestamp hostname logger_timestamp
+    PARAM name value ipc_timestamp hostname logger_timestamp
+
+Lines starting with ``#`` are comments, blank lines are ignored, and any other message
+type (``SYNC``, ``TRUEPOS``, ``NEFF``, ...) is skipped and counted in
+:attr:`CarmenLog.skipped` under ``"unknown:<TYPE>"`` (logged at debug level).
+
+Conventions
+-----------
+* **One scan per laser message, in file order.** ``Scan.source`` is ``"<file>:<line>"``.
+* **FLASER / RLASER beams**: ``n`` beams starting at ``-pi/2`` (the sensor's right), spaced
+  ``pi / (2 * (n // 2))`` counter-clockwise: 180 and 181 beams are 1 degree apart, 360 and
+  361 beams 0.5 degree (:func:`flaser_angles`). RLASER scans are kept in their own sensor
+  frame with the same angles (no ``pi`` is added: the rear laser's mounting is for the
+  caller to apply). ``x y theta`` becomes ``Scan.reference`` and ``odom_x odom_y odom_theta``
+  ``Scan.odometry``; the timestamp is ``ipc_timestamp``.
+* **No-return readings.** FLASER/RLASER carry no maximum range, so ``Scan.range_max`` is
+  the reader's ``max_range`` (default :data:`FLASER_MAX_RANGE` = 80 m): readings at or
+  beyond it are masked as invalid (they are kept as logged). The shared logs mark no return
+  with 81.83 (Intel) and 81.91 (CSAIL, Freiburg 079), while their largest genuine readings
+  are about 25.4, 35.1 and 36.6 m, so 80 m separates the two in all three; a SICK LMS
+  cannot measure beyond about 80 m anyway. Pass a smaller ``max_range`` for logs that mark
+  no return with a smaller value (some use 50): a reading exactly equal to ``max_range`` is
+  invalid.
+* **ROBOTLASER1**: angles ``start_angle + i * angular_res``; ``Scan.range_max`` is the
+  message's ``max_range`` (the reader's ``max_range`` when that is not positive).
+  ``Scan.odometry`` is the *laser* pose ``laser_x laser_y laser_theta`` (the pose of the
+  sensor, which is what a Scan's poses describe; the robot pose differs by the mounting
+  offset) and ``Scan.reference`` is None: the message does not say whether its poses are
+  raw odometry or corrected, so nothing is claimed as reference.
+* **RAWLASER1..4** carry no pose: ``Scan.odometry`` is interpolated from the log's ODOM
+  messages at the scan's timestamp (linear in x and y, along the shorter arc in theta);
+  None outside the time span of the ODOM messages. ``Scan.reference`` is None.
+* **PARAM** values are recorded as strings in :attr:`CarmenLog.params` (a later value of
+  the same name replaces an earlier one); they do not change how scans are read.
+* An empty file (or one with only comments) gives no scans.
+
+Errors
+------
+A malformed line raises :class:`~scanclique.errors.ParseError` naming the file, the 1-based
+line and the field, with what was expected and what was found, e.g.
+``intel.log:1042: FLASER expects 180 ranges, found 179`` or
+``intel.log:7: range[17]: FLASER expects a number, found 'abc'``. NaN and inf *ranges* are
+not errors (they are kept and masked by :class:`~scanclique.scan.Scan`); non-finite poses and
+timestamps are. Counts above ``max_beams`` are errors (a corrupt count would otherwise
+allocate absurdly). Binary data, undecodable bytes and truncated gzip files raise
+``ParseError`` too (see :func:`scanclique.io.text.read_lines`). With ``strict=False``
+malformed or undecodable lines are skipped, counted in :attr:`CarmenLog.skipped` under
+``"malformed:<TYPE>"`` / ``"undecodable"`` (a truncated gzip under ``"truncated gzip"``,
+keeping the part that could be read) and logged at warning level.
+
+Examples
+--------
+>>> import tempfile, pathlib
+>>> path = pathlib.Path(tempfile.mkdtemp()) / "tiny.log"
+>>> _ = path.write_text(
+...     "# a comment\\n"
+...     "PARAM robot_front_laser_max 81.9 0.0 host 0.0\\n"
+...     "FLASER 4 1.0 2.0 81.91 3.0 0.5 0.0 0.1 0.4 0.0 0.1 12.5 host 12.5\\n"
+...     "SYNC whatever\\n"
+... )
+>>> log = read_carmen(path)
+>>> scan = log.scans[0]
+>>> scan.n_beams, scan.n_valid, scan.timestamp, scan.source
+(4, 3, 12.5, 'tiny.log:3')
+>>> np.degrees(scan.angles).round(6).tolist()
+[-90.0, -45.0, 0.0, 45.0]
+>>> scan.reference, scan.odometry
+(Pose2(x=0.5000, y=0.0000, theta=0.1000), Pose2(x=0.4000, y=0.0000, theta=0.1000))
+>>> dict(log.params), dict(log.skipped)
+({'robot_front_laser_max': '81.9'}, {'unknown:SYNC': 1})
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numpy as np
+
+from ..errors import ConfigError, ParseError, ScanError
+from ..geometry import Pose2, wrap_angle
+from ..scan import Scan, beam_angles
+from .text import TextLines, parse_count, parse_float_fields, read_lines
+
+__all__ = [
+    "FLASER_MAX_RANGE",
+    "DEFAULT_MAX_BEAMS",
+    "LASER_MESSAGES",
+    "KNOWN_MESSAGES",
+    "CarmenLog",
+    "flaser_angles",
+    "interpolate_odometry",
+    "parse_carmen",
+    "read_carmen",
+]
+
+logger = logging.getLogger(__name__)
+
+FLASER_MAX_RANGE = 80.0
+"""Default ``Scan.range_max`` (metres) for messages without a maximum range (FLASER, RLASER)."""
+
+DEFAULT_MAX_BEAMS = 100_000
+"""Largest accepted beam (or remission) count in one message."""
+
+LASER_MESSAGES = frozenset(
+    {"FLASER", "RLASER", "ROBOTLASER1", "RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4"}
+)
+"""CARMEN message types that become scans."""
+
+KNOWN_MESSAGES = LASER_MESSAGES | {"ODOM", "PARAM"}
+"""CARMEN message types this reader interprets (others are skipped and counted)."""
+
+_MAX_WARNINGS = 10  # malformed lines logged one by one; the rest are summarised
+
+_FLASER_TAIL = ("x", "y", "theta", "odom_x", "odom_y", "odom_theta", "ipc_timestamp")
+_LASER_HEADER = (
+    "laser_type",
+    "start_angle",
+    "fov",
+    "angular_res",
+    "max_range",
+    "accuracy",
+    "remission_mode",
+)
+_ROBOTLASER_TAIL = (
+    "laser_x",
+    "laser_y",
+    "laser_theta",
+    "robot_x",
+    "robot_y",
+    "robot_theta",
+    "tv",
+    "rv",
+    "forward_safety",
+    "side_safety",
+    "turn_axis",
+    "timestamp",
+)
+_ODOM_FIELDS = ("x", "y", "theta", "tv", "rv", "accel", "timestamp")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CarmenLog:
+    """Everything :func:`read_carmen` got from a CARMEN log.
+
+    Attributes
+    ----------
+    path : str
+        The file, as given.
+    scans : tuple of Scan
+        One per laser message, in file order.
+    message_types : tuple of str
+        The message type of each scan (``"FLASER"``, ``"RLASER"``, ``"ROBOTLASER1"``, ...),
+        parallel to :attr:`scans`.
+    params : Mapping[str, str]
+        PARAM name -> value (as logged, a string).
+    skipped : Mapping[str, int]
+        Lines not turned into anything, per reason: ``"unknown:<TYPE>"``,
+        ``"malformed:<TYPE>"``, ``"undecodable"``, ``"truncated gzip"`` (the last three only
+        with ``strict=False``). Comments and blank lines are not counted.
+    odom : ndarray, shape (M, 4)
+        The ODOM messages in file order, columns ``timestamp, x, y, theta``.
+    """
+
+    path: str
+    scans: tuple[Scan, ...]
+    message_types: tuple[str, ...]
+    params: Mapping[str, str]
+    skipped: Mapping[str, int]
+    odom: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "scans", tuple(self.scans))
+        object.__setattr__(self, "message_types", tuple(self.message_types))
+        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
+        object.__setattr__(self, "skipped", MappingProxyType(dict(self.skipped)))
+        odom = np.array(self.odom, dtype=np.float64).reshape(-1, 4)
+        odom.setflags(write=False)
+        object.__setattr__(self, "odom", odom)
+
+    @property
+    def n_skipped(self) -> int:
+        """Total number of skipped lines."""
+        return sum(self.skipped.values())
+
+    def __repr__(self) -> str:
+        return (
+            f"CarmenLog({os.path.basename(self.path)!r}, scans={len(self.scans)}, "
+            f"params={len(self.params)}, odom={len(self.odom)}, skipped={dict(self.skipped)})"
+        )
+
+
+def flaser_angles(n: int) -> np.ndarray:
+    """Beam angles of an ``n``-beam FLASER/RLASER message (radians, sensor frame).
+
+    The first beam points right (``-pi/2``); beams are ``pi / (2 * (n // 2))`` apart, so
+    180 and 181 beams are 1 degree apart and 360 and 361 beams 0.5 degree.
+
+    >>> np.degrees(flaser_angles(181)[[0, 90, 180]]).round(9).tolist()
+    [-90.0, 0.0, 90.0]
+    >>> np.degrees(flaser_angles(180)[[0, 179]]).round(9).tolist()
+    [-90.0, 89.0]
+    """
+    inc = math.pi / (2 * (n // 2)) if n >= 2 else 0.0
+    return beam_angles(n, -math.pi / 2, inc)
+
+
+def interpolate_odometry(odom: np.ndarray, t: float) -> Pose2 | None:
+    """Odometry pose at time ``t`` from timestamped poses, or None outside their time span.
+
+    Parameters
+    ----------
+    odom : array_like, shape (M, 4)
+        Rows ``timestamp, x, y, theta`` in any order (sorted here, stably).
+    t : float
+        Query time, same clock.
+
+    Returns
+    -------
+    Pose2 or None
+        Linear interpolation between the two poses bracketing ``t`` (x and y linearly,
+        theta along the shorter arc); the pose itself at an exact timestamp (the last one
+        logged, if several share it); None if ``t`` is before the first or after the last
+        timestamp, or there are no poses.
+
+    >>> odom = np.array([[0.0, 0.0, 0.0, 3.0], [2.0, 2.0, 4.0, -3.0]])
+    >>> interpolate_odometry(odom, 1.0)
+    Pose2(x=1.0000, y=2.0000, theta=-3.1416)
+    >>> interpolate_odometry(odom, 2.5) is None
+    True
+    """
+    o = np.asarray(odom, dtype=np.float64).reshape(-1, 4)
+    if o.shape[0] == 0:
+        return None
+    o = o[np.argsort(o[:, 0], kind="stable")]
+    ts = o[:, 0]
+    i = int(np.searchsorted(ts, t, side="left"))
+    if i < len(ts) and ts[i] == t:
+        j = int(np.searchsorted(ts, t, side="right")) - 1
+        return Pose2(o[j, 1], o[j, 2], o[j, 3])
+    if i == 0 or i == len(ts):
+        return None
+    (t0, x0, y0, th0), (t1, x1, y1, th1) = o[i - 1], o[i]
+    alpha = (t - t0) / (t1 - t0)
+    dth = float(wrap_angle(th1 - th0))
+    return Pose2(x0 + alpha * (x1 - x0), y0 + alpha * (y1 - y0), th0 + alpha * dth)
+
+
+# ---------------------------------------------------------------------------------------
+# Message parsers: each takes the tokens of one line and a context, and returns a pending
+# scan record (or None) or raises ParseError through ``ctx.err``.
+# ---------------------------------------------------------------------------------------
+@dataclass(slots=True)
+class _Pending:
+    line_no: int
+    kind: str
+    ranges: np.ndarray
+    angles: np.ndarray
+    range_max: float
+    timestamp: float
+    odometry: Pose2 | None
+    reference: Pose2 | None
+    needs_odometry: bool
+
+
+class _Context:
+    """Per-file parsing state (internal)."""
+
+    def __init__(self, path: str, max_beams: int, max_range: float):
+        self.path = path
+        self.max_beams = max_beams
+        self.max_range = max_range
+        self.line_no = 0
+        self.kind = ""
+        self.params: dict[str, str] = {}
+        self.odom: list[tuple[float, float, float, float]] = []
+        self._angles: dict[int, np.ndarray] = {}
+
+    def err(self, field: str | None, message: str) -> ParseError:
+        return ParseError(self.path, self.line_no, f"{self.kind} {message}", field=field)
+
+    def flaser_angles(self, n: int) -> np.ndarray:
+        a = self._angles.get(n)
+        if a is None:
+            a = self._angles[n] = flaser_angles(n)
+        return a
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _check_pose(values, names, ctx: _Context) -> None:
+    for v, name in zip(values, names, strict=True):
+        if not math.isfinite(v):
+            raise ctx.err(name, f"expects a finite pose, found {v!r}")
+
+
+def _pose(values, names, ctx: _Context) -> Pose2:
+    _check_pose(values, names, ctx)
+    return Pose2(*values)
+
+
+def _timestamp(value: float, name: str, ctx: _Context) -> float:
+    if not math.isfinite(value):
+        raise ctx.err(name, f"expects a finite timestamp, found {value!r}")
+    return value
+
+
+def _parse_flaser(tok: list[str], ctx: _Context) -> _Pending:
+    if len(tok) < 2:
+        raise ctx.err("num_readings", "expects a beam count, found nothing (truncated line?)")
+    n = parse_count(tok[1], "num_readings", ctx.max_beams, ctx.err)
+    expected = n + 11
+    if len(tok) != expected:
+        found = len(tok) - 11
+        tail_ok = (
+            found >= 0
+            and not _is_number(tok[-2])
+            and all(_is_number(t) for t in tok[-9:-2])
+            and _is_number(tok[-1])
+        )
+        if tail_ok:
+            raise ctx.err(None, f"expects {n} ranges, found {found}")
+        raise ctx.err(
+            None,
+            f"with {n} ranges expects {expected} fields, found {len(tok)} (truncated line?)",
+        )
+    last = n + 2
+
+    def name(i: int) -> str:
+        return f"range[{i - 2}]" if i < last else _FLASER_TAIL[i - last]
+
+    v = parse_float_fields(tok, 2, n + 9, name, ctx.err)
+    tail = v[n:].tolist()
+    reference = _pose(tail[0:3], _FLASER_TAIL[0:3], ctx)
+    odometry = _pose(tail[3:6], _FLASER_TAIL[3:6], ctx)
+    t = _timestamp(tail[6], "ipc_timestamp", ctx)
+    return _Pending(
+        ctx.line_no,
+        ctx.kind,
+        v[:n],
+        ctx.flaser_angles(n),
+        ctx.max_range,
+        t,
+        odometry,
+        reference,
+        False,
+    )
+
+
+def _parse_laser_header(tok: list[str], ctx: _Context):
+    """Shared head of ROBOTLASER1/RAWLASERx: header, ranges, remissions; returns the pieces."""
+    if len(tok) < 9:
+        raise ctx.err(
+            None, f"expects at least 9 leading fields, found {len(tok)} (truncated line?)"
+        )
+    header = parse_float_fields(tok, 1, 8, lambda i: _LASER_HEADER[i - 1], ctx.err).tolist()
+    _, start, _fov, res, max_range, _acc, _mode = header
+    for value, field in ((start, "start_angle"), (res, "angular_res")):
+        if not math.isfinite(value):
+            raise ctx.err(field, f"expects a finite angle, found {value!r}")
+    n = parse_count(tok[8], "num_readings", ctx.max_beams, ctx.err)
+    if n > 1 and not res > 0:
+        raise ctx.err("angular_res", f"expects a positive angular resolution, found {res!r}")
+    k = 9 + n  # index of num_remissions
+    if len(tok) <= k:
+        raise ctx.err(
+            None, f"expects {n} ranges and a remission count, found {len(tok) - 9} fields"
+        )
+    ranges = parse_float_fields(tok, 9, k, lambda i: f"range[{i - 9}]", ctx.err)
+    m = parse_count(tok[k], "num_remissions", ctx.max_beams, ctx.err)
+    if not (math.isfinite(max_range) and max_range > 0):
+        max_range = ctx.max_range
+    return n, m, k + 1 + m, ranges, beam_angles(n, start, res), float(max_range)
+
+
+def _parse_robotlaser(tok: list[str], ctx: _Context) -> _Pending:
+    n, m, tail_start, ranges, angles, rmax = _parse_laser_header(tok, ctx)
+    expected = tail_start + len(_ROBOTLASER_TAIL) + 2
+    if len(tok) != expected:
+        raise ctx.err(
+            None,
+            f"with {n} ranges and {m} remissions expects {expected} fields, found {len(tok)}",
+        )
+    parse_float_fields(
+        tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]", ctx.err
+    )
+    tail = parse_float_fields(
+        tok, tail_start, tail_start + 12, lambda i: _ROBOTLASER_TAIL[i - tail_start], ctx.err
+    ).tolist()
+    laser_pose = _pose(tail[0:3], _ROBOTLASER_TAIL[0:3], ctx)
+    _check_pose(tail[3:6], _ROBOTLASER_TAIL[3:6], ctx)  # the robot pose must be valid too
+    t = _timestamp(tail[11], "timestamp", ctx)
+    return _Pending(ctx.line_no, ctx.kind, ranges, angles, rmax, t, laser_pose, None, False)
+
+
+def _parse_rawlaser(tok: list[str], ctx: _Context) -> _Pending:
+    n, m, tail_start, ranges, angles, rmax = _parse_laser_header(tok, ctx)
+    expected = tail_start + 3
+    if len(tok) != expected:
+        raise ctx.err(
+            None,
+            f"with {n} ranges and {m} remissions expects {expected} fields, found {len(tok)}",
+        )
+    parse_float_fields(
+        tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]", ctx.err
+    )
+    t = float(
+        parse_float_fields(tok, tail_start, tail_start + 1, lambda i: "timestamp", ctx.err)[0]
+    )
+    t = _timestamp(t, "timestamp", ctx)
+    return _Pending(ctx.line_no, ctx.kind, ranges, angles, rmax, t, None, None, True)
+
+
+def _parse_odom(tok: list[str], ctx: _Context) -> None:
+    if len(tok) != 10:
+        raise ctx.err(None, f"expects 10 fields, found {len(tok)}")
+    v = parse_float_fields(tok, 1, 8, lambda i: _ODOM_FIELDS[i - 1], ctx.err).tolist()
+    _check_pose(v[0:3], _ODOM_FIELDS[0:3], ctx)
+    t = _timestamp(v[6], "timestamp", ctx)
+    ctx.odom.append((t, v[0], v[1], v[2]))
+
+
+def _parse_param(tok: list[str], ctx: _Context) -> None:
+    if len(tok) < 3:
+        raise ctx.err(None, f"expects a name and a value, found {len(tok) - 1} fields")
+    value = " ".join(tok[2:-3]) if len(tok) >= 6 else " ".join(tok[2:])
+    name = tok[1]
+    if name in ctx.params and ctx.params[name] != value:
+        logger.debug("%s:%d: PARAM %s redefined", ctx.path, ctx.line_no, name)
+    ctx.params[name] = value
+
+
+_PARSERS: dict[str, Callable[[list[str], _Context], _Pending | None]] = {
+    "FLASER": _parse_flaser,
+    "RLASER": _parse_flaser,
+    "ROBOTLASER1": _parse_robotlaser,
+    **{f"RAWLASER{k}": _parse_rawlaser for k in range(1, 5)},
+    "ODOM": _parse_odom,
+    "PARAM": _parse_param,
+}
+
+
+def parse_carmen(
+    lines: TextLines,
+    *,
+    strict: bool = True,
+    max_beams: int = DEFAULT_MAX_BEAMS,
+    max_range: float = FLASER_MAX_RANGE,
+) -> CarmenLog:
+    """Parse the lines of a CARMEN log (see :func:`read_carmen` and the module docstring)."""
+    if not (isinstance(max_range, (int, float)) and math.isfinite(max_range) and max_range > 0):
+        raise ConfigError(f"max_range must be a positive number, got {max_range!r}")
+    ctx = _Context(lines.path, int(max_beams), float(max_range))
+    skipped: dict[str, int] = {}
+    if lines.truncated:
+        skipped["truncated gzip"] = 1
+    pending: list[_Pending] = []
+    n_warned = 0
+
+    def skip_malformed(reason: str, exc: ParseError) -> None:
+        nonlocal n_warned
+        skipped[reason] = skipped.get(reason, 0) + 1
+        n_warned += 1
+        if n_warned <= _MAX_WARNINGS:
+            logger.warning("skipped malformed line: %s", exc)
+
+    for line_no, line in enumerate(lines.lines, start=1):
+        if line is None:  # undecodable (strict=False only)
+            ctx.line_no, ctx.kind = line_no, "line"
+            skip_malformed("undecodable", ParseError(lines.path, line_no, "undecodable bytes"))
+            continue
+        tok = line.split()
+        if not tok or tok[0][0] == "#":
+            continue
+        kind = tok[0]
+        parser = _PARSERS.get(kind)
+        if parser is None:
+            key = f"unknown:{kind[:40]}"
+            skipped[key] = skipped.get(key, 0) + 1
+            continue
+        ctx.line_no, ctx.kind = line_no, kind
+        try:
+            record = parser(tok, ctx)
+        except ParseError as exc:
+            if strict:
+                raise
+            skip_malformed(f"malformed:{kind}", exc)
+            continue
+        if record is not None:
+            pending.append(record)
+
+    odom = np.array(ctx.odom, dtype=np.float64).reshape(-1, 4)
+    scans: list[Scan] = []
+    kinds: list[str] = []
+    for p in pending:
+        odometry = interpolate_odometry(odom, p.timestamp) if p.needs_odometry else p.odometry
+        try:
+            scan = Scan(
+                p.ranges,
+                p.angles,
+                0.0,
+                p.range_max,
+                p.timestamp,
+                odometry,
+                p.reference,
+                f"{lines.name}:{p.line_no}",
+            )
+        except ScanError as exc:
+            err = ParseError(lines.path, p.line_no, f"{p.kind} {exc}")
+            if strict:
+                raise err from None
+            skip_malformed(f"malformed:{p.kind}", err)
+            continue
+        scans.append(scan)
+        kinds.append(p.kind)
+
+    for reason, count in sorted(skipped.items()):
+        if reason.startswith("unknown:"):
+            logger.debug("%s: skipped %d %s messages (unknown type)", lines.path, count, reason[8:])
+        else:
+            logger.warning("%s: skipped %d lines (%s)", lines.path, count, reason)
+    return CarmenLog(lines.path, tuple(scans), tuple(kinds), ctx.params, skipped, odom)
+
+
+def read_carmen(
+    path: str | os.PathLike,
+    *,
+    strict: bool = True,
+    max_beams: int = DEFAULT_MAX_BEAMS,
+    max_range: float = FLASER_MAX_RANGE,
+) -> CarmenLog:
+    """Read a CARMEN log (plain or gzip, detected by magic bytes).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The log file.
+    strict : bool
+        If True (default) the first malformed line raises :class:`ParseError`. If False,
+        malformed and undecodable lines are skipped, counted in :attr:`CarmenLog.skipped`
+        and logged at warning level; a truncated gzip keeps what could be read.
+    max_beams : int
+        Largest accepted beam or remission count in one message.
+    max_range : float
+        ``Scan.range_max`` (metres) for messages that carry no maximum range (FLASER,
+        RLASER) or a non-positive one; readings at or beyond it are masked as no return.
+
+    Returns
+    -------
+    CarmenLog
+        Scans (one per laser message, in file order), PARAM values, skip counts and the
+        ODOM poses.
+
+    Raises
+    ------
+    ParseError
+        A malformed line (file, line, field, expected and found), binary or undecodable
+        data, a truncated or corrupt gzip stream.
+    DataNotFoundError
+        If there is no such file.
+    """
+    lines = read_lines(path, strict=strict)
+    return parse_carmen(lines, strict=strict, max_beams=max_beams, max_range=max_range)

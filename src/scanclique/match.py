@@ -1,0 +1,413 @@
+"""Scan-to-scan matching: the whole pipeline of the paper on two scans (stages 1–9).
+
+>>> import scanclique as sc
+>>> pair = sc.sim.simulate_pair(np.random.default_rng(3))
+>>> m = sc.match_scans(pair.scan_a, pair.scan_b)
+>>> t_err, r_err = m.pose.distance_to(pair.pose_a_b)
+>>> bool(t_err < 0.1 and r_err < 0.02)
+True
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from . import clique as _clique
+from .config import MatchConfig
+from .correspondence import CorrespondenceGraph, correspondence_graph
+from .features import Features, extract_features
+from .geometry import Pose2
+from .graph import NODE_KIND_NAMES, FeatureGraph, feature_graph
+from .pose import PoseEstimate, estimate_pose_lsq, estimate_pose_median, mapped_features
+from .refine import ReferenceCloud, agreement, free_space_conflicts, icp_point_to_line, reference_cloud
+from .scan import Scan
+
+__all__ = [
+    "FeaturePair",
+    "Hypothesis",
+    "PreparedScan",
+    "ScanMatch",
+    "prepare_scan",
+    "pose_score",
+    "match_prepared",
+    "match_scans",
+]
+
+log = logging.getLogger(__name__)
+
+STAGES = ("features", "graph", "correspondence", "clique", "pose", "refine")
+
+
+class FeaturePair(NamedTuple):
+    """One mapped feature: ``kind`` (``"line"``, ``"corner"``, ``"edge_cw"``, ...), and the
+    feature's index in scan A's and scan B's group of that geometry (``Features.points_*``
+    for point kinds, ``Features.lines_*`` for lines)."""
+
+    kind: str
+    a: int
+    b: int
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Hypothesis:
+    """One association hypothesis: a clique of the correspondence graph and its pose.
+
+    ``node_pairs`` are (node of A, node of B) in feature-graph order (points, then lines);
+    ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`).
+    """
+
+    node_pairs: np.ndarray
+    clique_size: int
+    estimate: PoseEstimate
+    score: float
+    refined: bool = False
+
+    @property
+    def pose(self) -> Pose2:
+        return self.estimate.pose
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PreparedScan:
+    """What the pipeline derives from one scan, reusable across many matches."""
+
+    scan: Scan
+    features: Features
+    graph: FeatureGraph
+    cloud: ReferenceCloud
+    points: np.ndarray
+    seconds: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ScanMatch:
+    """The result of matching scan B against scan A.
+
+    Attributes
+    ----------
+    pose : Pose2 or None
+        ``T_a_b``, the pose of B's sensor frame in A's frame: maps points of B into A
+        (``R(theta) p_b + (x, y)``). None when no pose could be determined; ``reason``
+        says why.
+    covariance : ndarray (3, 3) or None
+        Covariance of ``(x, y, theta)`` of the feature-based estimate (paper §7's
+        precision of the constellation of mapped features).
+    pairs : tuple of FeaturePair
+        The mapping (the maximum clique), with feature kinds.
+    clique_size : int
+        Size of the maximum clique (0 when there was none).
+    optimal : bool
+        True when the clique search proved the clique maximum within its time limit.
+    ambiguous : bool
+        True when a distinct hypothesis (another maximum or near-maximum clique giving a
+        different pose) agrees with the raw scans almost as well as the chosen one.
+    hypotheses : tuple of Hypothesis
+        All hypotheses, best first; ``hypotheses[1]`` is the runner-up.
+    score : float
+        Raw-scan agreement of ``pose`` (:func:`pose_score`: the fraction of B's points near
+        A's points, less the points that fall in the other scan's free space).
+    refined : bool
+        Whether ``pose`` was refined by ICP on the raw points.
+    reason : str or None
+        Why there is no pose (or a note on a weak one).
+    features_a, features_b : Features
+    n_correspondence_nodes, n_correspondence_edges : int
+    seconds : dict
+        Time per stage (``features``, ``graph``, ``correspondence``, ``clique``, ``pose``,
+        ``refine``) in seconds.
+    """
+
+    pose: Pose2 | None
+    covariance: np.ndarray | None
+    pairs: tuple
+    clique_size: int
+    optimal: bool
+    ambiguous: bool
+    hypotheses: tuple
+    score: float
+    refined: bool
+    reason: str | None
+    features_a: Features
+    features_b: Features
+    n_correspondence_nodes: int
+    n_correspondence_edges: int
+    seconds: dict
+
+    @property
+    def success(self) -> bool:
+        """True when a pose was determined."""
+        return self.pose is not None
+
+    @property
+    def runner_up(self) -> Hypothesis | None:
+        return self.hypotheses[1] if len(self.hypotheses) > 1 else None
+
+    def to_dict(self) -> dict:
+        """A JSON-ready summary."""
+        return {
+            "pose": None if self.pose is None else {"x": self.pose.x, "y": self.pose.y, "theta": self.pose.theta},
+            "covariance": None if self.covariance is None else np.where(np.isfinite(self.covariance), self.covariance, None).tolist(),
+            "pairs": [{"kind": p.kind, "a": p.a, "b": p.b} for p in self.pairs],
+            "clique_size": self.clique_size,
+            "optimal": self.optimal,
+            "ambiguous": self.ambiguous,
+            "score": self.score,
+            "refined": self.refined,
+            "reason": self.reason,
+            "n_features_a": len(self.features_a),
+            "n_features_b": len(self.features_b),
+            "n_correspondence_nodes": self.n_correspondence_nodes,
+            "n_correspondence_edges": self.n_correspondence_edges,
+            "hypotheses": [
+                {"x": h.pose.x, "y": h.pose.y, "theta": h.pose.theta, "score": h.score, "clique_size": h.clique_size}
+                for h in self.hypotheses
+            ],
+            "seconds": dict(self.seconds),
+        }
+
+
+def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
+    """Features (paper §4), feature graph (§5.1) and the raw-point cloud of one scan."""
+    cfg = config or MatchConfig()
+    t0 = time.perf_counter()
+    feats = extract_features(scan, cfg.features, cfg.clustering)
+    t1 = time.perf_counter()
+    graph = feature_graph(feats, cfg.correspondence, cfg.features)
+    pts = scan.points()
+    cloud = reference_cloud(pts)
+    t2 = time.perf_counter()
+    return PreparedScan(scan, feats, graph, cloud, pts, {"features": t1 - t0, "graph": t2 - t1})
+
+
+def pose_score(pa: PreparedScan, pb: PreparedScan, pose: Pose2, config: MatchConfig | None = None) -> float:
+    """How well the raw scans agree under ``pose`` (maps B into A): the fraction of B's
+    points within ``refine.inlier_distance`` of A's points, minus ``refine.conflict_weight``
+    times the mean fraction of points lying in the other scan's observed free space."""
+    cfg = config or MatchConfig()
+    score = agreement(pa.cloud, pb.points, pose, cfg.refine.inlier_distance)
+    if cfg.refine.conflict_weight > 0:
+        c_ab = free_space_conflicts(pa.scan, pose.transform(pb.points))
+        c_ba = free_space_conflicts(pb.scan, pose.inverse().transform(pa.points))
+        score -= cfg.refine.conflict_weight * 0.5 * (c_ab + c_ba)
+    return score
+
+
+def _node_pairs_to_feature_pairs(node_pairs: np.ndarray, ga: FeatureGraph, gb: FeatureGraph) -> tuple:
+    out = []
+    for a, b in node_pairs:
+        kind = NODE_KIND_NAMES[int(ga.kinds[a])]
+        if a >= ga.n_points:
+            out.append(FeaturePair(kind, int(a - ga.n_points), int(b - gb.n_points)))
+        else:
+            out.append(FeaturePair(kind, int(a), int(b)))
+    return tuple(out)
+
+
+def _estimate(fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConfig) -> PoseEstimate | None:
+    """Pose of one clique (paper §6), with one round of outlier rejection for the
+    least-squares method: pairs whose Mahalanobis residual exceeds 3.5 are dropped."""
+    m = mapped_features(fa, fb, node_pairs)
+    if cfg.pose.method == "median":
+        return estimate_pose_median(m)
+    est = estimate_pose_lsq(m)
+    if est is None:
+        return None
+    bad = est.residuals > 3.5
+    if bad.any() and (~bad).sum() >= cfg.pose.min_pairs:
+        keep = np.concatenate(
+            (
+                np.flatnonzero(node_pairs[:, 0] < fa.n_points),
+                np.flatnonzero(node_pairs[:, 0] >= fa.n_points),
+            )
+        )[~bad]
+        m2 = mapped_features(fa, fb, node_pairs[np.sort(keep)])
+        est2 = estimate_pose_lsq(m2, initial=est.pose)
+        if est2 is not None:
+            return est2
+    return est
+
+
+def _distinct(p: Pose2, q: Pose2, dist: float = 0.3, ang: float = math.radians(5)) -> bool:
+    t, r = p.distance_to(q)
+    return t > dist or r > ang
+
+
+def _empty(pa: PreparedScan, pb: PreparedScan, reason: str, seconds: dict, n_nodes=0, n_edges=0, optimal=True) -> ScanMatch:
+    return ScanMatch(
+        pose=None,
+        covariance=None,
+        pairs=(),
+        clique_size=0,
+        optimal=optimal,
+        ambiguous=False,
+        hypotheses=(),
+        score=0.0,
+        refined=False,
+        reason=reason,
+        features_a=pa.features,
+        features_b=pb.features,
+        n_correspondence_nodes=n_nodes,
+        n_correspondence_edges=n_edges,
+        seconds=seconds,
+    )
+
+
+def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None) -> ScanMatch:
+    """Match two prepared scans: the pose of B in A's frame and the feature mapping.
+
+    The recipe (paper §5–§6, with the ranking and refinement this library adds):
+
+    1. correspondence graph of the two feature graphs (§5.2);
+    2. maximum cliques (§5.3): every maximum clique up to ``clique.max_hypotheses``, then
+       ``clique.peel`` disjoint alternatives (maximum cliques of what the earlier ones leave);
+    3. a pose per clique (§6: weighted least squares or the paper's median);
+    4. rank the hypotheses by raw-scan agreement, refine the best few by point-to-line ICP
+       on the raw points (``refine.enabled``) and rank again;
+    5. flag ambiguity when a distinct runner-up scores nearly as well.
+    """
+    cfg = config or MatchConfig()
+    seconds = {k: 0.0 for k in STAGES}
+    seconds["features"] = pa.seconds.get("features", 0.0) + pb.seconds.get("features", 0.0)
+    seconds["graph"] = pa.seconds.get("graph", 0.0) + pb.seconds.get("graph", 0.0)
+    fa, fb = pa.features, pb.features
+    min_pairs = cfg.pose.min_pairs
+    if len(fa) == 0 or len(fb) == 0:
+        which = "A" if len(fa) == 0 else "B"
+        return _empty(pa, pb, f"scan {which} has no features", seconds)
+
+    # 1. correspondence graph (paper §5.2)
+    t = time.perf_counter()
+    cg: CorrespondenceGraph = correspondence_graph(pa.graph, pb.graph, cfg.correspondence)
+    seconds["correspondence"] = time.perf_counter() - t
+    n_nodes, n_edges = cg.n_nodes, cg.n_edges
+    if n_nodes == 0:
+        return _empty(pa, pb, "no feature of A has a feature of the same type in B", seconds)
+
+    # 2. maximum cliques (paper §5.3), then disjoint alternatives by peeling
+    t = time.perf_counter()
+    deadline = t + cfg.clique.time_limit
+    res = _clique.all_maximum_cliques(
+        cg.adjacency, limit=cfg.clique.max_hypotheses, time_limit=cfg.clique.time_limit
+    )
+    cliques = [np.asarray(c) for c in res.cliques]
+    optimal = bool(res.optimal)
+    omega = int(res.omega)
+    alive = np.ones(n_nodes, dtype=bool)
+    for _ in range(cfg.clique.peel):
+        for c in cliques:
+            alive[c] = False
+        left = np.flatnonzero(alive)
+        remaining = deadline - time.perf_counter()
+        if left.size < min_pairs or remaining <= 0:
+            break
+        sub = cg.adjacency[np.ix_(left, left)]
+        r = _clique.max_clique(sub, time_limit=remaining)
+        if r.size < min_pairs:
+            break
+        cliques.append(left[np.asarray(r.vertices)])
+    seconds["clique"] = time.perf_counter() - t
+    if omega < min_pairs:
+        return _empty(
+            pa, pb, f"largest consistent mapping has {omega} features, fewer than min_pairs={min_pairs}",
+            seconds, n_nodes, n_edges, optimal,
+        )
+
+    # 3. a pose per clique (paper §6)
+    t = time.perf_counter()
+    hyps: list[Hypothesis] = []
+    for c in cliques:
+        if len(c) < min_pairs:
+            continue
+        node_pairs = cg.pairs[np.sort(c)]
+        est = _estimate(fa, fb, node_pairs, cfg)
+        if est is None:
+            continue
+        score = pose_score(pa, pb, est.pose, cfg)
+        hyps.append(Hypothesis(node_pairs, len(c), est, score))
+    seconds["pose"] = time.perf_counter() - t
+    if not hyps:
+        return _empty(pa, pb, "no clique fixes a pose (too few or degenerate features)", seconds, n_nodes, n_edges, optimal)
+    # larger cliques first among equal scores; the raw scans decide between distinct poses
+    hyps.sort(key=lambda h: (-h.score, -h.clique_size))
+
+    # 4. refine the best few distinct hypotheses on the raw points and rank again
+    t = time.perf_counter()
+    if cfg.refine.enabled and len(pb.points) >= 3:
+        distinct: list[Hypothesis] = []
+        for h in hyps:
+            if all(_distinct(h.pose, d.pose) for d in distinct):
+                distinct.append(h)
+            if len(distinct) >= 3:
+                break
+        refined = []
+        for h in distinct:
+            icp = icp_point_to_line(
+                pa.cloud,
+                pb.points,
+                h.pose,
+                iterations=cfg.refine.iterations,
+                max_correspondence=cfg.refine.max_correspondence,
+                min_correspondence=cfg.refine.inlier_distance,
+            )
+            score = pose_score(pa, pb, icp.pose, cfg)
+            if score >= h.score:
+                est = PoseEstimate(icp.pose, h.estimate.covariance, h.estimate.rms, h.estimate.residuals, h.estimate.degenerate)
+                refined.append(Hypothesis(h.node_pairs, h.clique_size, est, score, refined=True))
+            else:
+                refined.append(h)
+        rest = [h for h in hyps if all(h is not d for d in distinct)]
+        hyps = sorted(refined, key=lambda h: (-h.score, -h.clique_size)) + rest
+    seconds["refine"] = time.perf_counter() - t
+
+    # 5. ambiguity: a distinct runner-up that explains the raw scans nearly as well
+    best = hyps[0]
+    ambiguous = any(
+        _distinct(h.pose, best.pose) and h.score >= 0.9 * best.score and h.clique_size >= best.clique_size - 1
+        for h in hyps[1:]
+    )
+    return ScanMatch(
+        pose=best.pose,
+        covariance=best.estimate.covariance,
+        pairs=_node_pairs_to_feature_pairs(best.node_pairs, pa.graph, pb.graph),
+        clique_size=best.clique_size,
+        optimal=optimal,
+        ambiguous=ambiguous,
+        hypotheses=tuple(hyps),
+        score=best.score,
+        refined=best.refined,
+        reason=None,
+        features_a=fa,
+        features_b=fb,
+        n_correspondence_nodes=n_nodes,
+        n_correspondence_edges=n_edges,
+        seconds=seconds,
+    )
+
+
+def match_scans(a: Scan, b: Scan, config: MatchConfig | None = None) -> ScanMatch:
+    """Find the mapping of the features common to scans ``a`` and ``b`` and the pose of
+    ``b``'s sensor frame in ``a``'s (paper §4–§6), with no prior pose.
+
+    Parameters
+    ----------
+    a, b : Scan
+        The two observations.
+    config : MatchConfig, optional
+        Defaults: the paper's parameters plus this library's additions; see
+        :func:`scanclique.config.paper_config` for the paper's exact behaviour.
+
+    Returns
+    -------
+    ScanMatch
+        ``.pose`` maps points of ``b`` into ``a``'s frame (``R(theta) p_b + (x, y)``), or is
+        None with ``.reason`` when no pose can be determined (e.g. a scan with no features:
+        an empty mapping, not an exception).
+    """
+    cfg = config or MatchConfig()
+    return match_prepared(prepare_scan(a, cfg), prepare_scan(b, cfg), cfg)

@@ -1,0 +1,300 @@
+"""Relative pose from mapped features (paper §6; pipeline stage 7).
+
+Given pairs of features of scans A and B known to be the same physical features, find the
+pose ``T_a_b`` of B's sensor frame in A's frame (it maps B points into A:
+``p_a = R(theta) p_b + t``).
+
+* :func:`estimate_pose_median` — the paper's method: the median rotation, then, with B
+  rotated by it, the median translation that overlays the features.
+* :func:`estimate_pose_lsq` — weighted least squares: Arun et al. (1987) closed form for
+  the points as a start, then Gauss–Newton on all residuals, points and lines together.
+  A line pair ``(rho_a, alpha_a) ~ (rho_b, alpha_b)`` adds a normal-direction residual
+  ``alpha_b + theta - alpha_a`` and an offset residual ``rho_b + n(alpha_b + theta)·t -
+  rho_a``. The covariance is the inverse information ``(J^T W J)^-1`` at the solution: the
+  precision the constellation of mapped features allows (paper §7), so a corridor seen only
+  along its walls shows a large along-corridor variance.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .features import Features
+from .geometry import Pose2, rotation_matrix, wrap_angle
+
+__all__ = [
+    "PoseEstimate",
+    "MappedFeatures",
+    "mapped_features",
+    "estimate_pose_lsq",
+    "estimate_pose_median",
+    "arun_2d",
+]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MappedFeatures:
+    """The geometry of mapped feature pairs, gathered from two :class:`Features`.
+
+    ``points_a[k]`` corresponds to ``points_b[k]``; ``lines_a[k]`` (rho, alpha) to
+    ``lines_b[k]``. Covariances come along for weighting.
+    """
+
+    points_a: np.ndarray  # (Kp, 2)
+    points_b: np.ndarray  # (Kp, 2)
+    points_cov_a: np.ndarray  # (Kp, 2, 2)
+    points_cov_b: np.ndarray  # (Kp, 2, 2)
+    lines_a: np.ndarray  # (Kl, 2) rho, alpha
+    lines_b: np.ndarray  # (Kl, 2)
+    lines_cov_a: np.ndarray  # (Kl, 2, 2)
+    lines_cov_b: np.ndarray  # (Kl, 2, 2)
+    lines_mid_b: np.ndarray  # (Kl, 2) segment mid point of B's line
+
+    @property
+    def n_points(self) -> int:
+        return int(self.points_a.shape[0])
+
+    @property
+    def n_lines(self) -> int:
+        return int(self.lines_a.shape[0])
+
+
+def mapped_features(fa: Features, fb: Features, node_pairs: np.ndarray) -> MappedFeatures:
+    """Gather the geometry of mapped node pairs (node order: points first, then lines)."""
+    node_pairs = np.asarray(node_pairs, dtype=np.int64).reshape(-1, 2)
+    pa, pb = fa.n_points, fb.n_points
+    is_pt = node_pairs[:, 0] < pa
+    ip = node_pairs[is_pt]
+    il = node_pairs[~is_pt] - np.array([pa, pb])
+    return MappedFeatures(
+        points_a=fa.points_xy[ip[:, 0]],
+        points_b=fb.points_xy[ip[:, 1]],
+        points_cov_a=fa.points_cov[ip[:, 0]],
+        points_cov_b=fb.points_cov[ip[:, 1]],
+        lines_a=fa.lines_rho_alpha[il[:, 0]],
+        lines_b=fb.lines_rho_alpha[il[:, 1]],
+        lines_cov_a=fa.lines_cov[il[:, 0]],
+        lines_cov_b=fb.lines_cov[il[:, 1]],
+        lines_mid_b=fb.lines_ends[il[:, 1]].mean(axis=1),
+    )
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PoseEstimate:
+    """A pose with its quality.
+
+    Attributes
+    ----------
+    pose : Pose2
+        ``T_a_b``: maps points of B's frame into A's frame.
+    covariance : ndarray, shape (3, 3)
+        Covariance of ``(x, y, theta)`` (m², m·rad, rad²); ``inf`` on the diagonal in
+        directions the features do not constrain.
+    rms : float
+        Root mean square of the normalised residuals (1 for a fit at the assumed noise).
+    residuals : ndarray, shape (K,)
+        Mahalanobis distance of each mapped pair at the solution (points first, then lines).
+    degenerate : bool
+        True when the features do not fix all three degrees of freedom.
+    """
+
+    pose: Pose2
+    covariance: np.ndarray
+    rms: float
+    residuals: np.ndarray
+    degenerate: bool
+
+    def __post_init__(self) -> None:
+        for name in ("covariance", "residuals"):
+            a = np.array(getattr(self, name), dtype=float)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+
+def arun_2d(points_a: np.ndarray, points_b: np.ndarray, weights=None) -> Pose2:
+    """Least-squares rigid motion mapping ``points_b`` onto ``points_a`` (Arun et al. 1987).
+
+    Minimises ``sum_k w_k |R p_b,k + t - p_a,k|²``; needs at least two distinct points.
+
+    Examples
+    --------
+    >>> T = Pose2.from_xytheta(1.0, -2.0, 0.5)
+    >>> pb = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+    >>> arun_2d(T.transform(pb), pb).as_array().round(9)
+    array([ 1. , -2. ,  0.5])
+    """
+    a = np.asarray(points_a, float)
+    b = np.asarray(points_b, float)
+    w = np.ones(len(a)) if weights is None else np.asarray(weights, float)
+    w = w / w.sum()
+    ca, cb = w @ a, w @ b
+    qa, qb = a - ca, b - cb
+    # 2D: theta = atan2(sum w (qb x qa), sum w (qb . qa))
+    s = float(np.sum(w * (qb[:, 0] * qa[:, 1] - qb[:, 1] * qa[:, 0])))
+    c = float(np.sum(w * (qb[:, 0] * qa[:, 0] + qb[:, 1] * qa[:, 1])))
+    theta = math.atan2(s, c)
+    t = ca - rotation_matrix(theta) @ cb
+    return Pose2(t[0], t[1], theta)
+
+
+def _circular_median(angles: np.ndarray) -> float:
+    """Median of angles about their circular mean (robust to a few outliers)."""
+    ref = math.atan2(np.sin(angles).sum(), np.cos(angles).sum())
+    return float(wrap_angle(ref + np.median(wrap_angle(angles - ref))))
+
+
+def estimate_pose_median(m: MappedFeatures) -> PoseEstimate | None:
+    """The paper's §6 estimate: median rotation, then median translation.
+
+    Rotation candidates come from every mapped line pair (``alpha_a - alpha_b``) and every
+    pair of mapped points (the change of direction of the segment joining them); the
+    translation from every mapped point (``p_a - R p_b``) and, when there are fewer than two
+    points, from line offsets by least squares. Returns None when the features cannot fix
+    a pose. The covariance is that of the least-squares estimate at the median pose.
+    """
+    rots = []
+    if m.n_lines:
+        rots.append(wrap_angle(m.lines_a[:, 1] - m.lines_b[:, 1]))
+    if m.n_points >= 2:
+        i, j = np.triu_indices(m.n_points, 1)
+        va = m.points_a[j] - m.points_a[i]
+        vb = m.points_b[j] - m.points_b[i]
+        keep = (np.linalg.norm(va, axis=1) > 0.3) & (np.linalg.norm(vb, axis=1) > 0.3)
+        rots.append(wrap_angle(np.arctan2(va[keep, 1], va[keep, 0]) - np.arctan2(vb[keep, 1], vb[keep, 0])))
+    rots = np.concatenate(rots) if rots else np.zeros(0)
+    if rots.size == 0:
+        return None
+    theta = _circular_median(rots)
+    R = rotation_matrix(theta)
+    if m.n_points >= 2 or (m.n_points >= 1 and m.n_lines == 0):
+        t = np.median(m.points_a - m.points_b @ R.T, axis=0)
+    else:
+        t = _translation_lsq(m, theta)
+        if t is None:
+            return None
+    pose = Pose2(t[0], t[1], theta)
+    cov, res, rms, degenerate = _information(m, pose)
+    return PoseEstimate(pose, cov, rms, res, degenerate)
+
+
+def _translation_lsq(m: MappedFeatures, theta: float) -> np.ndarray | None:
+    """Translation given the rotation, from points and line offsets, unweighted."""
+    R = rotation_matrix(theta)
+    rows, rhs = [], []
+    for pa, pb in zip(m.points_a, m.points_b, strict=True):
+        rows.extend(np.eye(2))
+        rhs.extend(pa - R @ pb)
+    for (ra, _), (rb, ab) in zip(m.lines_a, m.lines_b, strict=True):
+        n = np.array([math.cos(ab + theta), math.sin(ab + theta)])
+        rows.append(n)
+        rhs.append(ra - rb)
+    if not rows:
+        return None
+    A = np.array(rows)
+    if np.linalg.matrix_rank(A, tol=1e-6) < 2:
+        t, *_ = np.linalg.lstsq(A, np.array(rhs), rcond=None)
+        return t
+    t, *_ = np.linalg.lstsq(A, np.array(rhs), rcond=None)
+    return t
+
+
+def _residuals_jacobian(m: MappedFeatures, pose: Pose2):
+    """Stacked residuals r, Jacobian J (w.r.t. x, y, theta) and per-residual-block
+    covariances for all mapped pairs, at ``pose``."""
+    th = pose.theta
+    R = rotation_matrix(th)
+    dR = np.array([[-math.sin(th), -math.cos(th)], [math.cos(th), -math.sin(th)]])
+    t = pose.translation
+    r_list, J_list, C_list = [], [], []
+    if m.n_points:
+        pred = m.points_b @ R.T + t
+        r = pred - m.points_a  # (Kp, 2)
+        J = np.zeros((m.n_points, 2, 3))
+        J[:, :, 0] = [1.0, 0.0]
+        J[:, :, 1] = [0.0, 1.0]
+        J[:, :, 2] = m.points_b @ dR.T
+        C = m.points_cov_a + R @ m.points_cov_b @ R.T
+        r_list.append(r)
+        J_list.append(J)
+        C_list.append(C)
+    if m.n_lines:
+        rho_a, al_a = m.lines_a[:, 0], m.lines_a[:, 1]
+        rho_b, al_b = m.lines_b[:, 0], m.lines_b[:, 1]
+        ap = al_b + th
+        n = np.column_stack((np.cos(ap), np.sin(ap)))
+        dn = np.column_stack((-np.sin(ap), np.cos(ap)))
+        r = np.column_stack((rho_b + n @ t - rho_a, wrap_angle(ap - al_a)))
+        J = np.zeros((m.n_lines, 2, 3))
+        J[:, 0, 0:2] = n
+        J[:, 0, 2] = dn @ t
+        J[:, 1, 2] = 1.0
+        # offset of B's line in A depends on t: its variance grows with the lever arm of
+        # the rotation uncertainty; the block covariance adds A's and B's (rho, alpha).
+        C = m.lines_cov_a + m.lines_cov_b
+        r_list.append(r)
+        J_list.append(J)
+        C_list.append(C)
+    return np.concatenate(r_list), np.concatenate(J_list), np.concatenate(C_list)
+
+
+def _information(m: MappedFeatures, pose: Pose2):
+    r, J, C = _residuals_jacobian(m, pose)
+    Ci = np.linalg.inv(C + np.eye(2) * 1e-12)
+    info = np.einsum("kai,kab,kbj->ij", J, Ci, J)
+    maha = np.sqrt(np.maximum(np.einsum("ka,kab,kb->k", r, Ci, r), 0.0))
+    dof = max(2 * len(r) - 3, 1)
+    rms = float(math.sqrt(np.sum(maha**2) / dof))
+    w, v = np.linalg.eigh(info)
+    degenerate = bool(w[0] < 1e-9 * max(w[-1], 1e-300))
+    if degenerate:
+        winv = np.where(w > 1e-9 * max(w[-1], 1e-300), 1.0 / np.maximum(w, 1e-300), np.inf)
+        with np.errstate(invalid="ignore"):
+            cov = (v * winv) @ v.T
+        cov = np.where(np.isnan(cov), np.inf, cov)
+    else:
+        cov = np.linalg.inv(info)
+    return cov, maha, rms, degenerate
+
+
+def estimate_pose_lsq(
+    m: MappedFeatures, initial: Pose2 | None = None, iterations: int = 10
+) -> PoseEstimate | None:
+    """Weighted least-squares pose from mapped points and lines, with covariance.
+
+    Starts from ``initial`` or from a closed form (Arun et al. on the points when there are
+    two or more, else the circular mean of the line normal rotations), then runs
+    Gauss–Newton on all residuals weighted by the inverse of the pairs' combined
+    covariances. Returns None when the features cannot fix the rotation (fewer than two
+    points and no line).
+    """
+    if initial is None:
+        if m.n_points >= 2 and np.ptp(m.points_b, axis=0).max() > 0.2:
+            initial = arun_2d(m.points_a, m.points_b)
+        elif m.n_lines:
+            rot = wrap_angle(m.lines_a[:, 1] - m.lines_b[:, 1])
+            theta = math.atan2(np.sin(rot).sum(), np.cos(rot).sum())
+            t = _translation_lsq(m, theta)
+            if t is None:
+                return None
+            initial = Pose2(t[0], t[1], theta)
+        else:
+            return None
+    x = initial.as_array()
+    for _ in range(iterations):
+        pose = Pose2.from_array(x)
+        r, J, C = _residuals_jacobian(m, pose)
+        Ci = np.linalg.inv(C + np.eye(2) * 1e-12)
+        H = np.einsum("kai,kab,kbj->ij", J, Ci, J)
+        g = np.einsum("kai,kab,kb->i", J, Ci, r)
+        H = H + np.eye(3) * 1e-9 * max(np.trace(H), 1e-12)
+        dx = -np.linalg.lstsq(H, g, rcond=None)[0]
+        x = x + dx
+        x[2] = float(wrap_angle(x[2]))
+        if np.abs(dx).max() < 1e-9:
+            break
+    pose = Pose2.from_array(x)
+    cov, res, rms, degenerate = _information(m, pose)
+    return PoseEstimate(pose, cov, rms, res, degenerate)

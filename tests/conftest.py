@@ -1,0 +1,45 @@
+"""Shared fixtures: where the real data are, and skipping cleanly when they are not.
+
+Use ``require_log("intel")`` (importable as ``from conftest import require_log``, or through
+the ``log_path`` fixture) in tests marked ``@pytest.mark.realdata``: it returns the log's
+path, or skips the test saying where the data were looked for and how to point at them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from scanclique import datasets
+from scanclique.errors import DataNotFoundError
+
+
+def _looked_in() -> str:
+    return ", ".join(str(p) for p in datasets.data_dir_candidates())
+
+
+def require_log(name: str) -> Path:
+    """Path of the registered log ``name``, or skip the calling test with a clear reason."""
+    try:
+        return datasets.dataset_path(name)
+    except DataNotFoundError:
+        pytest.skip(
+            f"real data not found: set {datasets.ENV_VAR} (looked in {_looked_in()} for "
+            f"{datasets.DATASETS[name].relpath if name in datasets.DATASETS else name})"
+        )
+
+
+@pytest.fixture
+def data_dir() -> Path:
+    """The shared data directory; skips the test when it does not exist."""
+    d = datasets.data_dir()
+    if not d.is_dir():
+        pytest.skip(f"real data not found: set {datasets.ENV_VAR} (looked in {_looked_in()})")
+    return d
+
+
+@pytest.fixture
+def log_path():
+    """``require_log`` as a fixture: ``log_path("intel")`` -> Path, or the test is skipped."""
+    return require_log
