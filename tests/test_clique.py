@@ -33,7 +33,7 @@ from scanclique.errors import GraphError, ScanCliqueError
 
 nx = pytest.importorskip("networkx")
 
-EXAMPLES = int(os.environ.get("SCANCLIQUE_HYPOTHESIS_EXAMPLES", "150"))
+EXAMPLES = int(os.environ.get("SCANCLIQUE_HYPOTHESIS_EXAMPLES", "60"))
 PROPERTY = settings(
     max_examples=EXAMPLES,
     deadline=None,

@@ -1,9 +1,14 @@
 """Compiled kernels of the maximum clique engine (private; see :mod:`scanclique.clique`).
 
 Graphs arrive here as bitset adjacency rows: ``A[v, w]`` is a ``uint64`` word whose bit ``b``
-says whether ``v`` is adjacent to ``64 * w + b``. All kernels are ``numba.njit(cache=True)``:
-the first call in a fresh environment compiles them (a few seconds), later runs load the
-cache from ``__pycache__``.
+says whether ``v`` is adjacent to ``64 * w + b``. Every kernel is ``numba.njit(cache=True)``:
+the first call in a fresh environment compiles them (tens of seconds), later processes load
+the cache from ``__pycache__`` (well under a second).
+
+Inside the search the graph is renumbered in degeneracy order (``B``), so that bit order is
+the order of the greedy colouring (BBMC). Local names follow the papers: ``P`` the candidate
+set, ``C`` the growing clique, ``bar`` the size to beat, ``need = bar - |C|`` how many more
+vertices a child must add to beat it.
 
 numba pitfall kept in mind throughout: mixing ``uint64`` with ``int64`` promotes to
 ``float64``, so every word operation uses ``uint64`` operands only (``_ONE``, ``_ZERO``).
@@ -21,7 +26,11 @@ from numba.extending import intrinsic
 
 _ONE = np.uint64(1)
 _ZERO = np.uint64(0)
-_ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+#: option bits of :func:`solve` (``opts``)
+OPT_MAXSAT = 1  # filter the branching vertices with MaxSAT-style reasoning
+OPT_LOCAL_SEARCH = 2  # improve the greedy initial clique by tabu local search
+OPT_DEFAULT = OPT_MAXSAT | OPT_LOCAL_SEARCH
 
 
 @intrinsic
@@ -53,7 +62,7 @@ def _now():
     return t
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _popcount(P, W):
     s = 0
     for w in range(W):
@@ -61,12 +70,41 @@ def _popcount(P, W):
     return s
 
 
+@numba.njit(cache=True)
+def _first(P, W):
+    """Lowest set bit of ``P``, or -1."""
+    for w in range(W):
+        if P[w] != _ZERO:
+            return w * 64 + int(_cttz(P[w]))
+    return -1
+
+
+@numba.njit(cache=True)
+def _setbit(P, v):
+    P[v >> 6] |= _ONE << np.uint64(v & 63)
+
+
+@numba.njit(cache=True)
+def _clearbit(P, v):
+    P[v >> 6] &= ~(_ONE << np.uint64(v & 63))
+
+
+@numba.njit(cache=True)
+def check_mask(n, W):
+    """Nodes between two looks at the clock, minus one: about 2e5 word operations apart."""
+    work = n * W + 1
+    mask = 0
+    while mask < 4095 and (mask + 1) * work < 200_000:
+        mask = mask * 2 + 1
+    return mask
+
+
 # --------------------------------------------------------------------------------------
 # Initial order, renumbering, initial clique
 # --------------------------------------------------------------------------------------
 @numba.njit(cache=True)
 def degeneracy_order(A, n):
-    """Min-degree peeling: ``order`` (densest core first) and the core number of each vertex.
+    """Min-degree peeling: ``order`` (densest core first) and each vertex's core number.
 
     ``order[n - 1]`` is the first vertex peeled (minimum degree), ``order[0]`` the last.
     O(n^2 + m): an argmin over the remaining vertices per step.
@@ -118,29 +156,29 @@ def relabel(A, n, order):
             while x:
                 b = _cttz(x)
                 x &= x - _ONE
-                j = pos[w * 64 + int(b)]
-                B[i, j >> 6] |= _ONE << np.uint64(j & 63)
+                _setbit(B[i], pos[w * 64 + int(b)])
     return B
 
 
 @numba.njit(cache=True)
-def greedy_clique(B, n, starts, P, Q):
-    """Best of the greedy cliques grown from each start vertex of ``starts``.
+def greedy_clique(B, n, P):
+    """Best of the greedy cliques grown from every vertex.
 
     From ``s``: candidates ``N(s)``, then repeatedly add the lowest-numbered candidate (in
-    the degeneracy numbering: the one deepest in the core) and intersect. O(|starts| w W).
+    the degeneracy numbering: the one deepest in the core) and intersect. O(n w W).
     """
     W = B.shape[1]
     best = np.empty(n, np.int64)
     bsize = 0
     cur = np.empty(n, np.int64)
-    for s in starts:
+    for s in range(n):
         for w in range(W):
             P[w] = B[s, w]
         cur[0] = s
         size = 1
         w0 = 0
         while True:
+            # invariant: cur[:size] is a clique, P its common neighbourhood
             while w0 < W and P[w0] == _ZERO:
                 w0 += 1
             if w0 == W:
@@ -152,23 +190,121 @@ def greedy_clique(B, n, starts, P, Q):
                 P[w] &= B[u, w]
         if size > bsize:
             bsize = size
-            for i in range(size):
-                best[i] = cur[i]
+            best[:size] = cur[:size]
     return best[:bsize].copy()
 
 
+@numba.njit(cache=True)
+def _ls_add(B, n, W, v, miss, sign):
+    # every vertex u != v not adjacent to v gains (loses) one missing clique neighbour
+    for w in range(W):
+        x = ~B[v, w]
+        if w == W - 1 and (n & 63) != 0:
+            x &= (_ONE << np.uint64(n & 63)) - _ONE
+        while x:
+            b = _cttz(x)
+            x &= x - _ONE
+            miss[w * 64 + int(b)] += sign
+    miss[v] -= sign
+
+
+@numba.njit(cache=True)
+def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
+    """Tabu plateau search from ``init``: add moves, (1,1)-swaps, and drops when stuck.
+
+    ``miss[v]`` counts the clique vertices not adjacent to ``v``: ``v`` can be added when
+    it is 0 and swapped in (for its one non-neighbour) when it is 1. A vertex swapped or
+    dropped out is tabu for a few iterations. After Grosso, Locatelli & Pullan (2008) and
+    Wu & Hao (2012), much simplified. Stops after ``stall`` iterations without improvement.
+    """
+    W = B.shape[1]
+    np.random.seed(seed)
+    inC = np.zeros(n, np.bool_)
+    C = np.empty(n + 1, np.int64)
+    where = np.empty(n, np.int64)
+    miss = np.zeros(n, np.int64)
+    tabu = np.zeros(n, np.int64)
+    cand_a = np.empty(n, np.int64)
+    cand_s = np.empty(n, np.int64)
+    size = 0
+    for v in init:
+        _ls_add(B, n, W, v, miss, 1)
+        inC[v] = True
+        where[v] = size
+        C[size] = v
+        size += 1
+    best = init.copy()
+    last = 0
+    for it in range(max_iter):
+        # invariant: C[:size] is a clique; miss[v] = |C minus N(v) minus {v}|
+        if (it & 255) == 255 and _now() - t0 > time_limit:
+            break
+        if it - last > stall:
+            break
+        na = 0
+        ns = 0
+        for v in range(n):
+            if inC[v] or tabu[v] > it:
+                continue
+            if miss[v] == 0:
+                cand_a[na] = v
+                na += 1
+            elif miss[v] == 1:
+                cand_s[ns] = v
+                ns += 1
+        if na > 0:
+            v = cand_a[np.random.randint(na)]
+        elif ns > 0:
+            v = cand_s[np.random.randint(ns)]
+            # the one clique vertex not adjacent to v leaves
+            u = -1
+            for i in range(size):
+                c = C[i]
+                if (B[v, c >> 6] >> np.uint64(c & 63)) & _ONE == _ZERO:
+                    u = c
+                    break
+            _ls_add(B, n, W, u, miss, -1)
+            inC[u] = False
+            i = where[u]
+            size -= 1
+            C[i] = C[size]
+            where[C[i]] = i
+            tabu[u] = it + 7 + np.random.randint(ns + 1)
+        else:
+            if size == 0:
+                break
+            u = C[np.random.randint(size)]
+            _ls_add(B, n, W, u, miss, -1)
+            inC[u] = False
+            i = where[u]
+            size -= 1
+            C[i] = C[size]
+            where[C[i]] = i
+            tabu[u] = it + 7
+            continue
+        _ls_add(B, n, W, v, miss, 1)
+        inC[v] = True
+        where[v] = size
+        C[size] = v
+        size += 1
+        if size > best.shape[0]:
+            best = C[:size].copy()
+            last = it
+    return best
+
+
 # --------------------------------------------------------------------------------------
-# Colouring bound
+# Colouring bound and MaxSAT-style filtering
 # --------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def colour_sort(P, B, W, kmin, U, Q, ord_v, ord_c, base):
+def colour_classes(P, B, W, kmin, U, Q, CL, ord_v, ord_c, base):
     """Greedy sequential colouring of ``P`` in bit order (BBMC, San Segundo et al. 2011).
 
-    Colour classes are built one at a time: each is a maximal independent set taken from
-    the uncoloured vertices in increasing index. Only vertices with colour ``>= kmin``
-    are written to ``ord_v[base:], ord_c[base:]`` (the k-min filter of Tomita's MCQ): the
-    others can never lead to a clique better than the incumbent. Entries are in
-    non-decreasing colour. Returns how many were written.
+    Classes are built one at a time, each a maximal independent set taken from the
+    uncoloured vertices in increasing index. Classes ``1 .. kmin - 1`` are kept as bitsets
+    in ``CL[0 .. kmin - 2]``; vertices of colour ``>= kmin`` go to ``ord_v[base:]`` with
+    their colour in ``ord_c[base:]``, in non-decreasing colour (Tomita's k-min filter:
+    only they can lead to a clique that beats the incumbent). Returns how many.
     """
     w0 = W
     for w in range(W):
@@ -178,12 +314,16 @@ def colour_sort(P, B, W, kmin, U, Q, ord_v, ord_c, base):
     k = 0
     cnt = 0
     while True:
-        # invariant: U = vertices of P not yet coloured; U[:w0] is empty
+        # invariant: U = vertices of P not yet coloured, and U[:w0] is empty
         while w0 < W and U[w0] == _ZERO:
             w0 += 1
         if w0 == W:
             break
         k += 1
+        rec = k < kmin
+        if rec:
+            for w in range(W):
+                CL[k - 1, w] = _ZERO
         for w in range(w0, W):
             Q[w] = U[w]
         wq = w0
@@ -195,35 +335,223 @@ def colour_sort(P, B, W, kmin, U, Q, ord_v, ord_c, base):
                 break
             b = _cttz(Q[wq])
             v = wq * 64 + int(b)
-            bit = ~(_ONE << b)
-            Q[wq] &= bit
-            U[wq] &= bit
+            one = _ONE << b
+            Q[wq] &= ~one
+            U[wq] &= ~one
             for w in range(wq, W):
                 Q[w] &= ~B[v, w]
-            if k >= kmin:
+            if rec:
+                CL[k - 1, wq] |= one
+            else:
                 ord_v[base + cnt] = v
                 ord_c[base + cnt] = k
                 cnt += 1
     return cnt
 
 
+@numba.njit(cache=True)
+def colour_count(P, B, W, U, Q):
+    """Number of classes of the greedy colouring of ``P``: an upper bound on its clique."""
+    for w in range(W):
+        U[w] = P[w]
+    k = 0
+    w0 = 0
+    while True:
+        while w0 < W and U[w0] == _ZERO:
+            w0 += 1
+        if w0 == W:
+            return k
+        k += 1
+        for w in range(w0, W):
+            Q[w] = U[w]
+        wq = w0
+        while True:
+            while wq < W and Q[wq] == _ZERO:
+                wq += 1
+            if wq == W:
+                break
+            b = _cttz(Q[wq])
+            v = wq * 64 + int(b)
+            one = _ONE << b
+            Q[wq] &= ~one
+            U[wq] &= ~one
+            for w in range(wq, W):
+                Q[w] &= ~B[v, w]
+
+
+@numba.njit(cache=True)
+def try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert):
+    """Can ``v`` join the ``need`` classes without raising their clique bound?
+
+    Returns 1 when ``v`` was put into a class: directly (no neighbour there) or by
+    Tomita's Re-NUMBER (its single neighbour ``u`` in class ``k`` moves to a class with no
+    neighbour of ``u``; MCS, 2010). Returns 2 when unit propagation from ``v`` fails
+    (MaxCLQ, Li & Quan 2010): classes are clauses "the clique takes one of these", ``v``
+    is set true, every class keeps only the vertices adjacent to all true ones, a class
+    left with one vertex makes it true, and a class left empty is a conflict. The classes
+    that took part (traced back through the reasons ``RS``) are written to ``SX``:
+    together with ``v`` they hold no clique with one vertex per class. Returns 0 otherwise.
+    """
+    WC = (need + 63) >> 6
+    nunits = 0
+    for k in range(need):
+        if not active[k]:
+            continue
+        c = 0
+        for w in range(W):
+            x = CL[k, w] & B[v, w]
+            R[k, w] = x
+            c += int(_ctpop(x))
+        if c == 0:
+            _setbit(CL[k], v)
+            return 1
+        fired[k] = False
+        queued[k] = c == 1
+        for w in range(WC):
+            RS[k, w] = _ZERO
+        if c == 1:
+            queue[nunits] = k
+            uvert[nunits] = _first(R[k], W)
+            nunits += 1
+    # Re-NUMBER: keeps every class, so it is tried before anything is consumed
+    for qi in range(nunits):
+        k = queue[qi]
+        u = uvert[qi]
+        for l in range(need):
+            if l == k or not active[l]:
+                continue
+            ok = True
+            for w in range(W):
+                if CL[l, w] & B[u, w]:
+                    ok = False
+                    break
+            if ok:
+                _clearbit(CL[k], u)
+                _setbit(CL[k], v)
+                _setbit(CL[l], u)
+                return 1
+    qh = 0
+    conflict = -1
+    while qh < nunits and conflict < 0:
+        # invariant: R[l] = CL[l] ∩ N(v) ∩ N(every fired unit); RS[l] = classes whose units
+        # removed something from R[l], with their own reasons
+        k = queue[qh]
+        u = uvert[qh]
+        qh += 1
+        fired[k] = True
+        _setbit(RS[k], k)
+        for l in range(need):
+            if l == k or not active[l] or fired[l]:
+                continue
+            c = 0
+            changed = False
+            for w in range(W):
+                x = R[l, w]
+                y = x & B[u, w]
+                if y != x:
+                    changed = True
+                R[l, w] = y
+                c += int(_ctpop(y))
+            if changed:
+                for w in range(WC):
+                    RS[l, w] |= RS[k, w]
+            if c == 0:
+                conflict = l
+                break
+            if c == 1 and not queued[l]:
+                queued[l] = True
+                queue[nunits] = l
+                uvert[nunits] = _first(R[l], W)
+                nunits += 1
+    if conflict < 0:
+        return 0
+    for w in range(WC):
+        SX[w] = RS[conflict, w]
+    _setbit(SX, conflict)
+    return 2
+
+
+@numba.njit(cache=True)
+def absorb(B, W, need, CL, ord_v, ord_c, base, cnt, S):
+    """Drop from the branching list the vertices the MaxSAT-style reasoning absorbs.
+
+    ``CL[:need]`` are the first ``need`` colour classes, ``ord_*[base:base + cnt]`` the
+    branching candidates (colour > need) in non-decreasing colour. Candidates are taken a
+    colour class at a time; each is tried by :func:`try_vertex`. The classes consumed by
+    the failed-literal conflicts of one candidate class are retired together (a clause
+    and the conflicts of each of its literals form one inconsistent subset, so they may
+    overlap), and later candidates work with the classes left. Invariant: the retired
+    subsets and the active classes, with the absorbed vertices, hold no clique larger
+    than ``need``; so branching on the survivors alone is exact. Returns how many survive.
+    """
+    R, RS, SX, SU, active, queued, fired, queue, uvert = S
+    WC = (need + 63) >> 6
+    for k in range(need):
+        active[k] = True
+    out = 0
+    i = 0
+    while i < cnt:
+        col = ord_c[base + i]
+        j = i
+        while j < cnt and ord_c[base + j] == col:
+            j += 1
+        for w in range(WC):
+            SU[w] = _ZERO
+        for t in range(i, j):
+            v = ord_v[base + t]
+            r = try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert)
+            if r == 0:
+                ord_v[base + out] = v
+                ord_c[base + out] = col
+                out += 1
+            elif r == 2:
+                for w in range(WC):
+                    SU[w] |= SX[w]
+        for w in range(WC):
+            x = SU[w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                active[w * 64 + int(b)] = False
+        i = j
+    return out
+
+
+@numba.njit(cache=True)
+def _scratch(n, W):
+    return (
+        np.empty((n + 1, W), np.uint64),
+        np.empty((n + 1, W), np.uint64),
+        np.empty(W, np.uint64),
+        np.empty(W, np.uint64),
+        np.empty(n + 1, np.bool_),
+        np.empty(n + 1, np.bool_),
+        np.empty(n + 1, np.bool_),
+        np.empty(n + 1, np.int64),
+        np.empty(n + 1, np.int64),
+    )
+
+
 # --------------------------------------------------------------------------------------
 # Branch and bound
 # --------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, check_mask):
+def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, node_limit):
     """Branch and bound for cliques larger than ``floor`` (mode 0) or of size ``floor + 1``.
 
     Parameters
     ----------
-    B : (n, W) uint64, renumbered adjacency (bit order = branching order).
+    B : (n, W) uint64, renumbered adjacency (bit order = colouring order).
     P0 : (W,) uint64, root candidate set.
     init : int64 array, an initial clique (the incumbent) in the new numbering.
-    floor : int, cliques of size <= floor are of no interest.
-    mode : 0 = maximum clique (the bar rises with each improvement), 1 = enumerate every
+    floor : cliques of size ``<= floor`` are of no interest.
+    mode : 0 = maximum clique (the bar rises with each improvement); 1 = enumerate every
         clique of size ``floor + 1`` (the bar stays), at most ``limit`` of them.
+    maxsat : filter branching vertices with :func:`absorb`.
+    node_limit : stop (status 2) after this many nodes.
 
-    Returns ``(best, nodes, timed_out, found, nfound, overflow)``.
+    Returns ``(best, nodes, status, found)``; status 0 = finished, 1 = out of time,
+    2 = node limit reached, 3 = more than ``limit`` cliques.
     """
     W = B.shape[1]
     bar = floor
@@ -231,9 +559,9 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, check_mask):
         bar = init.shape[0]
     best = init.copy()
     target = floor + 1
-    found = np.empty((max(limit, 0) if mode == 1 else 0, target), np.int64)
+    found = np.empty((min(limit, 64) if mode == 1 else 0, target), np.int64)
     nfound = 0
-    overflow = False
+    status = 0
 
     maxd = n + 2
     Pst = np.empty((maxd, W), np.uint64)
@@ -243,26 +571,30 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, check_mask):
     C = np.empty(maxd, np.int64)
     U = np.empty(W, np.uint64)
     Q = np.empty(W, np.uint64)
+    CL = np.empty((n + 1, W), np.uint64)
+    S = _scratch(n, W)
     cap = 4 * n + 64
     ord_v = np.empty(cap, np.int64)
     ord_c = np.empty(cap, np.int64)
 
     nodes = 1
-    timed_out = False
-    for w in range(W):
-        Pst[0, w] = P0[w]
+    Pst[0, :] = P0
     base[0] = 0
     need = _popcount(P0, W)
     if need > cap:
         cap = 2 * need
         ord_v = np.empty(cap, np.int64)
         ord_c = np.empty(cap, np.int64)
-    cnt[0] = colour_sort(Pst[0], B, W, bar + 1, U, Q, ord_v, ord_c, 0)
-    pos[0] = cnt[0] - 1
+    c = colour_classes(Pst[0], B, W, bar + 1, U, Q, CL, ord_v, ord_c, 0)
+    if maxsat and c > 0 and bar > 0:
+        c = absorb(B, W, bar, CL, ord_v, ord_c, 0, c, S)
+    cnt[0] = c
+    pos[0] = c - 1
     depth = 0
     while depth >= 0:
-        # invariant: C[:depth] is a clique, Pst[depth] its common neighbours not yet
-        # branched on; ord_*[base+0 .. base+pos] are the branching candidates left
+        # invariant: C[:depth] is a clique and Pst[depth] its common neighbours not yet
+        # branched on; ord_*[base + 0 .. base + pos] are the branching candidates left,
+        # and every clique in Pst[depth] avoiding them has at most bar - depth vertices
         p = pos[depth]
         if p < 0:
             depth -= 1
@@ -273,15 +605,14 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, check_mask):
             pos[depth] = -1
             continue
         pos[depth] = p - 1
-        nonempty = False
+        size = 0
         for w in range(W):
             x = Pst[depth, w] & B[v, w]
             Pst[depth + 1, w] = x
-            if x != _ZERO:
-                nonempty = True
-        Pst[depth, v >> 6] &= ~(_ONE << np.uint64(v & 63))
+            size += int(_ctpop(x))
+        _clearbit(Pst[depth], v)
         C[depth] = v
-        if not nonempty:
+        if size == 0:
             size = depth + 1
             if mode == 0:
                 if size > bar:
@@ -289,70 +620,88 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, check_mask):
                     best = C[:size].copy()
             elif size == target:
                 if nfound < limit:
-                    for i in range(size):
-                        found[nfound, i] = C[i]
+                    if nfound == found.shape[0]:
+                        grown = np.empty((min(limit, 2 * nfound), target), np.int64)
+                        grown[:nfound] = found
+                        found = grown
+                    found[nfound, :] = C[:size]
                     nfound += 1
                 else:
-                    overflow = True
+                    status = 3
                     break
             continue
+        kneed = bar - depth - 1
+        if size <= kneed:
+            continue
         nodes += 1
-        if (nodes & check_mask) == 0:
+        if nodes > node_limit:
+            status = 2
+            break
+        if (nodes & mask) == 0:
             if _now() - t0 > time_limit:
-                timed_out = True
+                status = 1
                 break
         nb = b0 + cnt[depth]
-        need = nb + _popcount(Pst[depth + 1], W)
-        if need > cap:
-            cap = 2 * need
+        if nb + size > cap:
+            cap = 2 * (nb + size)
             nv = np.empty(cap, np.int64)
             nc = np.empty(cap, np.int64)
             nv[:nb] = ord_v[:nb]
             nc[:nb] = ord_c[:nb]
             ord_v = nv
             ord_c = nc
-        c = colour_sort(Pst[depth + 1], B, W, bar - depth, U, Q, ord_v, ord_c, nb)
+        c = colour_classes(Pst[depth + 1], B, W, kneed + 1, U, Q, CL, ord_v, ord_c, nb)
+        if maxsat and c > 0 and kneed > 0:
+            c = absorb(B, W, kneed, CL, ord_v, ord_c, nb, c, S)
         if c == 0:
             continue
         depth += 1
         base[depth] = nb
         cnt[depth] = c
         pos[depth] = c - 1
-    return best, nodes, timed_out, found[:nfound].copy(), nfound, overflow
+    return best, nodes, status, found[:nfound].copy()
 
 
 @numba.njit(cache=True)
-def solve(A, n, floor, mode, limit, time_limit, t0):
-    """Whole pipeline on original bitsets: order, renumber, initial clique, prune, search.
+def solve(A, n, floor, mode, limit, time_limit, t0, opts):
+    """Whole pipeline on bitset rows: order, renumber, initial clique, prune, search.
 
-    Returns ``(clique, nodes, timed_out, found, nfound, overflow)`` in original labels.
+    In mode 0 the search first runs with a small node budget: easy graphs end there. If
+    it does not, tabu local search improves the incumbent and the search starts again
+    with the higher bar (hard graphs repay the few milliseconds many times over).
+
+    Returns ``(clique, nodes, status, found)`` in the caller's labels (status as in
+    :func:`bb_search`).
     """
     W = A.shape[1]
     order, core = degeneracy_order(A, n)
     B = relabel(A, n, order)
-    P = np.empty(W, np.uint64)
-    Q = np.empty(W, np.uint64)
+    U = np.empty(W, np.uint64)
+    init = np.empty(0, np.int64)
     if mode == 0:
-        starts = np.arange(n)
-        init = greedy_clique(B, n, starts, P, Q)
-    else:
-        init = np.empty(0, np.int64)
-    bar = floor
-    if init.shape[0] > bar:
-        bar = init.shape[0]
-    # k-core pruning: a clique of size bar + 1 lies inside the bar-core
-    P0 = np.zeros(W, np.uint64)
-    for i in range(n):
-        if core[order[i]] >= bar:
-            P0[i >> 6] |= _ONE << np.uint64(i & 63)
-    # check the clock about every 5 ms of colouring work: a node costs ~|P| W word ops
-    work = n * W + 1
-    mask = 1
-    while mask < 4096 and mask * work < 2_000_000:
-        mask = mask * 2 + 1
-    best, nodes, timed_out, found, nfound, overflow = bb_search(
-        B, n, P0, init, floor, mode, limit, time_limit, t0, mask
-    )
+        init = greedy_clique(B, n, U)
+    maxsat = (opts & OPT_MAXSAT) != 0
+    mask = check_mask(n, W)
+    nodes = 0
+    budget = 1 << 62
+    if mode == 0 and (opts & OPT_LOCAL_SEARCH) != 0:
+        budget = 1000
+    while True:
+        bar = max(floor, init.shape[0])
+        # k-core pruning: a clique of size bar + 1 lies inside the bar-core
+        P0 = np.zeros(W, np.uint64)
+        for i in range(n):
+            if core[order[i]] >= bar:
+                _setbit(P0, i)
+        best, used, status, found = bb_search(
+            B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, budget
+        )
+        nodes += used
+        if status != 2:
+            break
+        iters = min(100 * n, 20_000_000 // (n + 1))
+        init = local_search(B, n, best, iters, 20 * n, t0, time_limit, 12345)
+        budget = 1 << 62
     best_o = np.empty(best.shape[0], np.int64)
     for i in range(best.shape[0]):
         best_o[i] = order[best[i]]
@@ -360,4 +709,289 @@ def solve(A, n, floor, mode, limit, time_limit, t0):
     for r in range(found.shape[0]):
         for i in range(found.shape[1]):
             found_o[r, i] = order[found[r, i]]
-    return best_o, nodes, timed_out, found_o, nfound, overflow
+    return best_o, nodes, status, found_o
+
+
+# --------------------------------------------------------------------------------------
+# Maximum-weight clique
+# --------------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def colour_weighted(P, B, W, wt, need, U, Q, ord_v, ord_b, base):
+    """Weighted colouring bound (Kumlander 2004): classes built as in BBMC; the bound of
+    the ``i``-th vertex is the heaviest vertex of each earlier class plus the heaviest of
+    its own class up to ``i``. Only entries with a bound above ``need`` are written."""
+    w0 = W
+    for w in range(W):
+        U[w] = P[w]
+        if P[w] != _ZERO and w < w0:
+            w0 = w
+    acc = 0.0
+    cnt = 0
+    while True:
+        while w0 < W and U[w0] == _ZERO:
+            w0 += 1
+        if w0 == W:
+            break
+        for w in range(w0, W):
+            Q[w] = U[w]
+        wq = w0
+        cmax = 0.0
+        while True:
+            while wq < W and Q[wq] == _ZERO:
+                wq += 1
+            if wq == W:
+                break
+            b = _cttz(Q[wq])
+            v = wq * 64 + int(b)
+            one = _ONE << b
+            Q[wq] &= ~one
+            U[wq] &= ~one
+            for w in range(wq, W):
+                Q[w] &= ~B[v, w]
+            if wt[v] > cmax:
+                cmax = wt[v]
+            if acc + cmax > need:
+                ord_v[base + cnt] = v
+                ord_b[base + cnt] = acc + cmax
+                cnt += 1
+        acc += cmax
+    return cnt
+
+
+@numba.njit(cache=True)
+def solve_weighted(A, n, weights, time_limit, t0):
+    """Maximum-weight clique by branch and bound with the weighted colouring bound.
+
+    Returns ``(clique, weight, nodes, timed_out)`` in the caller's labels.
+    """
+    W = A.shape[1]
+    order, core = degeneracy_order(A, n)
+    B = relabel(A, n, order)
+    wt = np.empty(n)
+    for i in range(n):
+        wt[i] = weights[order[i]]
+    # initial clique: from each vertex, add the heaviest candidate
+    U = np.empty(W, np.uint64)
+    Q = np.empty(W, np.uint64)
+    best = np.empty(0, np.int64)
+    best_w = -1.0
+    cur = np.empty(n, np.int64)
+    for s in range(n):
+        U[:] = B[s]
+        cur[0] = s
+        size = 1
+        tot = wt[s]
+        while True:
+            u = -1
+            bw = -1.0
+            for w in range(W):
+                x = U[w]
+                while x:
+                    b = _cttz(x)
+                    x &= x - _ONE
+                    j = w * 64 + int(b)
+                    if wt[j] > bw:
+                        bw = wt[j]
+                        u = j
+            if u < 0:
+                break
+            cur[size] = u
+            size += 1
+            tot += wt[u]
+            for w in range(W):
+                U[w] &= B[u, w]
+        if tot > best_w:
+            best_w = tot
+            best = cur[:size].copy()
+
+    maxd = n + 2
+    Pst = np.empty((maxd, W), np.uint64)
+    pos = np.empty(maxd, np.int64)
+    base = np.empty(maxd, np.int64)
+    cnt = np.empty(maxd, np.int64)
+    C = np.empty(maxd, np.int64)
+    Cw = np.zeros(maxd)
+    cap = 4 * n + 64
+    ord_v = np.empty(cap, np.int64)
+    ord_b = np.empty(cap)
+    mask = check_mask(n, W)
+    nodes = 1
+    timed_out = False
+    Pst[0, :] = _ZERO
+    for i in range(n):
+        _setbit(Pst[0], i)
+    if n > cap:
+        cap = 2 * n
+        ord_v = np.empty(cap, np.int64)
+        ord_b = np.empty(cap)
+    base[0] = 0
+    c = colour_weighted(Pst[0], B, W, wt, best_w, U, Q, ord_v, ord_b, 0)
+    cnt[0] = c
+    pos[0] = c - 1
+    depth = 0
+    while depth >= 0:
+        # invariant: C[:depth] is a clique of weight Cw[depth]; the branching candidates
+        # left are ord_*[base + 0 .. base + pos], each with a bound on the weight it can add
+        p = pos[depth]
+        if p < 0:
+            depth -= 1
+            continue
+        b0 = base[depth]
+        v = ord_v[b0 + p]
+        if Cw[depth] + ord_b[b0 + p] <= best_w:
+            pos[depth] = -1
+            continue
+        pos[depth] = p - 1
+        size = 0
+        for w in range(W):
+            x = Pst[depth, w] & B[v, w]
+            Pst[depth + 1, w] = x
+            size += int(_ctpop(x))
+        _clearbit(Pst[depth], v)
+        C[depth] = v
+        Cw[depth + 1] = Cw[depth] + wt[v]
+        if size == 0:
+            if Cw[depth + 1] > best_w:
+                best_w = Cw[depth + 1]
+                best = C[: depth + 1].copy()
+            continue
+        nodes += 1
+        if (nodes & mask) == 0:
+            if _now() - t0 > time_limit:
+                timed_out = True
+                break
+        nb = b0 + cnt[depth]
+        if nb + size > cap:
+            cap = 2 * (nb + size)
+            nv = np.empty(cap, np.int64)
+            nbd = np.empty(cap)
+            nv[:nb] = ord_v[:nb]
+            nbd[:nb] = ord_b[:nb]
+            ord_v = nv
+            ord_b = nbd
+        c = colour_weighted(
+            Pst[depth + 1], B, W, wt, best_w - Cw[depth + 1], U, Q, ord_v, ord_b, nb
+        )
+        if c == 0:
+            continue
+        depth += 1
+        base[depth] = nb
+        cnt[depth] = c
+        pos[depth] = c - 1
+    out = np.empty(best.shape[0], np.int64)
+    for i in range(best.shape[0]):
+        out[i] = order[best[i]]
+    return out, best_w, nodes, timed_out
+
+
+# --------------------------------------------------------------------------------------
+# The k largest maximal cliques
+# --------------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def solve_top(A, n, k, time_limit, t0):
+    """Bron–Kerbosch with Tomita's pivot, pruned by the colouring bound once ``k``
+    maximal cliques are held: a branch whose clique plus colour count cannot exceed the
+    smallest one kept is cut. Returns ``(tops, sizes, count, timed_out)``."""
+    W = A.shape[1]
+    order, core = degeneracy_order(A, n)
+    B = relabel(A, n, order)
+    tops = np.zeros((k, n), np.int64)
+    tsize = np.zeros(k, np.int64)
+    count = 0
+    maxd = n + 2
+    Pst = np.zeros((maxd, W), np.uint64)
+    Xst = np.zeros((maxd, W), np.uint64)
+    pos = np.empty(maxd, np.int64)
+    base = np.empty(maxd, np.int64)
+    cnt = np.empty(maxd, np.int64)
+    R = np.empty(maxd, np.int64)
+    U = np.empty(W, np.uint64)
+    Q = np.empty(W, np.uint64)
+    cap = 4 * n + 64
+    lst = np.empty(cap, np.int64)
+    mask = check_mask(n, W)
+    nodes = 0
+    timed_out = False
+    for i in range(n):
+        _setbit(Pst[0], i)
+    depth = 0
+    base[0] = 0
+    fresh = True  # the node at `depth` has not been expanded yet
+    while depth >= 0:
+        if fresh:
+            fresh = False
+            nodes += 1
+            if (nodes & mask) == 0 and _now() - t0 > time_limit:
+                timed_out = True
+                break
+            np_ = _popcount(Pst[depth], W)
+            nx_ = _popcount(Xst[depth], W)
+            if np_ == 0:
+                if nx_ == 0:  # R[:depth] is a maximal clique
+                    if count < k:
+                        tops[count, :depth] = R[:depth]
+                        tsize[count] = depth
+                        count += 1
+                    else:
+                        j = np.argmin(tsize)
+                        if depth > tsize[j]:
+                            tops[j, :] = 0
+                            tops[j, :depth] = R[:depth]
+                            tsize[j] = depth
+                depth -= 1
+                continue
+            if count == k:
+                if depth + colour_count(Pst[depth], B, W, U, Q) <= tsize.min():
+                    depth -= 1
+                    continue
+            # pivot u in P ∪ X maximising |P ∩ N(u)|; branch on P minus N(u)
+            bu = -1
+            bc = -1
+            for src in range(2):
+                for w in range(W):
+                    x = Pst[depth, w] if src == 0 else Xst[depth, w]
+                    while x:
+                        b = _cttz(x)
+                        x &= x - _ONE
+                        u = w * 64 + int(b)
+                        c = 0
+                        for w2 in range(W):
+                            c += int(_ctpop(Pst[depth, w2] & B[u, w2]))
+                        if c > bc:
+                            bc = c
+                            bu = u
+            nb = base[depth]
+            if nb + np_ > cap:
+                cap = 2 * (nb + np_)
+                nl = np.empty(cap, np.int64)
+                nl[:nb] = lst[:nb]
+                lst = nl
+            c = 0
+            for w in range(W):
+                x = Pst[depth, w] & ~B[bu, w]
+                while x:
+                    b = _cttz(x)
+                    x &= x - _ONE
+                    lst[nb + c] = w * 64 + int(b)
+                    c += 1
+            cnt[depth] = c
+            pos[depth] = 0
+        # invariant: the vertices lst[base + pos[depth] ..] of this node are still to branch
+        if pos[depth] >= cnt[depth]:
+            depth -= 1
+            continue
+        v = lst[base[depth] + pos[depth]]
+        pos[depth] += 1
+        for w in range(W):
+            Pst[depth + 1, w] = Pst[depth, w] & B[v, w]
+            Xst[depth + 1, w] = Xst[depth, w] & B[v, w]
+        _clearbit(Pst[depth], v)
+        _setbit(Xst[depth], v)
+        R[depth] = v
+        base[depth + 1] = base[depth] + cnt[depth]
+        depth += 1
+        fresh = True
+    for r in range(count):
+        for i in range(tsize[r]):
+            tops[r, i] = order[tops[r, i]]
+    return tops[:count].copy(), tsize[:count].copy(), count, timed_out

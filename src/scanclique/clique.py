@@ -275,12 +275,13 @@ def _limit(time_limit) -> float:
     return t
 
 
-def _run(adj, floor, mode, limit, time_limit, t0):
+def _run(adj, floor, mode, limit, time_limit, t0, opts=None):
     from . import _clique_kernels as K
 
     n = adj.shape[0]
     A = bitsets_from_adjacency(adj)
-    return K.solve(A, n, int(floor), int(mode), int(limit), float(time_limit), float(t0))
+    opts = K.OPT_DEFAULT if opts is None else opts
+    return K.solve(A, n, int(floor), int(mode), int(limit), float(time_limit), float(t0), opts)
 
 
 def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> CliqueResult:
@@ -341,12 +342,19 @@ def _max_clique(adj, t0, tl, lower_bound, weights) -> CliqueResult:
         w = np.asarray(weights, dtype=np.float64).reshape(-1)
         if w.shape[0] != n or not np.isfinite(w).all() or (w < 0).any():
             raise GraphError(f"weights must be {n} finite non-negative numbers")
-        verts, nodes, optimal = _max_weight_clique_py(adj, w, t0, tl)
-        return CliqueResult(verts, optimal, nodes, time.perf_counter() - t0, float(w[verts].sum()))
+        if n == 0:
+            return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0, 0.0)
+        from . import _clique_kernels as K
+
+        verts, _, nodes, timed_out = K.solve_weighted(bitsets_from_adjacency(adj), n, w, tl, t0)
+        return CliqueResult(
+            verts, not timed_out, int(nodes), time.perf_counter() - t0, float(w[verts].sum())
+        )
     floor = 0 if lower_bound is None else max(int(lower_bound) - 1, 0)
     if n == 0:
         return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0)
-    best, nodes, timed_out, _, _, _ = _run(adj, floor, 0, 0, tl, t0)
+    best, nodes, status, _ = _run(adj, floor, 0, 0, tl, t0)
+    timed_out = status == 1
     optimal = (not timed_out) and best.shape[0] > floor
     if best.shape[0] == 0:  # n >= 1: a single vertex is always a clique
         best = np.zeros(1, np.int64)
@@ -399,8 +407,9 @@ def _all_maximum(adj, t0, tl, limit) -> AllCliquesResult:
     if omega == 1:  # every vertex
         cl = [np.array([v]) for v in range(min(n, limit))]
         return AllCliquesResult(tuple(cl), 1, n <= limit, first.optimal, time.perf_counter() - t0)
-    _, _, timed_out, found, nfound, overflow = _run(adj, omega - 1, 1, limit, tl, t0)
-    cl = [found[i] for i in range(nfound)]
+    _, _, status, found = _run(adj, omega - 1, 1, limit, tl, t0)
+    timed_out, overflow = status == 1, status == 3
+    cl = list(found)
     if not cl:  # time ran out before the enumeration met the known clique
         cl = [first.vertices]
     complete = first.optimal and not timed_out and not overflow
@@ -436,13 +445,16 @@ def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
     t0 = time.perf_counter()
     adj = as_adjacency(graph)
     tl = _limit(time_limit)
-    cl = []
-    for c in bron_kerbosch(adj):
-        cl.append(c)
-        if time.perf_counter() - t0 > tl:
-            break
+    k = int(k)
+    n = adj.shape[0]
+    if n == 0 or k <= 0:
+        return ()
+    from . import _clique_kernels as K
+
+    tops, sizes, count, _ = K.solve_top(bitsets_from_adjacency(adj), n, k, tl, t0)
+    cl = [_frozen_vertices(tops[i, : sizes[i]]) for i in range(count)]
     cl.sort(key=lambda c: (-c.shape[0], c.tolist()))
-    return tuple(_frozen_vertices(c) for c in cl[: max(int(k), 0)])
+    return tuple(cl)
 
 
 # --------------------------------------------------------------------------------------
@@ -482,102 +494,42 @@ def bron_kerbosch(graph) -> Iterator[np.ndarray]:
     [[0, 1], [1, 2]]
     """
     adj = as_adjacency(graph)
-    N = [set(np.flatnonzero(row).tolist()) for row in adj]
-    if not N:
+    n = adj.shape[0]
+    if n == 0:
         return
-    # explicit stack of (R, P, X, branch list); invariant: every vertex of P and X is
-    # adjacent to all of R, and R + [v] for v in P has not been reported as a subset yet
+    # sets as Python ints: bit v of N[v'] says v ~ v'
+    N = [int.from_bytes(np.packbits(row, bitorder="little").tobytes(), "little") for row in adj]
     R: list[int] = []
-    P = set(range(len(N)))
-    X: set[int] = set()
-    stack = []
+    P = (1 << n) - 1
+    X = 0
+    stack: list[list] = []  # frames [R, P, X, todo]
     while True:
+        # invariant: every vertex of P and X is adjacent to all of R; the cliques still to
+        # report are those R ∪ S, S ⊆ P, that no vertex of X extends
         if not P and not X:
             yield np.array(sorted(R), dtype=np.int64)
         if P:
-            u = max(P | X, key=lambda x: len(P & N[x]))
-            stack.append((R, P, X, list(P - N[u])))
+            u = max(_bits(P | X), key=lambda x: (P & N[x]).bit_count())
+            stack.append([R, P, X, P & ~N[u]])
         while stack:
-            R, P, X, todo = stack[-1]
+            frame = stack[-1]
+            R, P, X, todo = frame
             if todo:
-                v = todo.pop()
-                newR, newP, newX = R + [v], P & N[v], X & N[v]
-                P.remove(v)
-                X.add(v)
-                R, P, X = newR, newP, newX
+                low = todo & -todo
+                v = low.bit_length() - 1
+                frame[1], frame[2], frame[3] = P ^ low, X | low, todo ^ low
+                R, P, X = R + [v], P & N[v], X & N[v]
                 break
             stack.pop()
         else:
             return
 
 
-# --------------------------------------------------------------------------------------
-# Weighted (maximum-weight clique)
-# --------------------------------------------------------------------------------------
-def _max_weight_clique_py(adj, w, t0, tl):
-    """Branch and bound with a weighted colouring bound, on Python int bitsets.
-
-    Each colour class contributes its heaviest vertex; the bound of the ``i``-th vertex of
-    the colour order is the sum over earlier classes plus its own class's heaviest vertex
-    up to ``i`` (Kumlander 2004; networkx's ``max_weight_clique`` uses the same idea).
-    """
-    n = adj.shape[0]
-    if n == 0:
-        return np.empty(0, np.int64), 0, True
-    order = np.argsort(-w, kind="stable")
-    pos = np.empty(n, np.int64)
-    pos[order] = np.arange(n)
-    nbr = []
-    for v in order:
-        m = 0
-        for j in pos[np.flatnonzero(adj[v])].tolist():
-            m |= 1 << j
-        nbr.append(m)
-    wt = w[order].tolist()
-    best_w = -1.0
-    best: list[int] = []
-    nodes = 0
-    timed_out = False
-
-    def expand(C, wC, P):
-        nonlocal best_w, best, nodes, timed_out
-        nodes += 1
-        if (nodes & 255) == 0 and time.perf_counter() - t0 > tl:
-            timed_out = True
-        if timed_out:
-            return
-        if P == 0:
-            if wC > best_w:
-                best_w, best = wC, list(C)
-            return
-        # colour P greedily; entries (v, bound)
-        ents = []
-        U = P
-        acc = 0.0
-        while U:
-            Q = U
-            cmax = 0.0
-            while Q:
-                low = Q & -Q
-                v = low.bit_length() - 1
-                Q &= ~low & ~nbr[v]
-                U &= ~low
-                cmax = max(cmax, wt[v])
-                ents.append((v, acc + cmax))
-            acc += cmax
-        for v, bound in reversed(ents):
-            if wC + bound <= best_w:
-                return
-            C.append(v)
-            expand(C, wC + wt[v], P & nbr[v])
-            C.pop()
-            P &= ~(1 << v)
-            if timed_out:
-                return
-
-    expand([], 0.0, (1 << n) - 1)
-    verts = np.sort(order[np.array(best, dtype=np.int64)]) if best else np.zeros(0, np.int64)
-    return verts, nodes, not timed_out
+def _bits(x: int) -> Iterator[int]:
+    while x:
+        low = x & -x
+        yield low.bit_length() - 1
+        x ^= low
 
 
 # --------------------------------------------------------------------------------------

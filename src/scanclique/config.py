@@ -31,6 +31,24 @@ __all__ = [
 ]
 
 
+_TYPES = {"bool": (bool,), "int": (int,), "float": (int, float), "str": (str,)}
+
+
+def _check_types(obj) -> None:
+    """Every field holds a value of its annotated type (bools are not ints here, ints
+    are accepted for floats); sections are checked by their own classes."""
+    for f in fields(obj):
+        expected = _TYPES.get(f.type if isinstance(f.type, str) else getattr(f.type, "__name__", ""))
+        if expected is None:
+            continue
+        v = getattr(obj, f.name)
+        wrong = not isinstance(v, expected) or (bool not in expected and isinstance(v, bool))
+        if wrong:
+            raise ConfigError(
+                f"{type(obj).__name__}.{f.name} must be {f.type}, got {v!r} ({type(v).__name__})"
+            )
+
+
 def _positive(obj, *names: str) -> None:
     for name in names:
         v = getattr(obj, name)
@@ -58,6 +76,7 @@ class ClusterConfig:
     max_gap_beams: int = 0
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _nonneg(self, "c1", "c2", "max_gap_beams")
 
 
@@ -123,15 +142,16 @@ class FeatureConfig:
     line_max_rms: float = 0.05
     merge_angle: float = 0.08
     merge_distance: float = 0.10
-    corner_min_angle: float = math.radians(45)
-    corner_reach: float = 0.5
+    corner_min_angle: float = math.radians(35)
+    corner_reach: float = 1.0
     range_sigma: float = 0.02
     typed_edges: bool = True
-    min_edge_jump: float = 0.3
+    min_edge_jump: float = 0.15
     min_cluster_beams: int = 2
     crowd_radius: float = 0.3
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _positive(self, "min_cluster_beams", "point_max_extent", "split_distance", "line_min_length", "line_max_rms")
         _positive(self, "merge_angle", "merge_distance", "corner_min_angle", "range_sigma")
         _nonneg(self, "corner_reach")
@@ -171,6 +191,7 @@ class CorrespondenceConfig:
     max_nodes: int = 20000
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _positive(self, "point_point", "point_line", "line_line", "max_nodes")
 
 
@@ -184,15 +205,20 @@ class CliqueConfig:
     symmetry). ``peel`` more hypotheses come from removing the vertices of the cliques
     found so far and taking the maximum clique of what remains: disjoint associations,
     which the raw scans then judge (0: the maximum clique alone, as in the paper).
+    ``per_vertex``: for this many vertices of highest degree, the maximum clique containing
+    the vertex is a hypothesis too (vertex-guided search: the true association is found
+    when the maximum clique of the whole graph is a symmetric alias).
     """
 
     time_limit: float = 2.0
     max_hypotheses: int = 8
     peel: int = 6
+    per_vertex: int = 40
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _positive(self, "time_limit", "max_hypotheses")
-        _nonneg(self, "peel")
+        _nonneg(self, "peel", "per_vertex")
 
 
 @dataclass(frozen=True, slots=True)
@@ -210,6 +236,7 @@ class PoseConfig:
     min_pairs: int = 2
 
     def __post_init__(self) -> None:
+        _check_types(self)
         if self.method not in ("lsq", "median"):
             raise ConfigError(f"PoseConfig.method must be 'lsq' or 'median', got {self.method!r}")
         if not (isinstance(self.min_pairs, int) and self.min_pairs >= 2):
@@ -225,17 +252,27 @@ class RefineConfig:
     neighbour in A (under the pose) is closer than this. ``conflict_weight``: the score of a
     pose is the agreement minus this weight times the fraction of points that fall in the
     other scan's observed free space (see :func:`scanclique.refine.free_space_conflicts`).
+    ``candidates``: how many distinct best-scoring hypotheses get the full weighted
+    estimate and the ICP refinement before the final ranking. ``sample_points``: scoring
+    and ICP use at most this many of each scan's points, evenly spaced in beam order.
+    ``size_weight``: hypotheses are ranked by score plus this much per mapped feature.
     """
 
     enabled: bool = True
+    candidates: int = 4
+    sample_points: int = 180
+    size_weight: float = 0.01
     iterations: int = 15
     max_correspondence: float = 0.5
     inlier_distance: float = 0.15
-    conflict_weight: float = 1.0
+    conflict_weight: float = 2.0
 
     def __post_init__(self) -> None:
-        _positive(self, "max_correspondence", "inlier_distance")
-        _nonneg(self, "conflict_weight")
+        _check_types(self)
+        _positive(self, "max_correspondence", "inlier_distance", "sample_points")
+        _nonneg(self, "conflict_weight", "size_weight")
+        if not (isinstance(self.candidates, int) and self.candidates >= 1):
+            raise ConfigError(f"RefineConfig.candidates must be an int >= 1, got {self.candidates!r}")
         _nonneg(self, "iterations")
 
 
@@ -257,7 +294,7 @@ def paper_config() -> MatchConfig:
     return MatchConfig(
         features=FeatureConfig(corners=False, typed_edges=False),
         correspondence=CorrespondenceConfig(signed=False, parallel_offset=False),
-        clique=CliqueConfig(peel=0),
+        clique=CliqueConfig(peel=0, per_vertex=0),
         pose=PoseConfig(method="median"),
         refine=RefineConfig(enabled=False),
     )

@@ -26,7 +26,9 @@ def wrap_angle(angle):
     >>> float(wrap_angle(3 * np.pi / 2))
     -1.5707963267948966
     """
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+    a = (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
+    # floating point can round the result up to +pi; keep the half-open interval
+    return np.where(a >= np.pi, a - 2.0 * np.pi, a)
 
 
 def rotation_matrix(theta: float) -> np.ndarray:

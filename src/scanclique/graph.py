@@ -32,7 +32,7 @@ import numpy as np
 from .config import CorrespondenceConfig, FeatureConfig
 from .features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
 
-__all__ = ["LINE", "NODE_KIND_NAMES", "FeatureGraph", "feature_graph"]
+__all__ = ["LINE", "NODE_KIND_NAMES", "PARALLEL_MAX_ANGLE", "FeatureGraph", "feature_graph"]
 
 LINE = 8  #: node label of line features (point labels are 0..3, see :mod:`.features`)
 NODE_KIND_NAMES = {
@@ -42,7 +42,10 @@ NODE_KIND_NAMES = {
     CORNER: "corner",
     LINE: "line",
 }
-_PARALLEL_SIN = np.sin(0.15)  # lines within ~8.6 degrees of (anti)parallel get an offset
+# Lines within ~3 degrees of (anti)parallel also get an offset invariant: rho_j - rho_i
+# drifts by |t| sin(dalpha) under a motion t, about 0.25 m after 5 m, within tolerance.
+PARALLEL_MAX_ANGLE = 0.05  #: radians; lines this close to (anti)parallel get an offset
+_PARALLEL_SIN = np.sin(PARALLEL_MAX_ANGLE)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -24,7 +24,14 @@ from .correspondence import CorrespondenceGraph, correspondence_graph
 from .features import Features, extract_features
 from .geometry import Pose2
 from .graph import NODE_KIND_NAMES, FeatureGraph, feature_graph
-from .pose import PoseEstimate, estimate_pose_lsq, estimate_pose_median, mapped_features
+from .pose import (
+    PoseEstimate,
+    closed_form_pose,
+    estimate_pose_lsq,
+    estimate_pose_median,
+    mapped_features,
+    pair_consistent,
+)
 from .refine import ReferenceCloud, agreement, free_space_conflicts, icp_point_to_line, reference_cloud
 from .scan import Scan
 
@@ -59,29 +66,33 @@ class Hypothesis:
     """One association hypothesis: a clique of the correspondence graph and its pose.
 
     ``node_pairs`` are (node of A, node of B) in feature-graph order (points, then lines);
-    ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`).
+    ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`). ``estimate`` is the
+    full weighted estimate with covariance, computed for the best few hypotheses only (the
+    others carry the closed-form pose used to rank them); ``refined`` says whether ``pose``
+    was refined by ICP on the raw points.
     """
 
     node_pairs: np.ndarray
     clique_size: int
-    estimate: PoseEstimate
+    pose: Pose2
     score: float
+    estimate: PoseEstimate | None = None
     refined: bool = False
-
-    @property
-    def pose(self) -> Pose2:
-        return self.estimate.pose
 
 
 @dataclass(frozen=True, slots=True, eq=False)
 class PreparedScan:
-    """What the pipeline derives from one scan, reusable across many matches."""
+    """What the pipeline derives from one scan, reusable across many matches.
+
+    ``points`` are the scan's valid points (sensor frame); ``sample`` at most
+    ``refine.sample_points`` of them, evenly spaced in beam order, for scoring and ICP."""
 
     scan: Scan
     features: Features
     graph: FeatureGraph
     cloud: ReferenceCloud
     points: np.ndarray
+    sample: np.ndarray
     seconds: dict = field(default_factory=dict)
 
 
@@ -99,9 +110,13 @@ class ScanMatch:
         Covariance of ``(x, y, theta)`` of the feature-based estimate (paper §7's
         precision of the constellation of mapped features).
     pairs : tuple of FeaturePair
-        The mapping (the maximum clique), with feature kinds.
+        The mapping: the pairs of the chosen clique that agree with ``pose`` (within the
+        correspondence tolerances), with feature kinds.
     clique_size : int
-        Size of the maximum clique (0 when there was none).
+        Size of the chosen clique (0 when there was none). Usually ``omega``; smaller when
+        the raw scans preferred another hypothesis to every maximum clique.
+    omega : int
+        Size of the maximum clique of the correspondence graph (proven when ``optimal``).
     optimal : bool
         True when the clique search proved the clique maximum within its time limit.
     ambiguous : bool
@@ -127,6 +142,7 @@ class ScanMatch:
     covariance: np.ndarray | None
     pairs: tuple
     clique_size: int
+    omega: int
     optimal: bool
     ambiguous: bool
     hypotheses: tuple
@@ -155,6 +171,7 @@ class ScanMatch:
             "covariance": None if self.covariance is None else np.where(np.isfinite(self.covariance), self.covariance, None).tolist(),
             "pairs": [{"kind": p.kind, "a": p.a, "b": p.b} for p in self.pairs],
             "clique_size": self.clique_size,
+            "omega": self.omega,
             "optimal": self.optimal,
             "ambiguous": self.ambiguous,
             "score": self.score,
@@ -181,19 +198,23 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     graph = feature_graph(feats, cfg.correspondence, cfg.features)
     pts = scan.points()
     cloud = reference_cloud(pts)
+    n_s = cfg.refine.sample_points
+    sample = pts if len(pts) <= n_s else pts[np.linspace(0, len(pts) - 1, n_s).round().astype(int)]
     t2 = time.perf_counter()
-    return PreparedScan(scan, feats, graph, cloud, pts, {"features": t1 - t0, "graph": t2 - t1})
+    return PreparedScan(scan, feats, graph, cloud, pts, sample, {"features": t1 - t0, "graph": t2 - t1})
 
 
 def pose_score(pa: PreparedScan, pb: PreparedScan, pose: Pose2, config: MatchConfig | None = None) -> float:
-    """How well the raw scans agree under ``pose`` (maps B into A): the fraction of B's
-    points within ``refine.inlier_distance`` of A's points, minus ``refine.conflict_weight``
-    times the mean fraction of points lying in the other scan's observed free space."""
+    """How well the raw scans agree under ``pose`` (maps B into A), symmetrically: the mean
+    of the fraction of B's sampled points within ``refine.inlier_distance`` of A's points
+    and the same for A's points against B's, minus ``refine.conflict_weight`` times the
+    mean fraction of points lying in the other scan's observed free space."""
     cfg = config or MatchConfig()
-    score = agreement(pa.cloud, pb.points, pose, cfg.refine.inlier_distance)
+    d = cfg.refine.inlier_distance
+    score = 0.5 * (agreement(pa.cloud, pb.sample, pose, d) + agreement(pb.cloud, pa.sample, pose.inverse(), d))
     if cfg.refine.conflict_weight > 0:
-        c_ab = free_space_conflicts(pa.scan, pose.transform(pb.points))
-        c_ba = free_space_conflicts(pb.scan, pose.inverse().transform(pa.points))
+        c_ab = free_space_conflicts(pa.scan, pose.transform(pb.sample))
+        c_ba = free_space_conflicts(pb.scan, pose.inverse().transform(pa.sample))
         score -= cfg.refine.conflict_weight * 0.5 * (c_ab + c_ba)
     return score
 
@@ -209,6 +230,12 @@ def _node_pairs_to_feature_pairs(node_pairs: np.ndarray, ga: FeatureGraph, gb: F
     return tuple(out)
 
 
+def _points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
+    """Node pairs reordered points first, then lines (the order of ``mapped_features``)."""
+    is_pt = node_pairs[:, 0] < n_points_a
+    return np.concatenate((node_pairs[is_pt], node_pairs[~is_pt]))
+
+
 def _estimate(fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConfig) -> PoseEstimate | None:
     """Pose of one clique (paper §6), with one round of outlier rejection for the
     least-squares method: pairs whose Mahalanobis residual exceeds 3.5 are dropped."""
@@ -220,17 +247,47 @@ def _estimate(fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConf
         return None
     bad = est.residuals > 3.5
     if bad.any() and (~bad).sum() >= cfg.pose.min_pairs:
-        keep = np.concatenate(
-            (
-                np.flatnonzero(node_pairs[:, 0] < fa.n_points),
-                np.flatnonzero(node_pairs[:, 0] >= fa.n_points),
-            )
-        )[~bad]
-        m2 = mapped_features(fa, fb, node_pairs[np.sort(keep)])
+        m2 = mapped_features(fa, fb, _points_first(node_pairs, fa.n_points)[~bad])
         est2 = estimate_pose_lsq(m2, initial=est.pose)
         if est2 is not None:
             return est2
     return est
+
+
+def _vertex_cliques(adj: np.ndarray, k: int, min_size: int, deadline: float) -> list[np.ndarray]:
+    """For the ``k`` vertices of highest degree, the maximum clique containing the vertex
+    (a maximum clique of its closed neighbourhood), while time lasts."""
+    deg = adj.sum(axis=1)
+    out = []
+    for v in np.argsort(-deg, kind="stable")[:k]:
+        if deg[v] + 1 < min_size:
+            break
+        remaining = deadline - time.perf_counter()
+        if remaining <= 0:
+            break
+        nb = np.flatnonzero(adj[v])
+        r = _clique.max_clique(adj[np.ix_(nb, nb)], time_limit=remaining)
+        if r.size + 1 >= min_size:
+            out.append(np.sort(np.append(nb[np.asarray(r.vertices)], v)))
+    return out
+
+
+def _unique(cliques: list[np.ndarray]) -> list[np.ndarray]:
+    """Distinct cliques, order kept."""
+    seen, out = set(), []
+    for c in cliques:
+        key = tuple(np.sort(c).tolist())
+        if key not in seen:
+            seen.add(key)
+            out.append(np.asarray(c))
+    return out
+
+
+def _rank(h: Hypothesis, size_weight: float) -> float:
+    """Ranking key of a hypothesis: raw-scan score plus ``size_weight`` per mapped feature
+    (the clique's size is evidence too: between two poses that explain the scans about
+    equally well, the one more features agree on wins)."""
+    return h.score + size_weight * h.clique_size
 
 
 def _distinct(p: Pose2, q: Pose2, dist: float = 0.3, ang: float = math.radians(5)) -> bool:
@@ -238,12 +295,13 @@ def _distinct(p: Pose2, q: Pose2, dist: float = 0.3, ang: float = math.radians(5
     return t > dist or r > ang
 
 
-def _empty(pa: PreparedScan, pb: PreparedScan, reason: str, seconds: dict, n_nodes=0, n_edges=0, optimal=True) -> ScanMatch:
+def _empty(pa: PreparedScan, pb: PreparedScan, reason: str, seconds: dict, n_nodes=0, n_edges=0, optimal=True, omega=0) -> ScanMatch:
     return ScanMatch(
         pose=None,
         covariance=None,
         pairs=(),
         clique_size=0,
+        omega=omega,
         optimal=optimal,
         ambiguous=False,
         hypotheses=(),
@@ -311,45 +369,57 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
         if r.size < min_pairs:
             break
         cliques.append(left[np.asarray(r.vertices)])
+    if cfg.clique.per_vertex > 0:
+        cliques.extend(_vertex_cliques(cg.adjacency, cfg.clique.per_vertex, min_pairs, deadline))
+    cliques = _unique(cliques)
     seconds["clique"] = time.perf_counter() - t
     if omega < min_pairs:
         return _empty(
             pa, pb, f"largest consistent mapping has {omega} features, fewer than min_pairs={min_pairs}",
-            seconds, n_nodes, n_edges, optimal,
+            seconds, n_nodes, n_edges, optimal, omega,
         )
 
-    # 3. a pose per clique (paper §6)
+    # 3. a quick pose per clique (paper §6), scored against the raw scans
     t = time.perf_counter()
     hyps: list[Hypothesis] = []
     for c in cliques:
         if len(c) < min_pairs:
             continue
         node_pairs = cg.pairs[np.sort(c)]
-        est = _estimate(fa, fb, node_pairs, cfg)
+        if cfg.pose.method == "median":
+            est = _estimate(fa, fb, node_pairs, cfg)
+            pose = None if est is None else est.pose
+        else:
+            est, pose = None, closed_form_pose(mapped_features(fa, fb, node_pairs))
+        if pose is None:
+            continue
+        hyps.append(Hypothesis(node_pairs, len(c), pose, pose_score(pa, pb, pose, cfg), est))
+    if not hyps:
+        seconds["pose"] = time.perf_counter() - t
+        return _empty(pa, pb, "no clique fixes a pose (too few or degenerate features)", seconds, n_nodes, n_edges, optimal, omega)
+    hyps.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
+
+    # 4. the best few distinct hypotheses: full weighted estimate with covariance, then
+    #    ICP on the raw points (refine.enabled), and rank again
+    distinct: list[Hypothesis] = []
+    for h in hyps:
+        if all(_distinct(h.pose, d.pose) for d in distinct):
+            distinct.append(h)
+        if len(distinct) >= cfg.refine.candidates:
+            break
+    full = []
+    for h in distinct:
+        est = h.estimate if h.estimate is not None else _estimate(fa, fb, h.node_pairs, cfg)
         if est is None:
             continue
-        score = pose_score(pa, pb, est.pose, cfg)
-        hyps.append(Hypothesis(node_pairs, len(c), est, score))
+        full.append(Hypothesis(h.node_pairs, h.clique_size, est.pose, pose_score(pa, pb, est.pose, cfg), est))
     seconds["pose"] = time.perf_counter() - t
-    if not hyps:
-        return _empty(pa, pb, "no clique fixes a pose (too few or degenerate features)", seconds, n_nodes, n_edges, optimal)
-    # larger cliques first among equal scores; the raw scans decide between distinct poses
-    hyps.sort(key=lambda h: (-h.score, -h.clique_size))
-
-    # 4. refine the best few distinct hypotheses on the raw points and rank again
     t = time.perf_counter()
-    if cfg.refine.enabled and len(pb.points) >= 3:
-        distinct: list[Hypothesis] = []
-        for h in hyps:
-            if all(_distinct(h.pose, d.pose) for d in distinct):
-                distinct.append(h)
-            if len(distinct) >= 3:
-                break
-        refined = []
-        for h in distinct:
+    if cfg.refine.enabled and len(pb.sample) >= 3:
+        for k, h in enumerate(full):
             icp = icp_point_to_line(
                 pa.cloud,
-                pb.points,
+                pb.sample,
                 h.pose,
                 iterations=cfg.refine.iterations,
                 max_correspondence=cfg.refine.max_correspondence,
@@ -357,13 +427,12 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
             )
             score = pose_score(pa, pb, icp.pose, cfg)
             if score >= h.score:
-                est = PoseEstimate(icp.pose, h.estimate.covariance, h.estimate.rms, h.estimate.residuals, h.estimate.degenerate)
-                refined.append(Hypothesis(h.node_pairs, h.clique_size, est, score, refined=True))
-            else:
-                refined.append(h)
-        rest = [h for h in hyps if all(h is not d for d in distinct)]
-        hyps = sorted(refined, key=lambda h: (-h.score, -h.clique_size)) + rest
+                full[k] = Hypothesis(h.node_pairs, h.clique_size, icp.pose, score, h.estimate, refined=True)
     seconds["refine"] = time.perf_counter() - t
+    if not full:
+        return _empty(pa, pb, "no clique fixes a pose (degenerate features)", seconds, n_nodes, n_edges, optimal, omega)
+    full.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
+    hyps = full + [h for h in hyps if all(h is not d for d in distinct)]
 
     # 5. ambiguity: a distinct runner-up that explains the raw scans nearly as well
     best = hyps[0]
@@ -371,11 +440,16 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
         _distinct(h.pose, best.pose) and h.score >= 0.9 * best.score and h.clique_size >= best.clique_size - 1
         for h in hyps[1:]
     )
+    # the mapping reported: the chosen clique's pairs that agree with the final pose
+    ordered = _points_first(best.node_pairs, fa.n_points)
+    cc = cfg.correspondence
+    keep = pair_consistent(mapped_features(fa, fb, ordered), best.pose, cc.point_point, cc.line_line, cc.point_line)
     return ScanMatch(
         pose=best.pose,
         covariance=best.estimate.covariance,
-        pairs=_node_pairs_to_feature_pairs(best.node_pairs, pa.graph, pb.graph),
+        pairs=_node_pairs_to_feature_pairs(ordered[keep], pa.graph, pb.graph),
         clique_size=best.clique_size,
+        omega=omega,
         optimal=optimal,
         ambiguous=ambiguous,
         hypotheses=tuple(hyps),

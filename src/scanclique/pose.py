@@ -32,6 +32,8 @@ __all__ = [
     "estimate_pose_lsq",
     "estimate_pose_median",
     "arun_2d",
+    "closed_form_pose",
+    "pair_consistent",
 ]
 
 
@@ -181,24 +183,46 @@ def estimate_pose_median(m: MappedFeatures) -> PoseEstimate | None:
 
 
 def _translation_lsq(m: MappedFeatures, theta: float) -> np.ndarray | None:
-    """Translation given the rotation, from points and line offsets, unweighted."""
+    """Translation given the rotation, from points (two rows each) and line offsets (one
+    row each: ``n(alpha_b + theta) · t = rho_a - rho_b``), unweighted least squares."""
     R = rotation_matrix(theta)
-    rows, rhs = [], []
-    for pa, pb in zip(m.points_a, m.points_b, strict=True):
-        rows.extend(np.eye(2))
-        rhs.extend(pa - R @ pb)
-    for (ra, _), (rb, ab) in zip(m.lines_a, m.lines_b, strict=True):
-        n = np.array([math.cos(ab + theta), math.sin(ab + theta)])
-        rows.append(n)
-        rhs.append(ra - rb)
-    if not rows:
+    ap = m.lines_b[:, 1] + theta
+    A = np.concatenate((np.tile(np.eye(2), (m.n_points, 1)), np.column_stack((np.cos(ap), np.sin(ap)))))
+    b = np.concatenate(((m.points_a - m.points_b @ R.T).reshape(-1), m.lines_a[:, 0] - m.lines_b[:, 0]))
+    if A.shape[0] == 0:
         return None
-    A = np.array(rows)
-    if np.linalg.matrix_rank(A, tol=1e-6) < 2:
-        t, *_ = np.linalg.lstsq(A, np.array(rhs), rcond=None)
-        return t
-    t, *_ = np.linalg.lstsq(A, np.array(rhs), rcond=None)
+    t, *_ = np.linalg.lstsq(A, b, rcond=None)
     return t
+
+
+def closed_form_pose(m: MappedFeatures) -> Pose2 | None:
+    """A quick pose from mapped features: rotation from Arun et al. on the points (two or
+    more, spread over 0.2 m) or else the circular mean of the line normal rotations, then the
+    least-squares translation. The start of :func:`estimate_pose_lsq`; used alone to score
+    many hypotheses cheaply. None when the features cannot fix a rotation."""
+    if m.n_points >= 2 and np.ptp(m.points_b, axis=0).max() > 0.2:
+        theta = arun_2d(m.points_a, m.points_b).theta
+    elif m.n_lines:
+        rot = wrap_angle(m.lines_a[:, 1] - m.lines_b[:, 1])
+        theta = math.atan2(np.sin(rot).sum(), np.cos(rot).sum())
+    else:
+        return None
+    t = _translation_lsq(m, theta)
+    return None if t is None else Pose2(t[0], t[1], theta)
+
+
+def pair_consistent(m: MappedFeatures, pose: Pose2, point_tol: float, line_angle_tol: float, line_offset_tol: float) -> np.ndarray:
+    """Which mapped pairs agree with ``pose`` (maps B into A): points within ``point_tol``
+    metres; lines within ``line_angle_tol`` radians and ``line_offset_tol`` metres.
+    Boolean array, points first then lines (the order of :func:`mapped_features`)."""
+    ok_p = np.linalg.norm(pose.transform(m.points_b) - m.points_a, axis=1) <= point_tol if m.n_points else np.zeros(0, bool)
+    if m.n_lines:
+        ap = m.lines_b[:, 1] + pose.theta
+        off = m.lines_b[:, 0] + np.cos(ap) * pose.x + np.sin(ap) * pose.y - m.lines_a[:, 0]
+        ok_l = (np.abs(wrap_angle(ap - m.lines_a[:, 1])) <= line_angle_tol) & (np.abs(off) <= line_offset_tol)
+    else:
+        ok_l = np.zeros(0, bool)
+    return np.concatenate((ok_p, ok_l))
 
 
 def _residuals_jacobian(m: MappedFeatures, pose: Pose2):
@@ -248,14 +272,15 @@ def _information(m: MappedFeatures, pose: Pose2):
     dof = max(2 * len(r) - 3, 1)
     rms = float(math.sqrt(np.sum(maha**2) / dof))
     w, v = np.linalg.eigh(info)
-    degenerate = bool(w[0] < 1e-9 * max(w[-1], 1e-300))
-    if degenerate:
-        winv = np.where(w > 1e-9 * max(w[-1], 1e-300), 1.0 / np.maximum(w, 1e-300), np.inf)
-        with np.errstate(invalid="ignore"):
-            cov = (v * winv) @ v.T
-        cov = np.where(np.isnan(cov), np.inf, cov)
-    else:
-        cov = np.linalg.inv(info)
+    ok = w > 1e-9 * max(w[-1], 1e-300)
+    degenerate = not bool(ok.all())
+    # sum over constrained directions of v v^T / w; unconstrained directions add inf to
+    # exactly the entries they touch (an axis-aligned corridor keeps its finite
+    # across-corridor and heading variances)
+    cov = (v[:, ok] / w[ok]) @ v[:, ok].T
+    for k in np.flatnonzero(~ok):
+        touched = np.abs(v[:, k]) > 1e-9
+        cov[np.ix_(touched, touched)] = np.inf
     return cov, maha, rms, degenerate
 
 
@@ -271,16 +296,8 @@ def estimate_pose_lsq(
     points and no line).
     """
     if initial is None:
-        if m.n_points >= 2 and np.ptp(m.points_b, axis=0).max() > 0.2:
-            initial = arun_2d(m.points_a, m.points_b)
-        elif m.n_lines:
-            rot = wrap_angle(m.lines_a[:, 1] - m.lines_b[:, 1])
-            theta = math.atan2(np.sin(rot).sum(), np.cos(rot).sum())
-            t = _translation_lsq(m, theta)
-            if t is None:
-                return None
-            initial = Pose2(t[0], t[1], theta)
-        else:
+        initial = closed_form_pose(m)
+        if initial is None:
             return None
     x = initial.as_array()
     for _ in range(iterations):
@@ -293,7 +310,7 @@ def estimate_pose_lsq(
         dx = -np.linalg.lstsq(H, g, rcond=None)[0]
         x = x + dx
         x[2] = float(wrap_angle(x[2]))
-        if np.abs(dx).max() < 1e-9:
+        if np.abs(dx).max() < 1e-7:
             break
     pose = Pose2.from_array(x)
     cov, res, rms, degenerate = _information(m, pose)

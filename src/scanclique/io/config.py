@@ -1,0 +1,270 @@
+"""TOML files of :class:`~scanclique.config.MatchConfig`: read, write, round trip.
+
+A configuration file has one table per pipeline stage, each key a field of that stage's
+dataclass (see :mod:`scanclique.config`); keys left out keep their defaults::
+
+    [correspondence]
+    point_point = 0.3
+    signed = false
+
+    [pose]
+    method = "median"
+
+Reading is strict: an unknown table or key, or a value of the wrong type, raises
+:class:`~scanclique.errors.ConfigError` naming the file and the dotted key
+(``"run.toml: unknown key 'features.foo' (known in [features]: ...)"``), and so does a
+file that is not valid TOML (with the parser's line and column). Writing uses a small
+emitter of the nested dict (TOML has no null; floats are written with ``repr``, so
+reading back gives the same values bit for bit).
+
+Examples
+--------
+>>> from scanclique.config import paper_config
+>>> text = dumps_config(paper_config())
+>>> loads_config(text) == paper_config()
+True
+>>> print(dumps_config(paper_config()).split("[pose]")[1].strip().splitlines()[0])
+method = "median"
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+import sys
+from pathlib import Path
+
+from ..config import MatchConfig, config_from_dict, config_to_dict
+from ..errors import ConfigError, DataNotFoundError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["read_config", "write_config", "loads_config", "dumps_config", "toml_dumps"]
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+_HEADER = "# scanclique configuration (MatchConfig): one table per pipeline stage.\n"
+
+
+# ---------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------
+def _type_name(value) -> str:
+    names = {
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+        str: "a string",
+        list: "an array",
+    }
+    return names.get(type(value), type(value).__name__)
+
+
+def _check_tree(data: dict, cls, source: str, prefix: str = "") -> dict:
+    """Check ``data`` against the fields of dataclass ``cls``; return it with integers
+    given for float fields turned into floats. Errors name ``source`` and the dotted key."""
+    known = {f.name: f for f in dataclasses.fields(cls)}
+    out = {}
+    for key, value in data.items():
+        dotted = f"{prefix}{key}"
+        if key not in known:
+            where = f"keys in [{prefix[:-1]}]" if prefix else "tables"
+            raise ConfigError(
+                f"{source}: unknown key {dotted!r} (known {where}: {', '.join(known)})"
+            )
+        f = known[key]
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        if dataclasses.is_dataclass(default):
+            if not isinstance(value, dict):
+                raise ConfigError(f"{source}: {dotted!r} must be a table, got {_type_name(value)}")
+            out[key] = _check_tree(value, type(default), source, f"{dotted}.")
+            continue
+        if isinstance(value, dict):
+            raise ConfigError(f"{source}: {dotted!r} expects {_type_name(default)}, got a table")
+        if isinstance(default, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(default, int):
+            ok = isinstance(value, int) and not isinstance(value, bool)
+        elif isinstance(default, float):
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            value = float(value) if ok else value
+        else:
+            ok = isinstance(value, type(default))
+        if not ok:
+            raise ConfigError(
+                f"{source}: {dotted!r} expects {_type_name(default)}, "
+                f"got {_type_name(value)} {value!r}"
+            )
+        out[key] = value
+    return out
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _from_dict(data: dict, source: str, base: MatchConfig | None) -> MatchConfig:
+    checked = _check_tree(data, MatchConfig, source)
+    if base is not None:
+        checked = _merge(config_to_dict(base), checked)
+    try:
+        return config_from_dict(checked)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
+
+
+def loads_config(
+    text: str, source: str = "<string>", base: MatchConfig | None = None
+) -> MatchConfig:
+    """A :class:`MatchConfig` from TOML text; ``source`` names it in error messages.
+
+    Keys left out take their values from ``base`` (default: ``MatchConfig()``), e.g.
+    ``base=paper_config()`` for a file of changes to the paper's configuration.
+
+    Raises
+    ------
+    ConfigError
+        Invalid TOML, an unknown key, a value of the wrong type or out of range.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+    return _from_dict(data, source, base)
+
+
+def read_config(path: str | os.PathLike, base: MatchConfig | None = None) -> MatchConfig:
+    """Read a :class:`MatchConfig` from a TOML file; keys left out take their values from
+    ``base`` (default: ``MatchConfig()``).
+
+    Raises
+    ------
+    DataNotFoundError
+        If there is no such file.
+    ConfigError
+        Unreadable or invalid TOML, an unknown key (named with its table), a value of the
+        wrong type or out of range; the message starts with the file name.
+    """
+    p = Path(path)
+    source = os.fspath(path)
+    try:
+        raw = p.read_bytes()
+    except FileNotFoundError:
+        raise DataNotFoundError(f"{source}: no such configuration file") from None
+    except OSError as exc:
+        raise ConfigError(f"{source}: cannot read: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start})") from None
+    return loads_config(text, source, base)
+
+
+# ---------------------------------------------------------------------------------------
+# Writing: a small TOML emitter for nested dicts of scalars
+# ---------------------------------------------------------------------------------------
+def _key(k: str) -> str:
+    return k if _BARE_KEY.match(k) else _string(k)
+
+
+def _string(s: str) -> str:
+    out = ['"']
+    for ch in s:
+        if ch == '"':
+            out.append('\\"')
+        elif ch == "\\":
+            out.append("\\\\")
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "\t":
+            out.append("\\t")
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    out.append('"')
+    return "".join(out)
+
+
+def _value(v, where: str) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return _string(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x, where) for x in v) + "]"
+    raise ConfigError(f"cannot write {where} = {v!r} to TOML ({type(v).__name__})")
+
+
+def toml_dumps(data: dict, header: str = "") -> str:
+    """TOML text of a nested dict of scalars (bool, int, float, str, lists of them).
+
+    Scalars of a table come before its sub-tables; sub-tables are written as
+    ``[a.b]`` headers. ``None`` has no TOML form and raises :class:`ConfigError`.
+
+    >>> print(toml_dumps({"n": 1, "pose": {"method": "lsq", "w": 0.5}}), end="")
+    n = 1
+    <BLANKLINE>
+    [pose]
+    method = "lsq"
+    w = 0.5
+    """
+    lines: list[str] = [header] if header else []
+
+    def emit(table: dict, path: tuple[str, ...]) -> None:
+        scalars = [(k, v) for k, v in table.items() if not isinstance(v, dict)]
+        tables = [(k, v) for k, v in table.items() if isinstance(v, dict)]
+        if path and (scalars or not tables):
+            if lines:
+                lines.append("")
+            lines.append("[" + ".".join(_key(p) for p in path) + "]")
+        for k, v in scalars:
+            lines.append(f"{_key(k)} = {_value(v, '.'.join((*path, k)))}")
+        for k, v in tables:
+            emit(v, (*path, k))
+
+    emit(data, ())
+    return "\n".join(lines) + "\n"
+
+
+def dumps_config(config: MatchConfig | None = None, comment: str | None = None) -> str:
+    """TOML text of a configuration (default: ``MatchConfig()``), every field written.
+
+    ``comment`` (one or more lines) is added to the header as ``#`` comments.
+    """
+    cfg = config if config is not None else MatchConfig()
+    header = _HEADER
+    if comment:
+        header += "".join(f"# {line}\n" for line in comment.splitlines())
+    return toml_dumps(config_to_dict(cfg), header=header.rstrip("\n"))
+
+
+def write_config(config: MatchConfig, path: str | os.PathLike, comment: str | None = None) -> Path:
+    """Write ``config`` to ``path`` as TOML (parent directories must exist); returns the path.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be written.
+    """
+    p = Path(path)
+    try:
+        p.write_text(dumps_config(config, comment), encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{os.fspath(path)}: cannot write: {exc.strerror or exc}") from None
+    return p

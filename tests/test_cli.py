@@ -1,0 +1,321 @@
+"""The command line (scanclique.cli) through typer's CliRunner, on simulated scans.
+
+Real-data runs are marked ``realdata`` and skipped when the shared logs are absent.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import runpy
+import sys
+
+import numpy as np
+import pytest
+from conftest import require_log
+from typer.testing import CliRunner
+
+import scanclique as sc
+from scanclique import cli
+from scanclique.config import paper_config
+from scanclique.io import write_scans_text
+from scanclique.io.config import loads_config, read_config
+from scanclique.io.dimacs import write_dimacs
+
+runner = CliRunner()
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def invoke(*args: str):
+    return runner.invoke(cli.app, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def pair():
+    return sc.sim.simulate_pair(np.random.default_rng(7))
+
+
+@pytest.fixture(scope="module")
+def files(pair, tmp_path_factory):
+    """a.txt and b.txt (one scan each), ab.txt (a log of both), bb.txt (two scans)."""
+    d = tmp_path_factory.mktemp("scans")
+    write_scans_text(d / "a.txt", [pair.scan_a])
+    write_scans_text(d / "b.txt", [pair.scan_b])
+    write_scans_text(d / "ab.txt", [pair.scan_a, pair.scan_b])
+    write_scans_text(d / "bb.txt", [pair.scan_b, pair.scan_a])
+    write_scans_text(d / "empty.txt", [])
+    return d
+
+
+def assert_clean_error(result, *words: str) -> None:
+    """Exit code 2, one line on stderr naming the problem, no traceback."""
+    assert result.exit_code == 2, result.output
+    err = result.stderr.strip()
+    assert err.startswith("error:"), err
+    assert len(err.splitlines()) == 1, err
+    assert "Traceback" not in result.output
+    for w in words:
+        assert w in err, err
+
+
+# ---------------------------------------------------------------------------------------
+# match
+# ---------------------------------------------------------------------------------------
+def test_match_two_files_prints_the_table(files, pair):
+    r = invoke("match", files / "a.txt", files / "b.txt")
+    assert r.exit_code == 0, r.output
+    for metric in (
+        "pose x",
+        "pose theta",
+        "std x",
+        "clique size",
+        "mapped line",
+        "score",
+        "ambiguous",
+        "optimal",
+        "correspondence graph",
+        "time clique",
+        "error rotation",
+    ):
+        assert metric in r.stdout
+    assert "Metric" in r.stdout and "Units" in r.stdout
+
+
+def test_match_log_and_indices_json(files, pair):
+    r = invoke("match", files / "ab.txt", 0, 1, "--json")
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.stdout)
+    assert out["scan_a"]["name"] == "ab.txt:0" and out["scan_b"]["name"] == "ab.txt:1"
+    assert out["clique_size"] == len(out["pairs"]) > 0
+    ref = out["reference"]
+    assert ref["x"] == pytest.approx(pair.pose_a_b.x)
+    assert out["error"]["translation_m"] < 0.1
+    assert out["error"]["rotation_deg"] < 1.0
+    assert set(out["std"]) == {"x", "y", "theta"}
+    assert out["config"]["pose"]["method"] == "lsq"
+
+
+def test_match_paper_config_and_save_config(files, tmp_path):
+    used = tmp_path / "used.toml"
+    r = invoke("match", files / "ab.txt", 0, 1, "--paper", "--json", "--save-config", used)
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["config"]["pose"]["method"] == "median"
+    assert read_config(used) == paper_config()
+    assert "configuration written" in r.stderr
+
+
+def test_match_config_file_overrides(files, tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[pose]\nmin_pairs = 3\n")
+    r = invoke("match", files / "ab.txt", 0, 1, "--config", cfg, "--json")
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["config"]["pose"]["min_pairs"] == 3
+
+
+def test_match_file_with_several_scans_uses_the_first(files):
+    r = invoke("match", files / "a.txt", files / "bb.txt", "--json")
+    assert r.exit_code == 0, r.output
+    assert "bb.txt holds 2 scans; using the first" in r.stderr
+    assert json.loads(r.stdout)["notes"] == [
+        f"{files / 'bb.txt'} holds 2 scans; using the first (index 0)"
+    ]
+
+
+def test_match_plot(files, tmp_path):
+    out = tmp_path / "m.png"
+    r = invoke("match", files / "ab.txt", 0, 1, "--plot", out)
+    assert r.exit_code == 0, r.output
+    assert out.read_bytes()[:8] == PNG_MAGIC
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("nofile.log", 1, 2), ["nofile.log", "neither an existing file"]),
+        (("{d}/a.txt", "{d}/missing.txt"), ["missing.txt"]),
+        (("{d}/ab.txt", 0, 5), ["scan index 5 out of range", "2 scans (0..1)"]),
+        (("{d}/ab.txt", "x", 1), ["integer scan index", "'x'"]),
+        (("{d}/ab.txt", 3), ["'3' is not a file"]),
+        (("{d}/ab.txt",), ["need two scans"]),
+        (("{d}/empty.txt", "{d}/a.txt"), ["holds no scan"]),
+    ],
+)
+def test_match_bad_input_is_one_line_exit_2(files, args, words):
+    r = invoke("match", *(str(a).format(d=files) for a in args))
+    assert_clean_error(r, *words)
+
+
+def test_match_malformed_scan_file(tmp_path):
+    bad = tmp_path / "bad.txt"
+    bad.write_text("SCAN 0 -1.5 0.1 0 30 3 1.0 2.0\n")
+    r = invoke("match", bad, bad)
+    assert_clean_error(r, "bad.txt:1")
+
+
+@pytest.mark.parametrize(
+    ("toml", "words"),
+    [
+        ("[pose\n", ["bad.toml", "not valid TOML"]),
+        ("[features]\nfoo = 1\n", ["bad.toml", "'features.foo'"]),
+        ("[pose]\nmin_pairs = 1\n", ["bad.toml", "min_pairs"]),
+    ],
+)
+def test_match_malformed_config(files, tmp_path, toml, words):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(toml)
+    assert_clean_error(invoke("match", files / "ab.txt", 0, 1, "-c", cfg), *words)
+
+
+def test_match_missing_config(files, tmp_path):
+    assert_clean_error(
+        invoke("match", files / "ab.txt", 0, 1, "-c", tmp_path / "no.toml"), "no.toml"
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# features, clique, config, demo, global options
+# ---------------------------------------------------------------------------------------
+def test_features_table_json_and_plot(files, pair, tmp_path):
+    r = invoke("features", files / "ab.txt", 1)
+    assert r.exit_code == 0, r.output
+    assert "features of ab.txt:1" in r.stdout and "total" in r.stdout
+    r = invoke("features", files / "ab.txt", 1, "--json")
+    out = json.loads(r.stdout)
+    feats = sc.extract_features(pair.scan_b)
+    assert out["counts"] == feats.counts()
+    assert len(out["points"]) == feats.n_points and len(out["lines"]) == feats.n_lines
+    png = tmp_path / "f.png"
+    r = invoke("features", files / "a.txt", "--plot", png)
+    assert r.exit_code == 0, r.output
+    assert png.read_bytes()[:8] == PNG_MAGIC
+
+
+def test_features_bad_index(files):
+    assert_clean_error(invoke("features", files / "ab.txt", 9), "out of range")
+
+
+@pytest.fixture
+def clq(tmp_path):
+    # two triangles sharing vertex 2, plus a 4-clique {3, 4, 5, 6}
+    edges = [(0, 1), (0, 2), (1, 2), (2, 3), (3, 4), (3, 5), (3, 6), (4, 5), (4, 6), (5, 6)]
+    p = tmp_path / "g.clq"
+    write_dimacs(p, (np.array(edges), 7))
+    return p
+
+
+def test_clique_table_and_json(clq):
+    r = invoke("clique", clq)
+    assert r.exit_code == 0, r.output
+    assert "4 5 6 7" in r.stdout and "ω" in r.stdout
+    r = invoke("clique", clq, "--all", "--json", "--time-limit", 5)
+    out = json.loads(r.stdout)
+    assert out["omega"] == 4 and out["optimal"] and out["cliques"] == [[4, 5, 6, 7]]
+
+
+def test_clique_bad_files(tmp_path):
+    assert_clean_error(invoke("clique", tmp_path / "none.clq"), "none.clq")
+    bad = tmp_path / "bad.clq"
+    bad.write_text("p edge 3 1\ne 1 9\n")
+    assert_clean_error(invoke("clique", bad), "bad.clq")
+
+
+@pytest.mark.parametrize("flag", ["--paper", "--default"])
+def test_config_prints_toml(flag, tmp_path):
+    r = invoke("config", flag)
+    assert r.exit_code == 0, r.output
+    want = paper_config() if flag == "--paper" else sc.MatchConfig()
+    assert loads_config(r.stdout) == want
+    r = invoke("config", flag, "-o", tmp_path / "c.toml")
+    assert read_config(tmp_path / "c.toml") == want
+
+
+def test_demo_without_data_simulates(tmp_path, monkeypatch):
+    monkeypatch.setenv("SCANCLIQUE_DATA", str(tmp_path / "nonexistent"))
+    png = tmp_path / "match.png"
+    r = invoke("demo", "--plot", png)
+    assert r.exit_code == 0, r.output
+    assert "no real data found" in r.stdout and "simulated pair" in r.stdout
+    last = r.stdout.strip().splitlines()[-1]
+    assert last.startswith("error ") and "vs known pose: success" in last
+    assert png.read_bytes()[:8] == PNG_MAGIC
+
+
+def test_version_help_and_verbose():
+    r = invoke("--version")
+    assert r.exit_code == 0 and r.stdout.strip() == f"scanclique {sc.__version__}"
+    for cmd in ("match", "features", "clique", "demo", "config"):
+        r = invoke(cmd, "--help")
+        assert r.exit_code == 0 and "Examples" in r.stdout, cmd
+    r = invoke("-vv", "config")
+    assert r.exit_code == 0
+
+
+def test_python_dash_m(monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["scanclique", "--version"])
+    with pytest.raises(SystemExit) as exc:
+        runpy.run_module("scanclique", run_name="__main__")
+    assert exc.value.code in (0, None)
+    assert capsys.readouterr().out.strip() == f"scanclique {sc.__version__}"
+
+
+# ---------------------------------------------------------------------------------------
+# the plain functions behind the commands
+# ---------------------------------------------------------------------------------------
+def test_run_match_and_rows(files, pair):
+    run = cli.run_match(files / "ab.txt", 0, 1)
+    assert run.reference is not None
+    t, r = run.errors()
+    assert t < 0.1 and math.degrees(r) < 1.0
+    rows = dict((m, v) for m, v, _ in cli.match_rows(run))
+    assert rows["clique size"] == str(run.match.clique_size)
+    assert run.verdict().startswith("error ")
+
+
+def test_load_scan_pair_errors(files):
+    with pytest.raises(cli.ScanIndexError, match="out of range"):
+        cli.load_scan_pair(files / "ab.txt", 0, 2)
+    with pytest.raises(IndexError):
+        cli.load_scan(files / "ab.txt", -1)
+    with pytest.raises(sc.ScanCliqueError):
+        cli.load_scan_pair(files / "nope.txt", files / "a.txt")
+
+
+def test_run_without_pose_has_a_reason_row():
+    empty = sc.Scan.from_ranges(np.full(181, np.nan))
+    m = sc.match_scans(empty, empty)
+    run = cli.MatchRun(empty, empty, m, ("e:0", "e:1"), sc.MatchConfig())
+    rows = cli.match_rows(run)
+    assert rows[2][0] == "pose" and rows[2][1].startswith("none: ")
+    assert run.verdict().startswith("no pose")
+    assert run.to_dict()["error"] is None
+
+
+# ---------------------------------------------------------------------------------------
+# real data
+# ---------------------------------------------------------------------------------------
+@pytest.mark.realdata
+def test_match_intel_consecutive_pair():
+    require_log("intel")
+    r = invoke("match", "intel", 120, 121, "--json")
+    assert r.exit_code == 0, r.output
+    err = json.loads(r.stdout)["error"]
+    assert err["translation_m"] < 0.2 and err["rotation_deg"] < 2.0
+
+
+@pytest.mark.realdata
+def test_match_intel_index_out_of_range():
+    require_log("intel")
+    assert_clean_error(
+        invoke("match", "intel", 120, 910), "scan index 910 out of range", "910 scans"
+    )
+
+
+@pytest.mark.realdata
+def test_demo_with_real_data(tmp_path):
+    require_log("intel")
+    png = tmp_path / "match.png"
+    r = invoke("demo", "--plot", png)
+    assert r.exit_code == 0, r.output
+    assert "Intel Research Lab log, scans 120 and 121" in r.stdout
+    assert "vs reference: success" in r.stdout.strip().splitlines()[-1]
+    assert png.read_bytes()[:8] == PNG_MAGIC
