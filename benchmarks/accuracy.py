@@ -106,7 +106,9 @@ def summarise(records: list[dict]) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--logs", nargs="+", default=list(LOGS))
     ap.add_argument("--cap", type=int, default=400, help="max pairs per set per log (0 = all)")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
@@ -130,17 +132,23 @@ def main(argv=None) -> int:
             results[name] = {}
             for set_name, plist in sets.items():
                 chunks = [plist[k :: args.jobs * 4] for k in range(args.jobs * 4)]
-                recs = [r for part in ex.map(_worker, [(name, c, args.paper) for c in chunks if c]) for r in part]
+                recs = [
+                    r
+                    for part in ex.map(_worker, [(name, c, args.paper) for c in chunks if c])
+                    for r in part
+                ]
                 recs.sort(key=lambda r: (r["i"], r["j"]))
                 s = summarise(recs)
                 results[name][set_name] = {"summary": s, "pairs": recs}
                 pooled[set_name].extend(recs)
                 if s["n"]:
                     st = " ".join(f"{k} {v:.1f}" for k, v in s["stages_median_ms"].items())
+                    rate = 100 * s["success"]
                     print(
-                        f"{name:9s} {set_name:12s} n={s['n']:4d} success {100 * s['success']:5.1f}%  "
+                        f"{name:9s} {set_name:12s} n={s['n']:4d} success {rate:5.1f}%  "
                         f"median err {s['median_t_err']:.3f} m {s['median_r_err_deg']:.2f} deg  "
-                        f"time median {s['median_ms']:.1f} ms p95 {s['p95_ms']:.1f} ms  [stages ms: {st}]",
+                        f"time median {s['median_ms']:.1f} ms p95 {s['p95_ms']:.1f} ms  "
+                        f"[stages ms: {st}]",
                         flush=True,
                     )
     print()
@@ -161,14 +169,22 @@ def main(argv=None) -> int:
         )
     print(f"wall time {time.perf_counter() - t_start:.0f} s with {args.jobs} processes")
 
-    out = Path(args.out) if args.out else Path(__file__).resolve().parent / "results" / (
-        f"accuracy-{'paper-' if args.paper else ''}{_dt.date.today().isoformat()}.json"
+    out = (
+        Path(args.out)
+        if args.out
+        else Path(__file__).resolve().parent
+        / "results"
+        / (f"accuracy-{'paper-' if args.paper else ''}{_dt.date.today().isoformat()}.json")
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     cfg = sc.paper_config() if args.paper else sc.MatchConfig()
     doc = {
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
-        "machine": {"platform": platform.platform(), "processor": platform.processor(), "cpus": os.cpu_count()},
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor(),
+            "cpus": os.cpu_count(),
+        },
         "scanclique": sc.__version__,
         "cap": cap,
         "config": config_to_dict(cfg),

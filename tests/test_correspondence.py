@@ -15,7 +15,7 @@ from scanclique.correspondence import candidate_pairs, correspondence_graph
 from scanclique.errors import GraphError
 from scanclique.features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
 from scanclique.geometry import Pose2
-from scanclique.graph import PARALLEL_MAX_ANGLE, LINE, FeatureGraph, feature_graph
+from scanclique.graph import LINE, PARALLEL_MAX_ANGLE, FeatureGraph, feature_graph
 
 
 def make_features(points=(), labels=None, lines=()) -> Features:

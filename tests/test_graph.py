@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scanclique.config import CorrespondenceConfig, FeatureConfig
 from scanclique.features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
 from scanclique.geometry import Pose2
-from scanclique.graph import PARALLEL_MAX_ANGLE, LINE, NODE_KIND_NAMES, feature_graph
+from scanclique.graph import LINE, NODE_KIND_NAMES, PARALLEL_MAX_ANGLE, feature_graph
 
 PAPER = CorrespondenceConfig(signed=False, parallel_offset=False)
 

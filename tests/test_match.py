@@ -69,8 +69,6 @@ def test_simulated_match_record(sim_matches, seed):
     assert all(v >= 0 for v in m.seconds.values())
 
 
-
-
 @pytest.mark.parametrize("seed", SEEDS)
 def test_pairs_are_valid_and_consistent_with_the_pose(sim_matches, seed):
     p, m = sim_matches[seed]

@@ -38,7 +38,9 @@ def _check_types(obj) -> None:
     """Every field holds a value of its annotated type (bools are not ints here, ints
     are accepted for floats); sections are checked by their own classes."""
     for f in fields(obj):
-        expected = _TYPES.get(f.type if isinstance(f.type, str) else getattr(f.type, "__name__", ""))
+        expected = _TYPES.get(
+            f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
+        )
         if expected is None:
             continue
         v = getattr(obj, f.name)
@@ -152,12 +154,23 @@ class FeatureConfig:
 
     def __post_init__(self) -> None:
         _check_types(self)
-        _positive(self, "min_cluster_beams", "point_max_extent", "split_distance", "line_min_length", "line_max_rms")
+        _positive(
+            self,
+            "min_cluster_beams",
+            "point_max_extent",
+            "split_distance",
+            "line_min_length",
+            "line_max_rms",
+        )
         _positive(self, "merge_angle", "merge_distance", "corner_min_angle", "range_sigma")
         _nonneg(self, "corner_reach")
-        _nonneg(self, "split_ratio", "min_edge_jump", "crowd_radius", "line_max_gap", "line_gap_ratio")
+        _nonneg(
+            self, "split_ratio", "min_edge_jump", "crowd_radius", "line_max_gap", "line_gap_ratio"
+        )
         if not (isinstance(self.line_min_points, int) and self.line_min_points >= 2):
-            raise ConfigError(f"FeatureConfig.line_min_points must be an int >= 2, got {self.line_min_points!r}")
+            raise ConfigError(
+                f"FeatureConfig.line_min_points must be an int >= 2, got {self.line_min_points!r}"
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -272,7 +285,9 @@ class RefineConfig:
         _positive(self, "max_correspondence", "inlier_distance", "sample_points")
         _nonneg(self, "conflict_weight", "size_weight")
         if not (isinstance(self.candidates, int) and self.candidates >= 1):
-            raise ConfigError(f"RefineConfig.candidates must be an int >= 1, got {self.candidates!r}")
+            raise ConfigError(
+                f"RefineConfig.candidates must be an int >= 1, got {self.candidates!r}"
+            )
         _nonneg(self, "iterations")
 
 
@@ -314,7 +329,11 @@ def config_from_dict(data: dict, cls=MatchConfig):
     for key, value in data.items():
         if key not in known:
             raise ConfigError(f"{cls.__name__}: unknown key {key!r} (known: {', '.join(known)})")
-        sub = known[key].default_factory if known[key].default_factory is not dataclasses.MISSING else None
+        sub = (
+            known[key].default_factory
+            if known[key].default_factory is not dataclasses.MISSING
+            else None
+        )
         if sub is not None and dataclasses.is_dataclass(sub):
             kwargs[key] = config_from_dict(value, sub)
         else:

@@ -218,7 +218,9 @@ def fit_line_tls(points: np.ndarray, sigma: float = 0.02):
     return rho, alpha, cov, rms, ends
 
 
-def split_and_merge(points: np.ndarray, ranges: np.ndarray, cfg: FeatureConfig) -> list[tuple[int, int]]:
+def split_and_merge(
+    points: np.ndarray, ranges: np.ndarray, cfg: FeatureConfig
+) -> list[tuple[int, int]]:
     """Recursive split of one cluster's ordered points (paper §4).
 
     The chord joins the first and last point; the cluster is split at the point farthest
@@ -536,7 +538,9 @@ def extract_features(
         points_label=np.array(labels, dtype=np.int8).reshape(P),
         points_cov=np.array(covs, dtype=float).reshape(P, 2, 2),
         points_beam=np.array(pbeams, dtype=np.int64).reshape(P),
-        lines_rho_alpha=np.array([[ln["rho"], ln["alpha"]] for ln in lines], dtype=float).reshape(L, 2),
+        lines_rho_alpha=np.array([[ln["rho"], ln["alpha"]] for ln in lines], dtype=float).reshape(
+            L, 2
+        ),
         lines_ends=np.array([ln["ends"] for ln in lines], dtype=float).reshape(L, 2, 2),
         lines_cov=np.array([ln["cov"] for ln in lines], dtype=float).reshape(L, 2, 2),
         lines_beams=np.array(

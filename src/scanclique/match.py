@@ -32,7 +32,13 @@ from .pose import (
     mapped_features,
     pair_consistent,
 )
-from .refine import ReferenceCloud, agreement, free_space_conflicts, icp_point_to_line, reference_cloud
+from .refine import (
+    ReferenceCloud,
+    agreement,
+    free_space_conflicts,
+    icp_point_to_line,
+    reference_cloud,
+)
 from .scan import Scan
 
 __all__ = [
@@ -167,8 +173,12 @@ class ScanMatch:
     def to_dict(self) -> dict:
         """A JSON-ready summary."""
         return {
-            "pose": None if self.pose is None else {"x": self.pose.x, "y": self.pose.y, "theta": self.pose.theta},
-            "covariance": None if self.covariance is None else np.where(np.isfinite(self.covariance), self.covariance, None).tolist(),
+            "pose": None
+            if self.pose is None
+            else {"x": self.pose.x, "y": self.pose.y, "theta": self.pose.theta},
+            "covariance": None
+            if self.covariance is None
+            else np.where(np.isfinite(self.covariance), self.covariance, None).tolist(),
             "pairs": [{"kind": p.kind, "a": p.a, "b": p.b} for p in self.pairs],
             "clique_size": self.clique_size,
             "omega": self.omega,
@@ -182,7 +192,13 @@ class ScanMatch:
             "n_correspondence_nodes": self.n_correspondence_nodes,
             "n_correspondence_edges": self.n_correspondence_edges,
             "hypotheses": [
-                {"x": h.pose.x, "y": h.pose.y, "theta": h.pose.theta, "score": h.score, "clique_size": h.clique_size}
+                {
+                    "x": h.pose.x,
+                    "y": h.pose.y,
+                    "theta": h.pose.theta,
+                    "score": h.score,
+                    "clique_size": h.clique_size,
+                }
                 for h in self.hypotheses
             ],
             "seconds": dict(self.seconds),
@@ -201,17 +217,23 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     n_s = cfg.refine.sample_points
     sample = pts if len(pts) <= n_s else pts[np.linspace(0, len(pts) - 1, n_s).round().astype(int)]
     t2 = time.perf_counter()
-    return PreparedScan(scan, feats, graph, cloud, pts, sample, {"features": t1 - t0, "graph": t2 - t1})
+    return PreparedScan(
+        scan, feats, graph, cloud, pts, sample, {"features": t1 - t0, "graph": t2 - t1}
+    )
 
 
-def pose_score(pa: PreparedScan, pb: PreparedScan, pose: Pose2, config: MatchConfig | None = None) -> float:
+def pose_score(
+    pa: PreparedScan, pb: PreparedScan, pose: Pose2, config: MatchConfig | None = None
+) -> float:
     """How well the raw scans agree under ``pose`` (maps B into A), symmetrically: the mean
     of the fraction of B's sampled points within ``refine.inlier_distance`` of A's points
     and the same for A's points against B's, minus ``refine.conflict_weight`` times the
     mean fraction of points lying in the other scan's observed free space."""
     cfg = config or MatchConfig()
     d = cfg.refine.inlier_distance
-    score = 0.5 * (agreement(pa.cloud, pb.sample, pose, d) + agreement(pb.cloud, pa.sample, pose.inverse(), d))
+    score = 0.5 * (
+        agreement(pa.cloud, pb.sample, pose, d) + agreement(pb.cloud, pa.sample, pose.inverse(), d)
+    )
     if cfg.refine.conflict_weight > 0:
         c_ab = free_space_conflicts(pa.scan, pose.transform(pb.sample))
         c_ba = free_space_conflicts(pb.scan, pose.inverse().transform(pa.sample))
@@ -219,7 +241,9 @@ def pose_score(pa: PreparedScan, pb: PreparedScan, pose: Pose2, config: MatchCon
     return score
 
 
-def _node_pairs_to_feature_pairs(node_pairs: np.ndarray, ga: FeatureGraph, gb: FeatureGraph) -> tuple:
+def _node_pairs_to_feature_pairs(
+    node_pairs: np.ndarray, ga: FeatureGraph, gb: FeatureGraph
+) -> tuple:
     out = []
     for a, b in node_pairs:
         kind = NODE_KIND_NAMES[int(ga.kinds[a])]
@@ -236,7 +260,9 @@ def _points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
     return np.concatenate((node_pairs[is_pt], node_pairs[~is_pt]))
 
 
-def _estimate(fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConfig) -> PoseEstimate | None:
+def _estimate(
+    fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConfig
+) -> PoseEstimate | None:
     """Pose of one clique (paper §6), with one round of outlier rejection for the
     least-squares method: pairs whose Mahalanobis residual exceeds 3.5 are dropped."""
     m = mapped_features(fa, fb, node_pairs)
@@ -295,7 +321,16 @@ def _distinct(p: Pose2, q: Pose2, dist: float = 0.3, ang: float = math.radians(5
     return t > dist or r > ang
 
 
-def _empty(pa: PreparedScan, pb: PreparedScan, reason: str, seconds: dict, n_nodes=0, n_edges=0, optimal=True, omega=0) -> ScanMatch:
+def _empty(
+    pa: PreparedScan,
+    pb: PreparedScan,
+    reason: str,
+    seconds: dict,
+    n_nodes=0,
+    n_edges=0,
+    optimal=True,
+    omega=0,
+) -> ScanMatch:
     return ScanMatch(
         pose=None,
         covariance=None,
@@ -316,7 +351,9 @@ def _empty(pa: PreparedScan, pb: PreparedScan, reason: str, seconds: dict, n_nod
     )
 
 
-def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None) -> ScanMatch:
+def match_prepared(
+    pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None
+) -> ScanMatch:
     """Match two prepared scans: the pose of B in A's frame and the feature mapping.
 
     The recipe (paper §5–§6, with the ranking and refinement this library adds):
@@ -375,8 +412,14 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
     seconds["clique"] = time.perf_counter() - t
     if omega < min_pairs:
         return _empty(
-            pa, pb, f"largest consistent mapping has {omega} features, fewer than min_pairs={min_pairs}",
-            seconds, n_nodes, n_edges, optimal, omega,
+            pa,
+            pb,
+            f"largest consistent mapping has {omega} features, fewer than min_pairs={min_pairs}",
+            seconds,
+            n_nodes,
+            n_edges,
+            optimal,
+            omega,
         )
 
     # 3. a quick pose per clique (paper §6), scored against the raw scans
@@ -396,7 +439,16 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
         hyps.append(Hypothesis(node_pairs, len(c), pose, pose_score(pa, pb, pose, cfg), est))
     if not hyps:
         seconds["pose"] = time.perf_counter() - t
-        return _empty(pa, pb, "no clique fixes a pose (too few or degenerate features)", seconds, n_nodes, n_edges, optimal, omega)
+        return _empty(
+            pa,
+            pb,
+            "no clique fixes a pose (too few or degenerate features)",
+            seconds,
+            n_nodes,
+            n_edges,
+            optimal,
+            omega,
+        )
     hyps.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
 
     # 4. the best few distinct hypotheses: full weighted estimate with covariance, then
@@ -412,7 +464,11 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
         est = h.estimate if h.estimate is not None else _estimate(fa, fb, h.node_pairs, cfg)
         if est is None:
             continue
-        full.append(Hypothesis(h.node_pairs, h.clique_size, est.pose, pose_score(pa, pb, est.pose, cfg), est))
+        full.append(
+            Hypothesis(
+                h.node_pairs, h.clique_size, est.pose, pose_score(pa, pb, est.pose, cfg), est
+            )
+        )
     seconds["pose"] = time.perf_counter() - t
     t = time.perf_counter()
     if cfg.refine.enabled and len(pb.sample) >= 3:
@@ -427,23 +483,38 @@ def match_prepared(pa: PreparedScan, pb: PreparedScan, config: MatchConfig | Non
             )
             score = pose_score(pa, pb, icp.pose, cfg)
             if score >= h.score:
-                full[k] = Hypothesis(h.node_pairs, h.clique_size, icp.pose, score, h.estimate, refined=True)
+                full[k] = Hypothesis(
+                    h.node_pairs, h.clique_size, icp.pose, score, h.estimate, refined=True
+                )
     seconds["refine"] = time.perf_counter() - t
     if not full:
-        return _empty(pa, pb, "no clique fixes a pose (degenerate features)", seconds, n_nodes, n_edges, optimal, omega)
+        return _empty(
+            pa,
+            pb,
+            "no clique fixes a pose (degenerate features)",
+            seconds,
+            n_nodes,
+            n_edges,
+            optimal,
+            omega,
+        )
     full.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
     hyps = full + [h for h in hyps if all(h is not d for d in distinct)]
 
     # 5. ambiguity: a distinct runner-up that explains the raw scans nearly as well
     best = hyps[0]
     ambiguous = any(
-        _distinct(h.pose, best.pose) and h.score >= 0.9 * best.score and h.clique_size >= best.clique_size - 1
+        _distinct(h.pose, best.pose)
+        and h.score >= 0.9 * best.score
+        and h.clique_size >= best.clique_size - 1
         for h in hyps[1:]
     )
     # the mapping reported: the chosen clique's pairs that agree with the final pose
     ordered = _points_first(best.node_pairs, fa.n_points)
     cc = cfg.correspondence
-    keep = pair_consistent(mapped_features(fa, fb, ordered), best.pose, cc.point_point, cc.line_line, cc.point_line)
+    keep = pair_consistent(
+        mapped_features(fa, fb, ordered), best.pose, cc.point_point, cc.line_line, cc.point_line
+    )
     return ScanMatch(
         pose=best.pose,
         covariance=best.estimate.covariance,

@@ -165,7 +165,9 @@ def estimate_pose_median(m: MappedFeatures) -> PoseEstimate | None:
         va = m.points_a[j] - m.points_a[i]
         vb = m.points_b[j] - m.points_b[i]
         keep = (np.linalg.norm(va, axis=1) > 0.3) & (np.linalg.norm(vb, axis=1) > 0.3)
-        rots.append(wrap_angle(np.arctan2(va[keep, 1], va[keep, 0]) - np.arctan2(vb[keep, 1], vb[keep, 0])))
+        rots.append(
+            wrap_angle(np.arctan2(va[keep, 1], va[keep, 0]) - np.arctan2(vb[keep, 1], vb[keep, 0]))
+        )
     rots = np.concatenate(rots) if rots else np.zeros(0)
     if rots.size == 0:
         return None
@@ -187,8 +189,12 @@ def _translation_lsq(m: MappedFeatures, theta: float) -> np.ndarray | None:
     row each: ``n(alpha_b + theta) · t = rho_a - rho_b``), unweighted least squares."""
     R = rotation_matrix(theta)
     ap = m.lines_b[:, 1] + theta
-    A = np.concatenate((np.tile(np.eye(2), (m.n_points, 1)), np.column_stack((np.cos(ap), np.sin(ap)))))
-    b = np.concatenate(((m.points_a - m.points_b @ R.T).reshape(-1), m.lines_a[:, 0] - m.lines_b[:, 0]))
+    A = np.concatenate(
+        (np.tile(np.eye(2), (m.n_points, 1)), np.column_stack((np.cos(ap), np.sin(ap))))
+    )
+    b = np.concatenate(
+        ((m.points_a - m.points_b @ R.T).reshape(-1), m.lines_a[:, 0] - m.lines_b[:, 0])
+    )
     if A.shape[0] == 0:
         return None
     t, *_ = np.linalg.lstsq(A, b, rcond=None)
@@ -211,15 +217,23 @@ def closed_form_pose(m: MappedFeatures) -> Pose2 | None:
     return None if t is None else Pose2(t[0], t[1], theta)
 
 
-def pair_consistent(m: MappedFeatures, pose: Pose2, point_tol: float, line_angle_tol: float, line_offset_tol: float) -> np.ndarray:
+def pair_consistent(
+    m: MappedFeatures, pose: Pose2, point_tol: float, line_angle_tol: float, line_offset_tol: float
+) -> np.ndarray:
     """Which mapped pairs agree with ``pose`` (maps B into A): points within ``point_tol``
     metres; lines within ``line_angle_tol`` radians and ``line_offset_tol`` metres.
     Boolean array, points first then lines (the order of :func:`mapped_features`)."""
-    ok_p = np.linalg.norm(pose.transform(m.points_b) - m.points_a, axis=1) <= point_tol if m.n_points else np.zeros(0, bool)
+    ok_p = (
+        np.linalg.norm(pose.transform(m.points_b) - m.points_a, axis=1) <= point_tol
+        if m.n_points
+        else np.zeros(0, bool)
+    )
     if m.n_lines:
         ap = m.lines_b[:, 1] + pose.theta
         off = m.lines_b[:, 0] + np.cos(ap) * pose.x + np.sin(ap) * pose.y - m.lines_a[:, 0]
-        ok_l = (np.abs(wrap_angle(ap - m.lines_a[:, 1])) <= line_angle_tol) & (np.abs(off) <= line_offset_tol)
+        ok_l = (np.abs(wrap_angle(ap - m.lines_a[:, 1])) <= line_angle_tol) & (
+            np.abs(off) <= line_offset_tol
+        )
     else:
         ok_l = np.zeros(0, bool)
     return np.concatenate((ok_p, ok_l))

@@ -69,7 +69,9 @@ def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> Refe
     return ReferenceCloud(p, normals, tree)
 
 
-def agreement(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, inlier_distance: float) -> float:
+def agreement(
+    ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, inlier_distance: float
+) -> float:
     """Fraction of B's points within ``inlier_distance`` of A's points under ``pose``
     (``pose`` maps B's frame into A's). 0 when B has no points."""
     if len(points_b) == 0 or len(ref.points) == 0:
@@ -78,7 +80,9 @@ def agreement(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, inlier_dis
     return float(np.mean(np.isfinite(d)))
 
 
-def free_space_conflicts(scan: Scan, points: np.ndarray, margin: float = 0.2, ratio: float = 0.02) -> float:
+def free_space_conflicts(
+    scan: Scan, points: np.ndarray, margin: float = 0.2, ratio: float = 0.02
+) -> float:
     """Fraction of ``points`` (already in ``scan``'s sensor frame) that lie in the space the
     scan saw through: nearer than the measured ranges of the nearest beams by more than
     ``margin + ratio * range`` metres.
