@@ -193,6 +193,10 @@ def main(argv=None) -> int:
     }
     out.write_text(json.dumps(doc, indent=1, default=float))
     print(f"wrote {out}")
+    per_pair = Path(__file__).resolve().parent / "out" / out.name.replace(".json", "-pairs.json")
+    per_pair.parent.mkdir(parents=True, exist_ok=True)
+    per_pair.write_text(json.dumps({n: {k: v["pairs"] for k, v in d.items()} for n, d in results.items()}, default=float))
+    print(f"wrote {per_pair} (per-pair records, not committed)")
     return 0 if ok else 1
 
 

@@ -90,6 +90,39 @@ def _clearbit(P, v):
 
 
 @numba.njit(cache=True)
+def _head(a, k):
+    """A new array holding ``a[:k]`` (explicit loops: slicing costs seconds of compilation)."""
+    out = np.empty(k, a.dtype)
+    for i in range(k):
+        out[i] = a[i]
+    return out
+
+
+@numba.njit(cache=True)
+def _grow(a, k, cap):
+    """A new array of length ``cap`` starting with ``a[:k]``."""
+    out = np.empty(cap, a.dtype)
+    for i in range(k):
+        out[i] = a[i]
+    return out
+
+
+@numba.njit(cache=True)
+def _mapped_sorted(a, k, order):
+    """``sorted(order[a[i]] for i < k)``: back to the caller's labels (insertion sort,
+    cliques are short)."""
+    out = np.empty(k, np.int64)
+    for i in range(k):
+        x = order[a[i]]
+        j = i
+        while j > 0 and out[j - 1] > x:
+            out[j] = out[j - 1]
+            j -= 1
+        out[j] = x
+    return out
+
+
+@numba.njit(cache=True)
 def check_mask(n, W):
     """Nodes between two looks at the clock, minus one: about 2e5 word operations apart."""
     work = n * W + 1
@@ -97,6 +130,48 @@ def check_mask(n, W):
     while mask < 4095 and (mask + 1) * work < 200_000:
         mask = mask * 2 + 1
     return mask
+
+
+# --------------------------------------------------------------------------------------
+# Input checks
+# --------------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def asymmetry(adj):
+    """First ``(i, j)`` with ``adj[i, j] != adj[j, i]`` or ``i == j`` and ``adj[i, i]``, else
+    ``(-1, -1)``. Compares 32 x 32 tiles against their mirror, so both stay in cache."""
+    n = adj.shape[0]
+    for i in range(n):
+        if adj[i, i]:
+            return i, i
+    T = 32
+    for bi in range(0, n, T):
+        ie = min(bi + T, n)
+        for bj in range(bi, n, T):
+            je = min(bj + T, n)
+            for i in range(bi, ie):
+                for j in range(bj, je):
+                    if adj[i, j] != adj[j, i]:
+                        return i, j
+    return -1, -1
+
+
+@numba.njit(cache=True)
+def pack_small(adj):
+    """Bitset rows of a small boolean adjacency, checked as :func:`asymmetry` does, in one
+    pass (for small graphs the call overhead of NumPy would dominate)."""
+    n = adj.shape[0]
+    bits = np.zeros((n, (n + 63) >> 6), np.uint64)
+    for i in range(n):
+        if adj[i, i]:
+            return bits, i, i
+        for j in range(i + 1, n):
+            x = adj[i, j]
+            if x != adj[j, i]:
+                return bits, i, j
+            if x:
+                _setbit(bits[i], j)
+                _setbit(bits[j], i)
+    return bits, -1, -1
 
 
 # --------------------------------------------------------------------------------------
@@ -148,7 +223,7 @@ def relabel(A, n, order):
     pos = np.empty(n, np.int64)
     for i in range(n):
         pos[order[i]] = i
-    B = np.zeros_like(A)
+    B = np.zeros((n, W), np.uint64)
     for i in range(n):
         v = order[i]
         for w in range(W):
@@ -190,8 +265,9 @@ def greedy_clique(B, n, P):
                 P[w] &= B[u, w]
         if size > bsize:
             bsize = size
-            best[:size] = cur[:size]
-    return best[:bsize].copy()
+            for i in range(size):
+                best[i] = cur[i]
+    return _head(best, bsize)
 
 
 @numba.njit(cache=True)
@@ -233,7 +309,7 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
         where[v] = size
         C[size] = v
         size += 1
-    best = init.copy()
+    best = _head(init, init.shape[0])
     last = 0
     for it in range(max_iter):
         # invariant: C[:size] is a clique; miss[v] = |C minus N(v) minus {v}|
@@ -288,7 +364,7 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
         C[size] = v
         size += 1
         if size > best.shape[0]:
-            best = C[:size].copy()
+            best = _head(C, size)
             last = it
     return best
 
@@ -297,7 +373,7 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
 # Colouring bound and MaxSAT-style filtering
 # --------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def colour_classes(P, B, W, kmin, U, Q, CL, ord_v, ord_c, base):
+def colour_classes(P, B, W, kmin, U, Q, CL, ord_v, ord_c, base, col):
     """Greedy sequential colouring of ``P`` in bit order (BBMC, San Segundo et al. 2011).
 
     Classes are built one at a time, each a maximal independent set taken from the
@@ -342,7 +418,9 @@ def colour_classes(P, B, W, kmin, U, Q, CL, ord_v, ord_c, base):
                 Q[w] &= ~B[v, w]
             if rec:
                 CL[k - 1, wq] |= one
+                col[v] = k - 1
             else:
+                col[v] = -1
                 ord_v[base + cnt] = v
                 ord_c[base + cnt] = k
                 cnt += 1
@@ -380,7 +458,7 @@ def colour_count(P, B, W, U, Q):
 
 
 @numba.njit(cache=True)
-def try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert):
+def try_vertex(v, B, W, need, CL, P, S):
     """Can ``v`` join the ``need`` classes without raising their clique bound?
 
     Returns 1 when ``v`` was put into a class: directly (no neighbour there) or by
@@ -392,6 +470,7 @@ def try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert
     that took part (traced back through the reasons ``RS``) are written to ``SX``:
     together with ``v`` they hold no clique with one vertex per class. Returns 0 otherwise.
     """
+    RS, SX, SU, T, D, col, left, active, queued, fired, queue, uvert = S
     WC = (need + 63) >> 6
     nunits = 0
     for k in range(need):
@@ -399,19 +478,23 @@ def try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert
             continue
         c = 0
         for w in range(W):
-            x = CL[k, w] & B[v, w]
-            R[k, w] = x
-            c += int(_ctpop(x))
+            c += int(_ctpop(CL[k, w] & B[v, w]))
         if c == 0:
             _setbit(CL[k], v)
+            col[v] = k
             return 1
+        left[k] = c
         fired[k] = False
         queued[k] = c == 1
         for w in range(WC):
             RS[k, w] = _ZERO
         if c == 1:
             queue[nunits] = k
-            uvert[nunits] = _first(R[k], W)
+            for w in range(W):
+                x = CL[k, w] & B[v, w]
+                if x != _ZERO:
+                    uvert[nunits] = w * 64 + int(_cttz(x))
+                    break
             nunits += 1
     # Re-NUMBER: keeps every class, so it is tried before anything is consumed
     for qi in range(nunits):
@@ -429,40 +512,53 @@ def try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert
                 _clearbit(CL[k], u)
                 _setbit(CL[k], v)
                 _setbit(CL[l], u)
+                col[v] = k
+                col[u] = l
                 return 1
+    for w in range(W):
+        T[w] = B[v, w] & P[w]
     qh = 0
     conflict = -1
     while qh < nunits and conflict < 0:
-        # invariant: R[l] = CL[l] ∩ N(v) ∩ N(every fired unit); RS[l] = classes whose units
-        # removed something from R[l], with their own reasons
+        # invariant: T = P ∩ N(v) ∩ N(every fired unit); left[l] = |CL[l] ∩ T| for the
+        # live classes; RS[l] = the fired classes whose units shrank class l (closed
+        # under their own reasons)
         k = queue[qh]
         u = uvert[qh]
+        if u < 0:
+            for w in range(W):
+                x = CL[k, w] & T[w]
+                if x != _ZERO:
+                    u = w * 64 + int(_cttz(x))
+                    break
         qh += 1
         fired[k] = True
         _setbit(RS[k], k)
-        for l in range(need):
-            if l == k or not active[l] or fired[l]:
-                continue
-            c = 0
-            changed = False
-            for w in range(W):
-                x = R[l, w]
-                y = x & B[u, w]
-                if y != x:
-                    changed = True
-                R[l, w] = y
-                c += int(_ctpop(y))
-            if changed:
-                for w in range(WC):
-                    RS[l, w] |= RS[k, w]
-            if c == 0:
-                conflict = l
+        for w in range(W):
+            t = T[w]
+            D[w] = t & ~B[u, w]
+            T[w] = t & B[u, w]
+        for w in range(W):
+            x = D[w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                l = col[w * 64 + int(b)]
+                if l < 0 or not active[l] or fired[l]:
+                    continue
+                left[l] -= 1
+                for w2 in range(WC):
+                    RS[l, w2] |= RS[k, w2]
+                if left[l] == 0:
+                    conflict = l
+                    break
+                if left[l] == 1 and not queued[l]:
+                    queued[l] = True
+                    queue[nunits] = l
+                    uvert[nunits] = -1
+                    nunits += 1
+            if conflict >= 0:
                 break
-            if c == 1 and not queued[l]:
-                queued[l] = True
-                queue[nunits] = l
-                uvert[nunits] = _first(R[l], W)
-                nunits += 1
     if conflict < 0:
         return 0
     for w in range(WC):
@@ -472,37 +568,38 @@ def try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert
 
 
 @numba.njit(cache=True)
-def absorb(B, W, need, CL, ord_v, ord_c, base, cnt, S):
+def absorb(B, W, need, CL, P, ord_v, ord_c, base, cnt, S):
     """Drop from the branching list the vertices the MaxSAT-style reasoning absorbs.
 
-    ``CL[:need]`` are the first ``need`` colour classes, ``ord_*[base:base + cnt]`` the
-    branching candidates (colour > need) in non-decreasing colour. Candidates are taken a
-    colour class at a time; each is tried by :func:`try_vertex`. The classes consumed by
-    the failed-literal conflicts of one candidate class are retired together (a clause
-    and the conflicts of each of its literals form one inconsistent subset, so they may
-    overlap), and later candidates work with the classes left. Invariant: the retired
-    subsets and the active classes, with the absorbed vertices, hold no clique larger
-    than ``need``; so branching on the survivors alone is exact. Returns how many survive.
+    ``CL[:need]`` are the first ``need`` colour classes of the candidate set ``P``,
+    ``ord_*[base:base + cnt]`` the branching candidates (colour > need) in non-decreasing
+    colour. Candidates are taken a colour class at a time; each is tried by
+    :func:`try_vertex`. The classes consumed by the failed-literal conflicts of one
+    candidate class are retired together (a clause and the conflicts of each of its
+    literals form one inconsistent subset, so they may overlap), and later candidates
+    work with the classes left. Invariant: the retired subsets and the active classes,
+    with the absorbed vertices, hold no clique larger than ``need``; so branching on the
+    survivors alone is exact. Returns how many survive.
     """
-    R, RS, SX, SU, active, queued, fired, queue, uvert = S
+    RS, SX, SU, T, D, col, left, active, queued, fired, queue, uvert = S
     WC = (need + 63) >> 6
     for k in range(need):
         active[k] = True
     out = 0
     i = 0
     while i < cnt:
-        col = ord_c[base + i]
+        c = ord_c[base + i]
         j = i
-        while j < cnt and ord_c[base + j] == col:
+        while j < cnt and ord_c[base + j] == c:
             j += 1
         for w in range(WC):
             SU[w] = _ZERO
         for t in range(i, j):
             v = ord_v[base + t]
-            r = try_vertex(v, B, W, need, CL, R, RS, SX, active, queued, fired, queue, uvert)
+            r = try_vertex(v, B, W, need, CL, P, S)
             if r == 0:
                 ord_v[base + out] = v
-                ord_c[base + out] = col
+                ord_c[base + out] = c
                 out += 1
             elif r == 2:
                 for w in range(WC):
@@ -520,15 +617,18 @@ def absorb(B, W, need, CL, ord_v, ord_c, base, cnt, S):
 @numba.njit(cache=True)
 def _scratch(n, W):
     return (
-        np.empty((n + 1, W), np.uint64),
-        np.empty((n + 1, W), np.uint64),
-        np.empty(W, np.uint64),
-        np.empty(W, np.uint64),
-        np.empty(n + 1, np.bool_),
-        np.empty(n + 1, np.bool_),
-        np.empty(n + 1, np.bool_),
-        np.empty(n + 1, np.int64),
-        np.empty(n + 1, np.int64),
+        np.empty((n + 1, W), np.uint64),  # RS: reasons, a bitset of classes per class
+        np.empty(W, np.uint64),  # SX: the classes of one conflict
+        np.empty(W, np.uint64),  # SU: the classes consumed by one candidate class
+        np.empty(W, np.uint64),  # T: vertices still compatible with the true ones
+        np.empty(W, np.uint64),  # D: vertices a new unit removes from T
+        np.full(n + 1, -1, np.int64),  # col: class index of each vertex, -1 if none
+        np.empty(n + 1, np.int64),  # left: |class ∩ T|
+        np.empty(n + 1, np.bool_),  # active
+        np.empty(n + 1, np.bool_),  # queued
+        np.empty(n + 1, np.bool_),  # fired
+        np.empty(n + 1, np.int64),  # queue of unit classes
+        np.empty(n + 1, np.int64),  # their vertices (-1: not known yet)
     )
 
 
@@ -557,7 +657,7 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, 
     bar = floor
     if mode == 0 and init.shape[0] > bar:
         bar = init.shape[0]
-    best = init.copy()
+    best = _head(init, init.shape[0])
     target = floor + 1
     found = np.empty((min(limit, 64) if mode == 1 else 0, target), np.int64)
     nfound = 0
@@ -585,9 +685,10 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, 
         cap = 2 * need
         ord_v = np.empty(cap, np.int64)
         ord_c = np.empty(cap, np.int64)
-    c = colour_classes(Pst[0], B, W, bar + 1, U, Q, CL, ord_v, ord_c, 0)
+    col = S[5]
+    c = colour_classes(Pst[0], B, W, bar + 1, U, Q, CL, ord_v, ord_c, 0, col)
     if maxsat and c > 0 and bar > 0:
-        c = absorb(B, W, bar, CL, ord_v, ord_c, 0, c, S)
+        c = absorb(B, W, bar, CL, Pst[0], ord_v, ord_c, 0, c, S)
     cnt[0] = c
     pos[0] = c - 1
     depth = 0
@@ -617,14 +718,17 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, 
             if mode == 0:
                 if size > bar:
                     bar = size
-                    best = C[:size].copy()
+                    best = _head(C, size)
             elif size == target:
                 if nfound < limit:
                     if nfound == found.shape[0]:
                         grown = np.empty((min(limit, 2 * nfound), target), np.int64)
-                        grown[:nfound] = found
+                        for r in range(nfound):
+                            for i in range(target):
+                                grown[r, i] = found[r, i]
                         found = grown
-                    found[nfound, :] = C[:size]
+                    for i in range(size):
+                        found[nfound, i] = C[i]
                     nfound += 1
                 else:
                     status = 3
@@ -644,22 +748,22 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, 
         nb = b0 + cnt[depth]
         if nb + size > cap:
             cap = 2 * (nb + size)
-            nv = np.empty(cap, np.int64)
-            nc = np.empty(cap, np.int64)
-            nv[:nb] = ord_v[:nb]
-            nc[:nb] = ord_c[:nb]
-            ord_v = nv
-            ord_c = nc
-        c = colour_classes(Pst[depth + 1], B, W, kneed + 1, U, Q, CL, ord_v, ord_c, nb)
+            ord_v = _grow(ord_v, nb, cap)
+            ord_c = _grow(ord_c, nb, cap)
+        c = colour_classes(Pst[depth + 1], B, W, kneed + 1, U, Q, CL, ord_v, ord_c, nb, col)
         if maxsat and c > 0 and kneed > 0:
-            c = absorb(B, W, kneed, CL, ord_v, ord_c, nb, c, S)
+            c = absorb(B, W, kneed, CL, Pst[depth + 1], ord_v, ord_c, nb, c, S)
         if c == 0:
             continue
         depth += 1
         base[depth] = nb
         cnt[depth] = c
         pos[depth] = c - 1
-    return best, nodes, status, found[:nfound].copy()
+    out = np.empty((nfound, target), np.int64)
+    for r in range(nfound):
+        for i in range(target):
+            out[r, i] = found[r, i]
+    return best, nodes, status, out
 
 
 @numba.njit(cache=True)
@@ -680,6 +784,12 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
     init = np.empty(0, np.int64)
     if mode == 0:
         init = greedy_clique(B, n, U)
+        kmax = 0
+        for i in range(n):
+            kmax = max(kmax, core[i])
+        if init.shape[0] > kmax and init.shape[0] > floor:
+            # a clique of size k + 1 needs a k-core: the degeneracy bound is met already
+            return _mapped_sorted(init, init.shape[0], order), 1, 0, np.empty((0, 1), np.int64)
     maxsat = (opts & OPT_MAXSAT) != 0
     mask = check_mask(n, W)
     nodes = 0
@@ -702,14 +812,12 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
         iters = min(100 * n, 20_000_000 // (n + 1))
         init = local_search(B, n, best, iters, 20 * n, t0, time_limit, 12345)
         budget = 1 << 62
-    best_o = np.empty(best.shape[0], np.int64)
-    for i in range(best.shape[0]):
-        best_o[i] = order[best[i]]
-    found_o = np.empty_like(found)
+    found_o = np.empty((found.shape[0], found.shape[1]), np.int64)
     for r in range(found.shape[0]):
+        row = _mapped_sorted(found[r], found.shape[1], order)
         for i in range(found.shape[1]):
-            found_o[r, i] = order[found[r, i]]
-    return best_o, nodes, status, found_o
+            found_o[r, i] = row[i]
+    return _mapped_sorted(best, best.shape[0], order), nodes, status, found_o
 
 
 # --------------------------------------------------------------------------------------
@@ -777,7 +885,8 @@ def solve_weighted(A, n, weights, time_limit, t0):
     best_w = -1.0
     cur = np.empty(n, np.int64)
     for s in range(n):
-        U[:] = B[s]
+        for w in range(W):
+            U[w] = B[s, w]
         cur[0] = s
         size = 1
         tot = wt[s]
@@ -802,7 +911,7 @@ def solve_weighted(A, n, weights, time_limit, t0):
                 U[w] &= B[u, w]
         if tot > best_w:
             best_w = tot
-            best = cur[:size].copy()
+            best = _head(cur, size)
 
     maxd = n + 2
     Pst = np.empty((maxd, W), np.uint64)
@@ -853,7 +962,7 @@ def solve_weighted(A, n, weights, time_limit, t0):
         if size == 0:
             if Cw[depth + 1] > best_w:
                 best_w = Cw[depth + 1]
-                best = C[: depth + 1].copy()
+                best = _head(C, depth + 1)
             continue
         nodes += 1
         if (nodes & mask) == 0:
@@ -863,12 +972,8 @@ def solve_weighted(A, n, weights, time_limit, t0):
         nb = b0 + cnt[depth]
         if nb + size > cap:
             cap = 2 * (nb + size)
-            nv = np.empty(cap, np.int64)
-            nbd = np.empty(cap)
-            nv[:nb] = ord_v[:nb]
-            nbd[:nb] = ord_b[:nb]
-            ord_v = nv
-            ord_b = nbd
+            ord_v = _grow(ord_v, nb, cap)
+            ord_b = _grow(ord_b, nb, cap)
         c = colour_weighted(
             Pst[depth + 1], B, W, wt, best_w - Cw[depth + 1], U, Q, ord_v, ord_b, nb
         )
@@ -878,10 +983,7 @@ def solve_weighted(A, n, weights, time_limit, t0):
         base[depth] = nb
         cnt[depth] = c
         pos[depth] = c - 1
-    out = np.empty(best.shape[0], np.int64)
-    for i in range(best.shape[0]):
-        out[i] = order[best[i]]
-    return out, best_w, nodes, timed_out
+    return _mapped_sorted(best, best.shape[0], order), best_w, nodes, timed_out
 
 
 # --------------------------------------------------------------------------------------
@@ -928,20 +1030,27 @@ def solve_top(A, n, k, time_limit, t0):
             nx_ = _popcount(Xst[depth], W)
             if np_ == 0:
                 if nx_ == 0:  # R[:depth] is a maximal clique
-                    if count < k:
-                        tops[count, :depth] = R[:depth]
-                        tsize[count] = depth
-                        count += 1
+                    j = count
+                    if count == k:  # replace the smallest kept, if this one is larger
+                        j = 0
+                        for r in range(1, k):
+                            if tsize[r] < tsize[j]:
+                                j = r
+                        if depth <= tsize[j]:
+                            j = -1
                     else:
-                        j = np.argmin(tsize)
-                        if depth > tsize[j]:
-                            tops[j, :] = 0
-                            tops[j, :depth] = R[:depth]
-                            tsize[j] = depth
+                        count += 1
+                    if j >= 0:
+                        for i in range(depth):
+                            tops[j, i] = R[i]
+                        tsize[j] = depth
                 depth -= 1
                 continue
             if count == k:
-                if depth + colour_count(Pst[depth], B, W, U, Q) <= tsize.min():
+                smallest = n
+                for r in range(k):
+                    smallest = min(smallest, tsize[r])
+                if depth + colour_count(Pst[depth], B, W, U, Q) <= smallest:
                     depth -= 1
                     continue
             # pivot u in P ∪ X maximising |P ∩ N(u)|; branch on P minus N(u)
@@ -963,9 +1072,7 @@ def solve_top(A, n, k, time_limit, t0):
             nb = base[depth]
             if nb + np_ > cap:
                 cap = 2 * (nb + np_)
-                nl = np.empty(cap, np.int64)
-                nl[:nb] = lst[:nb]
-                lst = nl
+                lst = _grow(lst, nb, cap)
             c = 0
             for w in range(W):
                 x = Pst[depth, w] & ~B[bu, w]
@@ -991,7 +1098,9 @@ def solve_top(A, n, k, time_limit, t0):
         base[depth + 1] = base[depth] + cnt[depth]
         depth += 1
         fresh = True
+    out = np.zeros((count, n), np.int64)
     for r in range(count):
+        row = _mapped_sorted(tops[r], tsize[r], order)
         for i in range(tsize[r]):
-            tops[r, i] = order[tops[r, i]]
-    return tops[:count].copy(), tsize[:count].copy(), count, timed_out
+            out[r, i] = row[i]
+    return out, _head(tsize, count), count, timed_out

@@ -35,7 +35,7 @@ from rich.table import Table
 
 from . import __version__, datasets
 from .config import MatchConfig, config_to_dict, paper_config
-from .errors import DataNotFoundError, ScanCliqueError
+from .errors import DataNotFoundError, ScanCliqueError, ScanIndexError
 from .features import POINT_LABEL_NAMES, Features, extract_features
 from .geometry import Pose2
 from .match import STAGES, ScanMatch, match_scans
@@ -64,10 +64,6 @@ SUCCESS_ROTATION_DEG = 2.0
 DEMO_INDICES = (120, 121)
 DEMO_SEED = 7
 KINDS = (*POINT_LABEL_NAMES.values(), "line")
-
-
-class ScanIndexError(ScanCliqueError, IndexError):
-    """A scan index outside the log, or a scan file holding no scan."""
 
 
 # ---------------------------------------------------------------------------------------

@@ -53,10 +53,30 @@ log = logging.getLogger(__name__)
 # Results
 # --------------------------------------------------------------------------------------
 def _frozen_vertices(v) -> np.ndarray:
-    a = np.array(v, dtype=np.int64).reshape(-1)
-    a.sort()
+    if type(v) is np.ndarray and v.dtype == np.int64 and v.ndim == 1 and not v.flags.writeable:
+        return v  # frozen already (the kernels return sorted vertices)
+    a = np.sort(np.asarray(v, dtype=np.int64).reshape(-1))  # a fresh, sorted copy
     a.flags.writeable = False
     return a
+
+
+def _sealed(v: np.ndarray) -> np.ndarray:
+    """A fresh sorted int64 array from a kernel, made read-only."""
+    v.flags.writeable = False
+    return v
+
+
+_K = None
+
+
+def _kernels():
+    """The compiled kernels, imported on first use (importing numba takes a moment)."""
+    global _K
+    if _K is None:
+        from . import _clique_kernels
+
+        _K = _clique_kernels
+    return _K
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -185,18 +205,39 @@ def as_adjacency(graph) -> np.ndarray:
 
 
 def _check_adjacency(adj: np.ndarray) -> np.ndarray:
+    _bits_checked(adj)
+    return adj
+
+
+def _bits_checked(adj: np.ndarray) -> np.ndarray:
+    """Bitset rows of a boolean adjacency matrix, after checking it (square, symmetric,
+    no self loop)."""
     if adj.ndim != 2 or adj.shape[0] != adj.shape[1]:
         raise GraphError(f"adjacency matrix must be square, got shape {adj.shape}")
-    if adj.shape[0] and adj.diagonal().any():
-        v = int(np.flatnonzero(adj.diagonal())[0])
-        raise GraphError(f"adjacency matrix has a self loop at vertex {v}")
-    if not np.array_equal(adj, adj.T):
-        u, v = (int(x[0]) for x in np.nonzero(adj != adj.T))
+    K = _kernels()
+    adj = np.ascontiguousarray(adj)
+    if adj.shape[0] <= 64:
+        if not adj.flags.writeable:  # numba compiles read-only arrays separately
+            adj = adj.copy()
+        bits, u, v = K.pack_small(adj)
+    else:
+        u, v = K.asymmetry(adj)
+        bits = None if u >= 0 else bitsets_from_adjacency(adj)
+    if u == v and u >= 0:
+        raise GraphError(f"adjacency matrix has a self loop at vertex {u}")
+    if u >= 0:
         raise GraphError(
             f"adjacency matrix is not symmetric: ({u}, {v}) is {bool(adj[u, v])}, "
             f"({v}, {u}) is {bool(adj[v, u])}"
         )
-    return adj
+    return bits
+
+
+def _bits_of(graph) -> np.ndarray:
+    """Checked bitset rows of any graph :func:`as_adjacency` accepts."""
+    if isinstance(graph, np.ndarray) and graph.dtype == np.bool_:
+        return _bits_checked(graph)
+    return bitsets_from_adjacency(as_adjacency(graph))
 
 
 def _from_edges(edges, n: int) -> np.ndarray:
@@ -275,12 +316,10 @@ def _limit(time_limit) -> float:
     return t
 
 
-def _run(adj, floor, mode, limit, time_limit, t0, opts=None):
-    from . import _clique_kernels as K
-
-    n = adj.shape[0]
-    A = bitsets_from_adjacency(adj)
+def _run(A, floor, mode, limit, time_limit, t0, opts=None):
+    K = _kernels()
     opts = K.OPT_DEFAULT if opts is None else opts
+    n = A.shape[0]
     return K.solve(A, n, int(floor), int(mode), int(limit), float(time_limit), float(t0), opts)
 
 
@@ -308,12 +347,29 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
 
     Notes
     -----
-    Exact branch and bound over bitsets (BBMC, San Segundo et al. 2011, after Tomita's
-    MCQ/MCS): vertices renumbered in degeneracy order so that bit order is branching
-    order, a greedy initial clique, k-core pruning of vertices that cannot reach the
-    incumbent, and at each node a greedy colouring whose class count bounds the clique
-    size. Worst case exponential (the problem is NP-hard); each node costs
-    O(|P| n / 64) word operations.
+    Exact branch and bound over bitsets, compiled with numba (BBMC [2]_ after Tomita's
+    MCQ/MCS [1]_ [3]_):
+
+    1. vertices renumbered in degeneracy order (densest core first), so that bit order
+       is colouring order; core numbers come with it [6]_;
+    2. an initial clique: the best greedy clique grown from each vertex. If the search
+       then needs more than a thousand nodes, a tabu local search [5]_ improves it and the
+       search restarts with the higher bar;
+    3. k-core pruning: a clique of ``k + 1`` vertices lies in the ``k``-core, so vertices
+       of lower core number than the incumbent's size never enter the search;
+    4. at each node ``(C, P)``, a greedy colouring of ``P`` in bit order; a vertex of
+       colour ``k`` can only lead to a clique of ``|C| + k`` vertices, so only vertices
+       with ``|C| + k`` above the incumbent are branched on (the k-min filter);
+    5. MaxSAT-style reasoning where colouring is loose (dense graphs): each of those
+       vertices is first offered to the colour classes below the bar (directly, or by
+       Tomita's Re-NUMBER), then tested by unit propagation over the classes (failed
+       literal detection, as in MaxCLQ [4]_); a vertex whose propagation fails is not
+       branched on, and the classes of the conflict are used up.
+
+    ``lower_bound`` raises the bar of step 3 and 4 from the start. The clock is read
+    every few hundred microseconds of work, so ``time_limit`` is met within a few
+    milliseconds. Worst case exponential (the problem is NP-hard); a node costs
+    O(|P| n / 64) word operations for the colouring, plus the propagation.
 
     References
     ----------
@@ -321,6 +377,17 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
        maximum clique with computational experiments", J. Global Optim. 37 (2007).
     .. [2] P. San Segundo, D. Rodríguez-Losada, A. Jiménez, "An exact bit-parallel
        algorithm for the maximum clique problem", Comput. Oper. Res. 38 (2011).
+    .. [3] E. Tomita, Y. Sutani, T. Higashi, S. Takahashi, M. Wakatsuki, "A simple and
+       faster branch-and-bound algorithm for finding a maximum clique", WALCOM (2010).
+    .. [4] C.-M. Li, Z. Quan, "An efficient branch-and-bound algorithm based on MaxSAT
+       for the maximum clique problem", AAAI (2010).
+    .. [5] A. Grosso, M. Locatelli, W. Pullan, "Simple ingredients leading to very
+       efficient heuristics for the maximum clique problem", J. Heuristics 14 (2008).
+    .. [6] V. Batagelj, M. Zaversnik, "An O(m) algorithm for cores decomposition of
+       networks", arXiv:cs/0310049 (2003).
+
+    With ``weights``: the same scheme with the weighted colouring bound (each colour
+    class counts its heaviest vertex, Kumlander 2004), without steps 3 and 5.
 
     Examples
     --------
@@ -332,34 +399,33 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
     ([0, 1, 2, 3], 10.0)
     """
     t0 = time.perf_counter()
-    adj = as_adjacency(graph)
-    return _max_clique(adj, t0, _limit(time_limit), lower_bound, weights)
+    tl = _limit(time_limit)
+    return _max_clique(_bits_of(graph), t0, tl, lower_bound, weights)
 
 
-def _max_clique(adj, t0, tl, lower_bound, weights) -> CliqueResult:
-    n = adj.shape[0]
+def _max_clique(A, t0, tl, lower_bound, weights) -> CliqueResult:
+    n = A.shape[0]
     if weights is not None:
         w = np.asarray(weights, dtype=np.float64).reshape(-1)
         if w.shape[0] != n or not np.isfinite(w).all() or (w < 0).any():
             raise GraphError(f"weights must be {n} finite non-negative numbers")
         if n == 0:
             return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0, 0.0)
-        from . import _clique_kernels as K
-
-        verts, _, nodes, timed_out = K.solve_weighted(bitsets_from_adjacency(adj), n, w, tl, t0)
+        verts, _, nodes, timed_out = _kernels().solve_weighted(A, n, w, tl, t0)
+        wsum = float(w[verts].sum())
         return CliqueResult(
-            verts, not timed_out, int(nodes), time.perf_counter() - t0, float(w[verts].sum())
+            _sealed(verts), not timed_out, int(nodes), time.perf_counter() - t0, wsum
         )
     floor = 0 if lower_bound is None else max(int(lower_bound) - 1, 0)
     if n == 0:
         return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0)
-    best, nodes, status, _ = _run(adj, floor, 0, 0, tl, t0)
+    best, nodes, status, _ = _run(A, floor, 0, 0, tl, t0)
     timed_out = status == 1
     optimal = (not timed_out) and best.shape[0] > floor
     if best.shape[0] == 0:  # n >= 1: a single vertex is always a clique
         best = np.zeros(1, np.int64)
         optimal = optimal or floor == 0
-    return CliqueResult(best, bool(optimal), int(nodes), time.perf_counter() - t0)
+    return CliqueResult(_sealed(best), bool(optimal), int(nodes), time.perf_counter() - t0)
 
 
 def all_maximum_cliques(graph, *, limit=100, time_limit=None) -> AllCliquesResult:
@@ -392,22 +458,22 @@ def all_maximum_cliques(graph, *, limit=100, time_limit=None) -> AllCliquesResul
     ([[0, 1], [0, 3], [1, 2], [2, 3]], 2, True)
     """
     t0 = time.perf_counter()
-    adj = as_adjacency(graph)
-    return _all_maximum(adj, t0, _limit(time_limit), int(limit))
+    tl = _limit(time_limit)
+    return _all_maximum(_bits_of(graph), t0, tl, int(limit))
 
 
-def _all_maximum(adj, t0, tl, limit) -> AllCliquesResult:
-    n = adj.shape[0]
+def _all_maximum(A, t0, tl, limit) -> AllCliquesResult:
+    n = A.shape[0]
     if n == 0:
         return AllCliquesResult((), 0, True, True, time.perf_counter() - t0)
-    first = _max_clique(adj, t0, tl, None, None)
+    first = _max_clique(A, t0, tl, None, None)
     omega = first.size
     if limit <= 0:
         return AllCliquesResult((), omega, False, first.optimal, time.perf_counter() - t0)
     if omega == 1:  # every vertex
         cl = [np.array([v]) for v in range(min(n, limit))]
         return AllCliquesResult(tuple(cl), 1, n <= limit, first.optimal, time.perf_counter() - t0)
-    _, _, status, found = _run(adj, omega - 1, 1, limit, tl, t0)
+    _, _, status, found = _run(A, omega - 1, 1, limit, tl, t0)
     timed_out, overflow = status == 1, status == 3
     cl = list(found)
     if not cl:  # time ran out before the enumeration met the known clique
@@ -419,8 +485,9 @@ def _all_maximum(adj, t0, tl, limit) -> AllCliquesResult:
 def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
     """The ``k`` largest distinct maximal cliques, largest first.
 
-    For ranking association hypotheses when the true one is not the unique maximum. Ties
-    in size are ordered lexicographically.
+    For ranking association hypotheses when the true one is not the unique maximum.
+    Cliques of equal size are listed lexicographically; which of several equally large
+    cliques make the cut at position ``k`` is up to the search.
 
     Parameters
     ----------
@@ -435,6 +502,13 @@ def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
     tuple of int64 ndarrays
         Sorted vertex arrays, in non-increasing size.
 
+    Notes
+    -----
+    Bron–Kerbosch with Tomita's pivot over bitsets (see :func:`bron_kerbosch`), which
+    keeps the ``k`` largest maximal cliques met so far; once it holds ``k``, a branch
+    whose clique plus the colour count of its candidates cannot beat the smallest of them
+    is cut.
+
     Examples
     --------
     >>> import networkx as nx
@@ -443,15 +517,13 @@ def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
     [[0, 1, 2], [2, 3]]
     """
     t0 = time.perf_counter()
-    adj = as_adjacency(graph)
     tl = _limit(time_limit)
+    A = _bits_of(graph)
     k = int(k)
-    n = adj.shape[0]
+    n = A.shape[0]
     if n == 0 or k <= 0:
         return ()
-    from . import _clique_kernels as K
-
-    tops, sizes, count, _ = K.solve_top(bitsets_from_adjacency(adj), n, k, tl, t0)
+    tops, sizes, count, _ = _kernels().solve_top(A, n, k, tl, t0)
     cl = [_frozen_vertices(tops[i, : sizes[i]]) for i in range(count)]
     cl.sort(key=lambda c: (-c.shape[0], c.tolist()))
     return tuple(cl)
@@ -559,7 +631,8 @@ def solve_file(path, *, all=False, time_limit=None) -> dict:  # noqa: A002 (CLI 
     adj = g.adjacency()
     t0 = time.perf_counter()
     tl = _limit(time_limit)
-    r = _max_clique(adj, t0, tl, None, None)
+    A = bitsets_from_adjacency(adj)
+    r = _max_clique(A, t0, tl, None, None)
     out = {
         "file": os.fspath(path),
         "n": g.n,
@@ -571,7 +644,7 @@ def solve_file(path, *, all=False, time_limit=None) -> dict:  # noqa: A002 (CLI 
         "elapsed": r.elapsed,
     }
     if all:
-        a = _all_maximum(adj, t0, tl, 1000)
+        a = _all_maximum(A, t0, tl, 1000)
         out["cliques"] = [(c + 1).tolist() for c in a.cliques]
         out["complete"] = a.complete
         out["optimal"] = a.optimal

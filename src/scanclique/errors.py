@@ -15,6 +15,7 @@ __all__ = [
     "ConfigError",
     "DataNotFoundError",
     "GraphError",
+    "ScanIndexError",
 ]
 
 
@@ -61,3 +62,7 @@ class DataNotFoundError(ScanCliqueError, FileNotFoundError):
 
 class GraphError(ScanCliqueError, ValueError):
     """A graph given to the clique solver is malformed (not square, not symmetric, self loops)."""
+
+
+class ScanIndexError(ScanCliqueError, IndexError):
+    """A scan index outside the log, or a scan file holding no scan."""
