@@ -5,6 +5,7 @@ One command::
     python benchmarks/accuracy.py                 # default sample: <= 400 pairs per set per log
     python benchmarks/accuracy.py --cap 0         # every pair (slow on freiburg)
     python benchmarks/accuracy.py --paper         # the paper's exact configuration
+    python benchmarks/accuracy.py --no-refine     # default, without the ICP refinement
     python benchmarks/accuracy.py --logs intel csail --jobs 2
 
 For each log (intel, csail, freiburg) and pair set (consecutive, skip3, revisit; see
@@ -19,6 +20,7 @@ Data: ``$SCANCLIQUE_DATA`` (default ``../shared/data``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime as _dt
 import json
 import math
@@ -48,10 +50,17 @@ LOGS = ("intel", "csail", "freiburg")
 _cache: dict = {}
 
 
+def make_config(paper: bool, refine: bool) -> sc.MatchConfig:
+    cfg = sc.paper_config() if paper else sc.MatchConfig()
+    if not refine:
+        cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, enabled=False))
+    return cfg
+
+
 def _worker(args):
     """Match a chunk of pairs of one log; returns one record per pair."""
-    log_name, pair_list, paper = args
-    cfg = sc.paper_config() if paper else sc.MatchConfig()
+    log_name, pair_list, paper, refine = args
+    cfg = make_config(paper, refine)
     if log_name not in _cache:
         _cache.clear()
         _cache[log_name] = (load_log(log_name), {})
@@ -113,6 +122,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cap", type=int, default=400, help="max pairs per set per log (0 = all)")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--paper", action="store_true", help="the paper's exact configuration")
+    ap.add_argument("--no-refine", dest="refine", action="store_false", help="no ICP refinement")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="JSON output path")
     args = ap.parse_args(argv)
@@ -134,7 +144,9 @@ def main(argv=None) -> int:
                 chunks = [plist[k :: args.jobs * 4] for k in range(args.jobs * 4)]
                 recs = [
                     r
-                    for part in ex.map(_worker, [(name, c, args.paper) for c in chunks if c])
+                    for part in ex.map(
+                        _worker, [(name, c, args.paper, args.refine) for c in chunks if c]
+                    )
                     for r in part
                 ]
                 recs.sort(key=lambda r: (r["i"], r["j"]))
@@ -174,10 +186,13 @@ def main(argv=None) -> int:
         if args.out
         else Path(__file__).resolve().parent
         / "results"
-        / (f"accuracy-{'paper-' if args.paper else ''}{_dt.date.today().isoformat()}.json")
+        / (
+            f"accuracy-{'paper-' if args.paper else ''}{'' if args.refine else 'norefine-'}"
+            f"{_dt.date.today().isoformat()}.json"
+        )
     )
     out.parent.mkdir(parents=True, exist_ok=True)
-    cfg = sc.paper_config() if args.paper else sc.MatchConfig()
+    cfg = make_config(args.paper, args.refine)
     doc = {
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
         "machine": {
@@ -195,7 +210,11 @@ def main(argv=None) -> int:
     print(f"wrote {out}")
     per_pair = Path(__file__).resolve().parent / "out" / out.name.replace(".json", "-pairs.json")
     per_pair.parent.mkdir(parents=True, exist_ok=True)
-    per_pair.write_text(json.dumps({n: {k: v["pairs"] for k, v in d.items()} for n, d in results.items()}, default=float))
+    per_pair.write_text(
+        json.dumps(
+            {n: {k: v["pairs"] for k, v in d.items()} for n, d in results.items()}, default=float
+        )
+    )
     print(f"wrote {per_pair} (per-pair records, not committed)")
     return 0 if ok else 1
 

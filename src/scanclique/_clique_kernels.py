@@ -236,8 +236,8 @@ def relabel(A, n, order):
 
 
 @numba.njit(cache=True)
-def greedy_clique(B, n, P):
-    """Best of the greedy cliques grown from every vertex.
+def greedy_clique(B, n, P, t0, time_limit):
+    """Best of the greedy cliques grown from every vertex (while time lasts).
 
     From ``s``: candidates ``N(s)``, then repeatedly add the lowest-numbered candidate (in
     the degeneracy numbering: the one deepest in the core) and intersect. O(n w W).
@@ -247,6 +247,8 @@ def greedy_clique(B, n, P):
     bsize = 0
     cur = np.empty(n, np.int64)
     for s in range(n):
+        if (s & 63) == 63 and _now() - t0 > time_limit:
+            break
         for w in range(W):
             P[w] = B[s, w]
         cur[0] = s
@@ -783,7 +785,7 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
     U = np.empty(W, np.uint64)
     init = np.empty(0, np.int64)
     if mode == 0:
-        init = greedy_clique(B, n, U)
+        init = greedy_clique(B, n, U, t0, time_limit)
         kmax = 0
         for i in range(n):
             kmax = max(kmax, core[i])
@@ -878,13 +880,16 @@ def solve_weighted(A, n, weights, time_limit, t0):
     wt = np.empty(n)
     for i in range(n):
         wt[i] = weights[order[i]]
-    # initial clique: from each vertex, add the heaviest candidate
+    # initial clique: from each of the first 128 vertices (densest core), add the
+    # heaviest candidate until none is left
     U = np.empty(W, np.uint64)
     Q = np.empty(W, np.uint64)
     best = np.empty(0, np.int64)
     best_w = -1.0
     cur = np.empty(n, np.int64)
-    for s in range(n):
+    for s in range(min(n, 128)):
+        if (s & 15) == 15 and _now() - t0 > time_limit:
+            break
         for w in range(W):
             U[w] = B[s, w]
         cur[0] = s
