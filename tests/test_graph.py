@@ -266,3 +266,27 @@ def test_mirror_image_changes_signed_invariants():
     assert not np.allclose(gs.invariants[1, 2:, 2:], gms.invariants[1, 2:, 2:], equal_nan=True)
     gp, gmp = feature_graph(f, PAPER), feature_graph(mirror, PAPER)
     np.testing.assert_allclose(gp.invariants, gmp.invariants, atol=1e-12)
+
+
+def test_adaptive_tolerance_grows_with_feature_uncertainty_and_never_below_paper():
+    # a precise near pair and an imprecise far pair of points
+    cov = np.array([np.eye(2) * 1e-4, np.eye(2) * 1e-4, np.eye(2) * 0.04, np.eye(2) * 0.04])
+    f = make_features(points=[[1.0, 0.0], [1.5, 0.0], [20.0, 0.0], [20.0, 3.0]])
+    f = Features(
+        f.points_xy,
+        f.points_label,
+        cov,
+        f.points_beam,
+        f.lines_rho_alpha,
+        f.lines_ends,
+        f.lines_cov,
+        f.lines_beams,
+        f.lines_n_points,
+        f.clusters,
+    )
+    fixed = feature_graph(f, CorrespondenceConfig())
+    adaptive = feature_graph(f, CorrespondenceConfig(adaptive=3.0))
+    assert np.all(fixed.tolerances[0, :4, :4] == 0.30)
+    assert adaptive.tolerances[0, 0, 1] == 0.30  # precise: the paper's tolerance
+    # far pair: 3 * sqrt(2 * (0.04 + 0.04)) = 1.2 m
+    assert adaptive.tolerances[0, 2, 3] == pytest.approx(1.2)

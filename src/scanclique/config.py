@@ -191,6 +191,10 @@ class CorrespondenceConfig:
         lines. ``False`` gives the paper's unsigned invariants.
     parallel_offset : bool
         For two (nearly) parallel lines also compare the signed distance between them.
+    adaptive : float
+        Beyond the paper: a point–point tolerance grows to ``adaptive`` standard deviations
+        of the two features' position uncertainty when that exceeds ``point_point`` (far
+        edges are only known to a beam width). 0 keeps the paper's fixed tolerance.
     max_nodes : int
         Refuse to build a correspondence graph with more nodes than this
         (a :class:`~scanclique.errors.GraphError` names the sizes).
@@ -201,11 +205,13 @@ class CorrespondenceConfig:
     line_line: float = 0.10
     signed: bool = True
     parallel_offset: bool = True
+    adaptive: float = 0.0
     max_nodes: int = 20000
 
     def __post_init__(self) -> None:
         _check_types(self)
         _positive(self, "point_point", "point_line", "line_line", "max_nodes")
+        _nonneg(self, "adaptive")
 
 
 @dataclass(frozen=True, slots=True)

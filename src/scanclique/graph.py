@@ -144,6 +144,12 @@ def feature_graph(
         d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
         inv[0, :P, :P] = d
         tol[0, :P, :P] = cfg.point_point
+        if cfg.adaptive > 0:
+            # largest positional variance of each point; the distance between two points
+            # varies with both (and the other scan's pair adds as much again)
+            lam = np.linalg.eigvalsh(features.points_cov)[:, -1]
+            sd = np.sqrt(2.0 * (lam[:, None] + lam[None, :]))
+            tol[0, :P, :P] = np.maximum(cfg.point_point, cfg.adaptive * sd)
     # layer 0: point–line (signed) perpendicular distance, normal from sensor to line
     if P and L:
         s = xy @ nrm.T - rho[None, :]  # (P, L); negative: the point is on the sensor's side
