@@ -138,9 +138,11 @@ TUNING_GRID: dict[str, list[dict]] = {
         {"max_correspondence": d, "max_iterations": n}
         for d, n in itertools.product((0.25, 0.5, 1.0, 2.0, 5.0), (30, 100))
     ],
+    # column 0 is the plain z = 0 lift (three coincident layers merge when downsampled)
     "small-gicp": [
-        {"downsampling": ds, "column": max(0.1, 2 * ds), "max_correspondence": d}
+        {"downsampling": ds, "column": h, "max_correspondence": d}
         for ds, d in itertools.product((0.05, 0.1, 0.25), (0.5, 1.0, 2.0, 5.0))
+        for h in (0.0, max(0.1, 2 * ds))
     ],
     "fpfh-ransac": [
         {"voxel": v, "feature_radius": f, "ransac_iterations": n}

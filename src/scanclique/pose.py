@@ -269,9 +269,13 @@ def _residuals_jacobian(m: MappedFeatures, pose: Pose2):
         J[:, 0, 0:2] = n
         J[:, 0, 2] = dn @ t
         J[:, 1, 2] = 1.0
-        # offset of B's line in A depends on t: its variance grows with the lever arm of
-        # the rotation uncertainty; the block covariance adds A's and B's (rho, alpha).
-        C = m.lines_cov_a + m.lines_cov_b
+        # B's line expressed in A is (rho_b + n(alpha_b + theta)·t, alpha_b + theta): its
+        # offset moves with alpha_b through the lever arm dn·t, so B's (rho, alpha)
+        # covariance enters through G = [[1, dn·t], [0, 1]]; A's enters as it is.
+        G = np.zeros((m.n_lines, 2, 2))
+        G[:, 0, 0] = G[:, 1, 1] = 1.0
+        G[:, 0, 1] = dn @ t
+        C = m.lines_cov_a + G @ m.lines_cov_b @ G.transpose(0, 2, 1)
         r_list.append(r)
         J_list.append(J)
         C_list.append(C)
