@@ -235,8 +235,8 @@ def pose_score(
         agreement(pa.cloud, pb.sample, pose, d) + agreement(pb.cloud, pa.sample, pose.inverse(), d)
     )
     if cfg.refine.conflict_weight > 0:
-        c_ab = free_space_conflicts(pa.scan, pose.transform(pb.sample))
-        c_ba = free_space_conflicts(pb.scan, pose.inverse().transform(pa.sample))
+        c_ab = free_space_conflicts(pa.scan, pb.sample, pose=pose)
+        c_ba = free_space_conflicts(pb.scan, pa.sample, pose=pose.inverse())
         score -= cfg.refine.conflict_weight * 0.5 * (c_ab + c_ba)
     return score
 
@@ -425,6 +425,7 @@ def match_prepared(
     # 3. a quick pose per clique (paper §6), scored against the raw scans
     t = time.perf_counter()
     hyps: list[Hypothesis] = []
+    scored: list[tuple[np.ndarray, float]] = []  # (x, y, theta), score: one per pose cluster
     for c in cliques:
         if len(c) < min_pairs:
             continue
@@ -436,7 +437,23 @@ def match_prepared(
             est, pose = None, closed_form_pose(mapped_features(fa, fb, node_pairs))
         if pose is None:
             continue
-        hyps.append(Hypothesis(node_pairs, len(c), pose, pose_score(pa, pb, pose, cfg), est))
+        # cliques that share most of an association give nearly the same pose: score a
+        # pose within 2 cm and 0.2 degrees of one already scored as that one
+        x = pose.as_array()
+        score = next(
+            (
+                sc
+                for y, sc in scored
+                if abs(x[0] - y[0]) < 0.02
+                and abs(x[1] - y[1]) < 0.02
+                and abs((x[2] - y[2] + math.pi) % (2 * math.pi) - math.pi) < 0.0035
+            ),
+            None,
+        )
+        if score is None:
+            score = pose_score(pa, pb, pose, cfg)
+            scored.append((x, score))
+        hyps.append(Hypothesis(node_pairs, len(c), pose, score, est))
     if not hyps:
         seconds["pose"] = time.perf_counter() - t
         return _empty(

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -26,6 +27,7 @@ __all__ = [
     "reference_cloud",
     "agreement",
     "free_space_conflicts",
+    "nearest",
     "icp_point_to_line",
     "IcpResult",
 ]
@@ -69,46 +71,135 @@ def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> Refe
     return ReferenceCloud(p, normals, tree)
 
 
+#: Reference clouds up to this many points are searched by compiled brute force (exact, and
+#: far cheaper than a KD-tree query's overhead at scan sizes); larger ones by the KD-tree.
+BRUTE_FORCE_MAX = 4096
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest_kernel(ref, pts, c, s, tx, ty, dmax2, idx_out, d2_out):  # pragma: no cover
+    """For each point of ``pts`` moved by (R(c, s), t): index of and squared distance to its
+    nearest ``ref`` point within ``sqrt(dmax2)`` (index -1 and dmax2 when none)."""
+    for i in range(pts.shape[0]):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        best = dmax2
+        bj = -1
+        for j in range(ref.shape[0]):
+            dx = ref[j, 0] - x
+            dy = ref[j, 1] - y
+            d2 = dx * dx + dy * dy
+            if d2 < best:
+                best = d2
+                bj = j
+        idx_out[i] = bj
+        d2_out[i] = best
+
+
+@numba.njit(cache=True, nogil=True)
+def _agreement_kernel(ref, pts, c, s, tx, ty, d2max):  # pragma: no cover
+    """How many moved ``pts`` have a ``ref`` point within ``sqrt(d2max)``."""
+    count = 0
+    for i in range(pts.shape[0]):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        for j in range(ref.shape[0]):
+            dx = ref[j, 0] - x
+            dy = ref[j, 1] - y
+            if dx * dx + dy * dy < d2max:
+                count += 1
+                break
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def _conflict_kernel(angles, free, pts, c, s, tx, ty, margin, ratio):  # pragma: no cover
+    """How many moved ``pts`` lie in the free space seen along the nearest beams."""
+    n = angles.size
+    half = 0.5 * (angles[n - 1] - angles[0]) / (n - 1)
+    count = 0
+    for i in range(pts.shape[0]):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        phi = math.atan2(y, x)
+        if phi < angles[0] - half or phi > angles[n - 1] + half:
+            continue
+        r = math.sqrt(x * x + y * y)
+        k = np.searchsorted(angles, phi)
+        k = min(max(k, 1), n - 1)
+        if abs(angles[k - 1] - phi) < abs(angles[k] - phi):
+            k -= 1
+        lo = free[k]
+        if k > 0:
+            lo = min(lo, free[k - 1])
+        if k < n - 1:
+            lo = min(lo, free[k + 1])
+        if r < lo - (margin + ratio * r):
+            count += 1
+    return count
+
+
+def _moved(pose: Pose2 | None):
+    if pose is None:
+        return 1.0, 0.0, 0.0, 0.0
+    return math.cos(pose.theta), math.sin(pose.theta), pose.x, pose.y
+
+
+def nearest(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance: float):
+    """Nearest A point of each B point moved by ``pose`` (maps B into A), within
+    ``max_distance``: ``(index, distance)`` arrays, index -1 and distance inf when none."""
+    pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
+    if len(ref.points) <= BRUTE_FORCE_MAX:
+        idx = np.empty(len(pts), dtype=np.int64)
+        d2 = np.empty(len(pts))
+        _nearest_kernel(ref.points, pts, *_moved(pose), max_distance**2, idx, d2)
+        found = idx >= 0
+        return idx, np.where(found, np.sqrt(d2), np.inf)
+    d, idx = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=max_distance)
+    found = np.isfinite(d)
+    return np.where(found, idx, -1), d
+
+
 def agreement(
     ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, inlier_distance: float
 ) -> float:
     """Fraction of B's points within ``inlier_distance`` of A's points under ``pose``
     (``pose`` maps B's frame into A's). 0 when B has no points."""
-    if len(points_b) == 0 or len(ref.points) == 0:
+    pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
+    if len(pts) == 0 or len(ref.points) == 0:
         return 0.0
-    d, _ = ref.tree.query(pose.transform(points_b), k=1, distance_upper_bound=inlier_distance)
+    if len(ref.points) <= BRUTE_FORCE_MAX:
+        count = _agreement_kernel(ref.points, pts, *_moved(pose), inlier_distance**2)
+        return count / len(pts)
+    d, _ = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=inlier_distance)
     return float(np.mean(np.isfinite(d)))
 
 
 def free_space_conflicts(
-    scan: Scan, points: np.ndarray, margin: float = 0.2, ratio: float = 0.02
+    scan: Scan,
+    points: np.ndarray,
+    margin: float = 0.2,
+    ratio: float = 0.02,
+    pose: Pose2 | None = None,
 ) -> float:
-    """Fraction of ``points`` (already in ``scan``'s sensor frame) that lie in the space the
-    scan saw through: nearer than the measured ranges of the nearest beams by more than
-    ``margin + ratio * range`` metres.
+    """Fraction of ``points`` (in ``scan``'s sensor frame, or moved there by ``pose`` when
+    given) that lie in the space the scan saw through: nearer than the measured ranges of
+    the nearest beams by more than ``margin + ratio * range`` metres.
 
     A point there contradicts the scan (the beam would have stopped on it), so a wrong pose
     — a corridor slid along itself, a symmetric room turned around — shows conflicts that
     a mere nearest-neighbour agreement misses. Beams with no valid return are no evidence
     either way. 0 when there are no points.
     """
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
     n = scan.n_beams
     if len(p) == 0 or n < 2:
         return 0.0
-    ang = scan.angles
-    r = np.hypot(p[:, 0], p[:, 1])
-    phi = np.arctan2(p[:, 1], p[:, 0])
-    k = np.clip(np.searchsorted(ang, phi), 1, n - 1)
-    k = np.where(np.abs(ang[k - 1] - phi) < np.abs(ang[k] - phi), k - 1, k)
-    half = 0.5 * (ang[-1] - ang[0]) / (n - 1)
-    inside = (phi >= ang[0] - half) & (phi <= ang[-1] + half)
     # free range along each beam: the measured range where valid, unknown (0) otherwise;
-    # a point conflicts only when the beam and both neighbours saw past it
+    # a point conflicts only when its beam and both neighbours saw past it
     free = np.where(scan.valid, scan.ranges, 0.0)
-    lo = np.minimum(free[np.maximum(k - 1, 0)], np.minimum(free[k], free[np.minimum(k + 1, n - 1)]))
-    conflict = inside & (r < lo - (margin + ratio * r))
-    return float(np.mean(conflict))
+    count = _conflict_kernel(scan.angles, free, p, *_moved(pose), float(margin), float(ratio))
+    return count / len(p)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -150,8 +241,8 @@ def icp_point_to_line(
         dmax = max(min_correspondence, max_correspondence * 0.7 ** (it - 1))
         R = rotation_matrix(x[2])
         pb = pts @ R.T + x[:2]
-        d, idx = ref.tree.query(pb, k=1, distance_upper_bound=dmax)
-        ok = np.isfinite(d)
+        idx, d = nearest(ref, pts, Pose2.from_array(x), dmax)
+        ok = idx >= 0
         if ok.sum() < 3:
             break
         p, q, n = pb[ok], ref.points[idx[ok]], ref.normals[idx[ok]]
