@@ -453,7 +453,10 @@ def extract_features(
                 continue
             cpts = xy[beams]
             for a, b in split_and_merge(cpts, r_all[beams], cfg):
-                if b - a < 2:
+                # too few points, or a chord too short, for the line tests: skip the fit
+                if b - a < max(2, cfg.line_min_points):
+                    continue
+                if math.dist(cpts[a], cpts[b - 1]) < 0.9 * cfg.line_min_length:
                     continue
                 rec = _line_record(cpts[a:b], beams[a:b], cfg)
                 if _accept_line(rec, cfg):
