@@ -113,21 +113,21 @@ PACKAGES = {"open3d": "open3d", "small_gicp": "small_gicp", "cliquematch": "cliq
 # One setting per peer for all logs, chosen by ``--tune`` on csail (see TUNING_GRID and
 # benchmarks/results/peers-tuning-*.md). Distances in metres.
 PEER_SETTINGS: dict[str, dict] = {
-    "o3d-icp": {"max_correspondence": 1.0, "max_iterations": 100},
+    "o3d-icp": {"max_correspondence": 2.0, "max_iterations": 300},
     "small-gicp": {
-        "downsampling": 0.05,
-        "column": 0.1,
+        "downsampling": 0.1,
+        "column": 0.2,
         "num_neighbors": 20,
-        "max_correspondence": 1.0,
+        "max_correspondence": 2.0,
         "max_iterations": 50,
     },
     "fpfh-ransac": {
-        "voxel": 0.1,
+        "voxel": 0.2,
         "normal_radius": 2.0,  # x voxel
-        "feature_radius": 5.0,  # x voxel
+        "feature_radius": 10.0,  # x voxel
         "ransac_distance": 1.5,  # x voxel
         "edge_length": 0.9,
-        "ransac_iterations": 100000,
+        "ransac_iterations": 10000,
         "confidence": 0.999,
         "refine_distance": 1.0,  # x voxel
     },
@@ -136,7 +136,7 @@ PEER_SETTINGS: dict[str, dict] = {
 TUNING_GRID: dict[str, list[dict]] = {
     "o3d-icp": [
         {"max_correspondence": d, "max_iterations": n}
-        for d, n in itertools.product((0.25, 0.5, 1.0, 2.0, 5.0), (30, 100))
+        for d, n in itertools.product((0.25, 0.5, 1.0, 2.0, 5.0), (30, 100, 300))
     ],
     # column 0 is the plain z = 0 lift (three coincident layers merge when downsampled)
     "small-gicp": [
@@ -146,7 +146,7 @@ TUNING_GRID: dict[str, list[dict]] = {
     ],
     "fpfh-ransac": [
         {"voxel": v, "feature_radius": f, "ransac_iterations": n}
-        for v, f, n in itertools.product((0.05, 0.1, 0.2), (5.0, 10.0), (10000, 100000))
+        for v, f, n in itertools.product((0.1, 0.2, 0.3, 0.4), (5.0, 10.0, 15.0), (10000, 100000))
     ],
 }
 
@@ -202,6 +202,7 @@ class Runner:
         self.scans: list = []
         self.prepared: dict = {}
         self.configs = {"default": sc.MatchConfig(), "paper": sc.paper_config()}
+        self.stages: dict = {}  # ms per stage of the last scanclique match
         self._o3d = None
 
     def load(self, log_name: str) -> None:
@@ -224,6 +225,7 @@ class Runner:
         pb, sb = self._prep(key, j)
         t0 = time.perf_counter()
         m = match_prepared(pa, pb, self.configs[key])
+        self.stages = {k: 1e3 * v for k, v in m.seconds.items()}
         return m.pose, time.perf_counter() - t0 + sa + sb
 
     def one_clique(self, i: int, j: int, solver: str):
@@ -239,9 +241,10 @@ class Runner:
             if solver == "cliquematch":
                 import cliquematch
 
-                G = cliquematch.Graph.from_matrix(cg.adjacency)
-                with _quiet_stdout():  # its heuristic prints a line now and then
-                    c = np.asarray(G.get_max_clique(time_limit=cfg.clique.time_limit), int) - 1
+                with _quiet_fd(2):  # it reports its buffer sizing on std::cerr now and then
+                    G = cliquematch.Graph.from_matrix(cg.adjacency)
+                    c = np.asarray(G.get_max_clique(time_limit=cfg.clique.time_limit), int)
+                c = c - 1  # cliquematch numbers vertices from 1
             else:
                 c = np.asarray(_clique.max_clique(cg.adjacency, time_limit=2.0).vertices)
             if len(c) >= cfg.pose.min_pairs:
@@ -378,16 +381,15 @@ class Runner:
 
 
 @contextlib.contextmanager
-def _quiet_stdout():
-    """Silence writes to file descriptor 1 (C++ code printing past Python's sys.stdout)."""
-    sys.stdout.flush()
-    saved = os.dup(1)
+def _quiet_fd(fd: int):
+    """Silence writes to file descriptor ``fd`` (C++ code writing past ``sys.stderr``)."""
+    saved = os.dup(fd)
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
-        os.dup2(devnull, 1)
+        os.dup2(devnull, fd)
         yield
     finally:
-        os.dup2(saved, 1)
+        os.dup2(saved, fd)
         os.close(saved)
         os.close(devnull)
 
@@ -417,6 +419,7 @@ def _worker(args):
     for i, j, ref_xyt in plist:
         ref = Pose2.from_array(ref_xyt)
         for name, method, s in variants:
+            _runner.stages = {}
             pose, seconds = _runner.run(method, i, j, s)
             if pose is None:
                 t_err = r_err = math.inf
@@ -424,6 +427,7 @@ def _worker(args):
                 t_err, r_err = pose.distance_to(ref)
             out.append(
                 {
+                    "stages_ms": _runner.stages,
                     "method": name,
                     "i": int(i),
                     "j": int(j),
@@ -492,11 +496,20 @@ def summarise(records: list[dict]) -> dict:
         "p95_ms": float(np.percentile(ms, 95)),
         "no_pose": int((~ok).sum()),
     }
-    if ok.any():
-        # Kümmerle et al. 2009 report mean +- std of the absolute errors
-        s["mean_t_err"], s["std_t_err"] = float(t[ok].mean()), float(t[ok].std())
-        s["mean_r_err_deg"] = float(np.degrees(a[ok]).mean())
-        s["std_r_err_deg"] = float(np.degrees(a[ok]).std())
+    if all(r.get("stages_ms") for r in records):
+        s["stages_median_ms"] = {
+            k: float(np.median([r["stages_ms"][k] for r in records]))
+            for k in records[0]["stages_ms"]
+        }
+    # Kümmerle et al. 2009 report mean +- std of the absolute errors: over every pair with
+    # a pose (one wild pose dominates them), and over the method's successful pairs
+    good = np.array([r["success"] for r in records])
+    for suffix, sel in (("", ok), ("_success", good)):
+        if sel.any():
+            s[f"mean_t_err{suffix}"] = float(t[sel].mean())
+            s[f"std_t_err{suffix}"] = float(t[sel].std())
+            s[f"mean_r_err_deg{suffix}"] = float(np.degrees(a[sel]).mean())
+            s[f"std_r_err_deg{suffix}"] = float(np.degrees(a[sel]).std())
     return s
 
 
@@ -523,11 +536,30 @@ def _versions() -> dict:
     return out
 
 
+def _git() -> dict:
+    """The commit of the checkout and the files that differ from it (results are of the
+    working tree)."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+
+    def git(*a):
+        r = subprocess.run(["git", *a], cwd=root, capture_output=True, text=True, check=False)
+        return r.stdout.rstrip("\n") if r.returncode == 0 else None
+
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {
+        "commit": git("rev-parse", "HEAD"),
+        "modified": [] if not status else [ln[3:] for ln in status.splitlines()],
+    }
+
+
 def _machine() -> dict:
     return {
         "platform": platform.platform(),
         "processor": platform.processor() or platform.machine(),
         "cpus": os.cpu_count(),
+        "load_average": [round(x, 2) for x in os.getloadavg()],
     }
 
 
@@ -546,8 +578,11 @@ def markdown_table(summaries: dict[str, dict], relations: bool = False) -> str:
     )
     sep = "|---|---:|---:|---:|---:|---:|---:|---:|"
     if relations:
-        head += " mean ± std t err (m) | mean ± std r err (°) | no pose |"
-        sep += "---:|---:|---:|"
+        head += (
+            " mean ± std t err (m), all | mean ± std r err (°), all "
+            "| mean ± std t err (m), successes | mean ± std r err (°), successes | no pose |"
+        )
+        sep += "---:|---:|---:|---:|---:|"
     rows = [head, sep]
     for m, s in summaries.items():
         if not s.get("n"):
@@ -559,11 +594,14 @@ def markdown_table(summaries: dict[str, dict], relations: bool = False) -> str:
             f"| {s['median_ms']:.1f} | {s['p95_ms']:.1f} | {_f(ratio, '{:.2f}')} |"
         )
         if relations:
-            row += (
-                f" {_f(s.get('mean_t_err'), '{:.3f}')} ± {_f(s.get('std_t_err'), '{:.3f}')} "
-                f"| {_f(s.get('mean_r_err_deg'), '{:.2f}')} ± "
-                f"{_f(s.get('std_r_err_deg'), '{:.2f}')} | {s['no_pose']} |"
-            )
+            for x in ("", "_success"):
+                row += (
+                    f" {_f(s.get('mean_t_err' + x), '{:.3f}')} ± "
+                    f"{_f(s.get('std_t_err' + x), '{:.3f}')} "
+                    f"| {_f(s.get('mean_r_err_deg' + x), '{:.2f}')} ± "
+                    f"{_f(s.get('std_r_err_deg' + x), '{:.2f}')} |"
+                )
+            row += f" {s['no_pose']} |"
         rows.append(row)
     return "\n".join(rows)
 
@@ -579,34 +617,33 @@ def figure(records: dict[str, list[dict]], path: Path, title: str) -> bool:
     except ImportError:
         print("no matplotlib: no figure")
         return False
-    t_edges = np.array([0, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, np.inf])
-    r_edges = np.radians([0, 1, 2, 5, 10, 20, 45, 90, 180.001])
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
-    for ax, key, edges, unit, scale in (
-        (axes[0], "ref_t", t_edges, "m", 1.0),
-        (axes[1], "ref_r", r_edges, "°", math.degrees(1)),
+    t_edges = [0, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, math.inf]  # metres
+    r_edges = [0, 1, 2, 5, 10, 20, 45, 90, 180]  # degrees
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    for ax, key, edges, what, scale in (
+        (axes[0], "ref_t", t_edges, "translation (m)", 1.0),
+        (axes[1], "ref_r", r_edges, "rotation (°)", math.degrees(1)),
     ):
+        counts = None
         for m, recs in records.items():
             if not recs:
                 continue
-            x = np.array([r[key] for r in recs])
+            x = scale * np.array([r[key] for r in recs])
             ok = np.array([r["success"] for r in recs], dtype=float)
             b = np.clip(np.digitize(x, edges) - 1, 0, len(edges) - 2)
-            xs, ys = [], []
-            for k in range(len(edges) - 1):
-                sel = b == k
-                if sel.sum() >= 5:
-                    xs.append(k)
-                    ys.append(100 * ok[sel].mean())
+            counts = np.bincount(b, minlength=len(edges) - 1)
+            xs = [k for k in range(len(edges) - 1) if counts[k] >= 5]
+            ys = [100 * ok[b == k].mean() for k in xs]
             style = "-" if m.startswith("scanclique") else "--"
             ax.plot(xs, ys, style, marker="o", ms=4, label=METHODS[m][0])
         labels = [
-            f"{scale * lo:g}–{scale * hi:g}" if np.isfinite(hi) else f">{scale * lo:g}"
-            for lo, hi in zip(edges[:-1], edges[1:], strict=True)
+            (f"{lo:g}–{hi:g}" if math.isfinite(hi) else f">{lo:g}")
+            + ("" if counts is None else f"\nn={counts[k]}")
+            for k, (lo, hi) in enumerate(zip(edges[:-1], edges[1:], strict=True))
         ]
         ax.set_xticks(range(len(labels)))
-        ax.set_xticklabels(labels, rotation=45, ha="right", fontsize=8)
-        ax.set_xlabel(f"reference {'translation' if key == 'ref_t' else 'rotation'} ({unit})")
+        ax.set_xticklabels(labels, fontsize=7)
+        ax.set_xlabel(f"reference {what} between the two scans (bins; n = pairs per method)")
         ax.set_ylabel("success rate (%)")
         ax.set_ylim(-3, 103)
         ax.grid(alpha=0.3)
@@ -630,6 +667,7 @@ def tune(args, status) -> int:
     ]
     peers = [m for m in TUNING_GRID if m in args.methods and status[m] is None]
     results = {}
+    load_start = [round(x, 2) for x in os.getloadavg()]
     t_start = time.perf_counter()
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(args.jobs, ctx, _init, (PEER_SETTINGS, args.seed)) as ex:
@@ -670,7 +708,8 @@ def tune(args, status) -> int:
         "rate (0.20 m, 2°), ties to the lower median time. Machine: "
         f"{_machine()['platform']}, {_machine()['cpus']} CPUs, single-threaded methods. "
         f"Command: `python benchmarks/peers.py --tune`. Wall time "
-        f"{time.perf_counter() - t_start:.0f} s.",
+        f"{time.perf_counter() - t_start:.0f} s; load average at the start {load_start}, "
+        f"at the end {_machine()['load_average']} (other jobs shared the machine).",
         "",
     ]
     for m, r in results.items():
@@ -716,6 +755,7 @@ def main(argv=None) -> int:
 
     results: dict = {}
     all_recs: dict[str, list[dict]] = {m: [] for m in methods}
+    load_start = [round(x, 2) for x in os.getloadavg()]
     t_start = time.perf_counter()
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(args.jobs, ctx, _init, (PEER_SETTINGS, args.seed)) as ex:
@@ -755,7 +795,9 @@ def main(argv=None) -> int:
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
         "command": command,
         "machine": machine,
+        "load_average_start": load_start,
         "versions": versions,
+        "git": _git(),
         "jobs": args.jobs,
         "wall_seconds": wall,
         "cap": cap,
@@ -782,7 +824,10 @@ def main(argv=None) -> int:
         f"({date}, {machine['cpus']} CPUs)",
     )
     out.with_suffix(".md").write_text(markdown_report(doc, results, has_fig, out.name))
-    per_pair = Path(__file__).resolve().parent / "out" / f"{out.name}-pairs.json"
+    default_dir = Path(args.out_dir).resolve() == (Path(__file__).resolve().parent / "results")
+    per_pair = (
+        Path(__file__).resolve().parent / "out" if default_dir else Path(args.out_dir)
+    ) / f"{out.name}-pairs.json"
     per_pair.parent.mkdir(parents=True, exist_ok=True)
     per_pair.write_text(
         json.dumps({n: {k: v["pairs"] for k, v in d.items()} for n, d in results.items()})
@@ -800,7 +845,16 @@ def markdown_report(doc: dict, results: dict, has_fig: bool, stem: str) -> str:
         f"Machine: {m['platform']}, {m['processor']}, {m['cpus']} CPUs; Python {v['python']}, "
         f"numpy {v['numpy']}, numba {v['numba']}, open3d {v['open3d']}, small_gicp "
         f"{v['small_gicp']}, cliquematch {v['cliquematch']}. Command: `{doc['command']}` "
-        f"({doc['jobs']} worker processes, wall time {doc['wall_seconds']:.0f} s).",
+        f"({doc['jobs']} worker processes, wall time {doc['wall_seconds']:.0f} s). Load "
+        f"average (1, 5, 15 min) at the start {doc['load_average_start']}, at the end "
+        f"{m['load_average']}: other jobs shared the machine, so absolute times are "
+        "inflated; every method was run on each pair in turn, so the ratios are fair. "
+        f"Code: commit {str(doc['git']['commit'])[:10]}"
+        + (
+            f" with uncommitted changes to {', '.join(doc['git']['modified'])}."
+            if doc["git"]["modified"]
+            else "."
+        ),
         "",
         "Every method runs **single-threaded** (OMP_NUM_THREADS=1 etc. set before any import, "
         "small_gicp num_threads=1, Open3D verbosity Error), warmed up before timing, with no "
@@ -815,7 +869,8 @@ def markdown_report(doc: dict, results: dict, has_fig: bool, stem: str) -> str:
         f"{doc['cap']} per set, evenly spread; on intel also the Kümmerle et al. 2009 "
         "relations whose two scans are in the log (timestamps within 1 ms), where the "
         "reference is the relation and the last columns give mean ± std of the absolute "
-        "errors over the pairs with a pose, as that paper reports them.",
+        "errors as that paper reports them, over every pair with a pose (a single wild "
+        "pose dominates these) and over the method's successful pairs.",
         "",
         "Methods:",
         "",
@@ -853,6 +908,14 @@ def markdown_report(doc: dict, results: dict, has_fig: bool, stem: str) -> str:
             lines.append(markdown_table(d["summary"], relations=set_name == "relations"))
     lines += ["", "## All logs and pair sets pooled", ""]
     lines.append(markdown_table(doc["pooled"]))
+    for k in ("scanclique", "scanclique-paper"):
+        st = doc["pooled"].get(k, {}).get("stages_median_ms")
+        if st:
+            lines += [
+                "",
+                f"{METHODS[k][0]}, median ms per stage over all pairs (features and graph: "
+                "both scans): " + ", ".join(f"{n} {v:.1f}" for n, v in st.items()) + ".",
+            ]
     if has_fig:
         lines += ["", f"![success against reference motion]({stem}.png)"]
     return "\n".join(lines) + "\n"

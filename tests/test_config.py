@@ -54,6 +54,7 @@ def test_paper_config_differences():
         ("correspondence", "parallel_offset"),
         ("pose", "method"),
         ("refine", "enabled"),
+        ("refine", "min_score"),
     }
     assert p["clique"]["time_limit"] == d["clique"]["time_limit"]
     assert p["clique"]["max_hypotheses"] == d["clique"]["max_hypotheses"]

@@ -13,6 +13,7 @@ import scanclique as sc
 from scanclique.features import POINT_LABEL_NAMES
 from scanclique.geometry import Pose2
 from scanclique.graph import NODE_KIND_NAMES
+from scanclique.config import MatchConfig
 from scanclique.match import ScanMatch, match_prepared, match_scans, prepare_scan
 from scanclique.scan import Scan
 from scanclique.sim import simulate_pair
@@ -232,3 +233,17 @@ def test_real_pairs_match_the_reference(log, i, j):
     assert m.pose is not None, m.reason
     t, r = m.pose.distance_to(ref)
     assert t < 0.2 and r < math.radians(2.0), (t, math.degrees(r))
+
+
+def test_no_pose_when_no_hypothesis_explains_the_raw_scans():
+    import dataclasses
+
+    p = simulate_pair(np.random.default_rng(3))
+    base = MatchConfig()
+    strict = dataclasses.replace(base, refine=dataclasses.replace(base.refine, min_score=2.0))
+    m = match_scans(p.scan_a, p.scan_b, strict)
+    assert m.pose is None and m.pairs == ()
+    assert "min_score" in m.reason
+    assert len(m.hypotheses) >= 1  # kept for inspection
+    assert m.score == m.hypotheses[0].score < 2.0
+    assert match_scans(p.scan_a, p.scan_b, base).pose is not None

@@ -330,6 +330,7 @@ def _empty(
     n_edges=0,
     optimal=True,
     omega=0,
+    hypotheses=(),
 ) -> ScanMatch:
     return ScanMatch(
         pose=None,
@@ -339,8 +340,8 @@ def _empty(
         omega=omega,
         optimal=optimal,
         ambiguous=False,
-        hypotheses=(),
-        score=0.0,
+        hypotheses=tuple(hypotheses),
+        score=hypotheses[0].score if hypotheses else 0.0,
         refined=False,
         reason=reason,
         features_a=pa.features,
@@ -364,7 +365,9 @@ def match_prepared(
     3. a pose per clique (§6: weighted least squares or the paper's median);
     4. rank the hypotheses by raw-scan agreement, refine the best few by point-to-line ICP
        on the raw points (``refine.enabled``) and rank again;
-    5. flag ambiguity when a distinct runner-up scores nearly as well.
+    5. no pose when even the best hypothesis has no raw-scan support
+       (score below ``refine.min_score``);
+    6. flag ambiguity when a distinct runner-up scores nearly as well.
     """
     cfg = config or MatchConfig()
     seconds = {k: 0.0 for k in STAGES}
@@ -518,8 +521,23 @@ def match_prepared(
     full.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
     hyps = full + [h for h in hyps if all(h is not d for d in distinct)]
 
-    # 5. ambiguity: a distinct runner-up that explains the raw scans nearly as well
+    # 5. no raw-scan evidence for the best hypothesis: no pose (the hypotheses stay)
     best = hyps[0]
+    if best.score < cfg.refine.min_score:
+        return _empty(
+            pa,
+            pb,
+            f"no hypothesis explains the raw scans (best score {best.score:.3f} < "
+            f"refine.min_score={cfg.refine.min_score})",
+            seconds,
+            n_nodes,
+            n_edges,
+            optimal,
+            omega,
+            hyps,
+        )
+
+    # 6. ambiguity: a distinct runner-up that explains the raw scans nearly as well
     ambiguous = any(
         _distinct(h.pose, best.pose)
         and h.score >= 0.9 * best.score
