@@ -31,6 +31,12 @@ def wrap_angle(angle):
     return np.where(a >= np.pi, a - 2.0 * np.pi, a)
 
 
+def _wrap_scalar(a: float) -> float:
+    """:func:`wrap_angle` for one Python float (no NumPy call: poses are built often)."""
+    a = (a + math.pi) % (2.0 * math.pi) - math.pi
+    return a - 2.0 * math.pi if a >= math.pi else a
+
+
 def rotation_matrix(theta: float) -> np.ndarray:
     """The 2x2 rotation matrix R(theta), counter-clockwise, radians."""
     c, s = math.cos(theta), math.sin(theta)
@@ -71,7 +77,7 @@ class Pose2:
             raise ScanError(f"Pose2 needs finite x, y, theta; got {vals}")
         object.__setattr__(self, "x", float(self.x))
         object.__setattr__(self, "y", float(self.y))
-        object.__setattr__(self, "theta", float(wrap_angle(float(self.theta))))
+        object.__setattr__(self, "theta", _wrap_scalar(float(self.theta)))
 
     # -- constructors ---------------------------------------------------------------
     @classmethod

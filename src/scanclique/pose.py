@@ -303,7 +303,7 @@ def _information(m: MappedFeatures, pose: Pose2):
 
 
 def estimate_pose_lsq(
-    m: MappedFeatures, initial: Pose2 | None = None, iterations: int = 10
+    m: MappedFeatures, initial: Pose2 | None = None, iterations: int = 5
 ) -> PoseEstimate | None:
     """Weighted least-squares pose from mapped points and lines, with covariance.
 
@@ -328,7 +328,7 @@ def estimate_pose_lsq(
         dx = -np.linalg.lstsq(H, g, rcond=None)[0]
         x = x + dx
         x[2] = float(wrap_angle(x[2]))
-        if np.abs(dx).max() < 1e-7:
+        if np.abs(dx).max() < 1e-6:
             break
     pose = Pose2.from_array(x)
     cov, res, rms, degenerate = _information(m, pose)
