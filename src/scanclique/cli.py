@@ -35,20 +35,34 @@ from rich.table import Table
 
 from . import __version__, datasets
 from .config import MatchConfig, config_to_dict, paper_config
-from .errors import DataNotFoundError, ScanCliqueError, ScanIndexError
+from .errors import DataNotFoundError, ScanCliqueError, ScanError, ScanIndexError
 from .features import POINT_LABEL_NAMES, Features, extract_features
 from .geometry import Pose2
-from .match import STAGES, ScanMatch, match_scans
+from .match import STAGES, ScanMatch, match_prepared, match_scans, prepare_scan
 from .scan import Scan
+from .validation import (
+    ACCEPTED,
+    VERDICTS,
+    OdometryNoise,
+    Validation,
+    is_right,
+    pair_sets,
+    validate_match,
+)
 
 __all__ = [
     "ScanIndexError",
     "MatchRun",
+    "ValidateRun",
     "load_scan",
     "load_scan_pair",
     "load_config",
     "run_match",
     "run_demo",
+    "run_validate",
+    "odometry_path",
+    "validation_rows",
+    "confusion_rows",
     "match_rows",
     "feature_rows",
     "features_to_dict",
@@ -189,6 +203,9 @@ class MatchRun:
     reference : Pose2 or None
         The reference pose of B in A, ``ref_a.inverse() @ ref_b``, when both scans have a
         reference pose (a simulated pair: the true pose).
+    validation : Validation or None
+        The verdict on the match (paper §7; with the odometry when asked for). None when
+        the run was built without one; :meth:`checked` computes it then.
     """
 
     scan_a: Scan
@@ -198,6 +215,11 @@ class MatchRun:
     config: MatchConfig
     notes: tuple[str, ...] = ()
     reference: Pose2 | None = field(default=None)
+    validation: Validation | None = field(default=None)
+
+    def checked(self) -> Validation:
+        """:attr:`validation`, or the verdict without odometry when there is none."""
+        return self.validation if self.validation is not None else validate_match(self.match)
 
     def errors(self) -> tuple[float, float] | None:
         """``(translation error m, rotation error rad)`` of ``match.pose`` against the
@@ -237,6 +259,7 @@ class MatchRun:
             else {"translation_m": e[0], "rotation_rad": e[1], "rotation_deg": math.degrees(e[1])}
         )
         out["notes"] = list(self.notes)
+        out["validation"] = self.checked().to_dict()
         out["config"] = config_to_dict(self.config)
         return out
 
@@ -247,17 +270,58 @@ def _reference(a: Scan, b: Scan) -> Pose2 | None:
     return a.reference.inverse() @ b.reference
 
 
+def odometry_path(
+    source: str | os.PathLike, a: str | int | None, b: str | int | None
+) -> list[Pose2] | None:
+    """The odometry poses of the scans from A to B when the scans are ``a`` and ``b`` of
+    the log ``source`` (for the distance travelled, see
+    :func:`scanclique.validation.odometry_prior`); None when the scans come from two files
+    or a scan in between has no odometry."""
+    if b is None:
+        return None
+    ia = _parse_index(a, "A") if a is not None else 0
+    ib = _parse_index(b, "B")
+    scans = datasets.load_log(source)
+    lo, hi = min(ia, ib), max(ia, ib)
+    if not (0 <= lo and hi < len(scans)):
+        return None
+    path = [s.odometry for s in scans[lo : hi + 1]]
+    if any(p is None for p in path):
+        return None
+    return path if ia <= ib else path[::-1]
+
+
 def run_match(
     source: str | os.PathLike,
     a: str | int | None = None,
     b: str | int | None = None,
     config: MatchConfig | None = None,
+    *,
+    odometry: bool = False,
+    noise: OdometryNoise | None = None,
 ) -> MatchRun:
-    """Load two scans (see :func:`load_scan_pair`) and match B against A."""
+    """Load two scans (see :func:`load_scan_pair`), match B against A and validate the
+    match (:func:`scanclique.validation.validate_match`): with the scans' odometry poses
+    when ``odometry`` (and, for two scans of one log, the odometry of every scan between
+    them for the distance travelled), else on the features alone.
+
+    Raises
+    ------
+    ScanError
+        ``odometry`` and a scan without an odometry pose.
+    """
     cfg = config or MatchConfig()
     scan_a, scan_b, names, notes = load_scan_pair(source, a, b)
     m = match_scans(scan_a, scan_b, cfg)
-    return MatchRun(scan_a, scan_b, m, names, cfg, tuple(notes), _reference(scan_a, scan_b))
+    if odometry:
+        for scan, name in ((scan_a, names[0]), (scan_b, names[1])):
+            if scan.odometry is None:
+                raise ScanError(f"{name}: the scan has no odometry pose (--odometry)")
+        path = odometry_path(source, a, b)
+        v = validate_match(m, scan_a.odometry, scan_b.odometry, noise, path=path)
+    else:
+        v = validate_match(m)
+    return MatchRun(scan_a, scan_b, m, names, cfg, tuple(notes), _reference(scan_a, scan_b), v)
 
 
 def run_demo(config: MatchConfig | None = None, data: bool = True) -> MatchRun:
@@ -279,6 +343,171 @@ def run_demo(config: MatchConfig | None = None, data: bool = True) -> MatchRun:
     pair = simulate_pair(np.random.default_rng(DEMO_SEED))
     m = match_scans(pair.scan_a, pair.scan_b, cfg)
     return MatchRun(pair.scan_a, pair.scan_b, m, ("sim:a", "sim:b"), cfg, (), pair.pose_a_b)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ValidateRun:
+    """One ``scanclique validate``: every pair of the pair sets of a log, matched and
+    validated, against the reference poses.
+
+    Attributes
+    ----------
+    name : str
+        The log.
+    records : tuple of dict
+        One per pair: ``set``, ``i``, ``j``, ``verdict``, ``right`` (the verdict's pose
+        within 0.2 m and 2 deg of the reference), ``match_right`` (the match's own pose),
+        ``ambiguous`` (the match's flag), ``hypothesis`` and ``mahalanobis_sq``.
+    odometry : bool
+        Whether the log's odometry was used.
+    noise : OdometryNoise
+    """
+
+    name: str
+    records: tuple[dict, ...]
+    odometry: bool
+    noise: OdometryNoise
+
+    def counts(self, set_name: str | None = None) -> dict:
+        """``{(right, verdict): count}`` plus ``precision`` and ``recall`` of
+        ``accepted`` (over one pair set, or all)."""
+        recs = [r for r in self.records if set_name is None or r["set"] == set_name]
+        c = {(right, v): 0 for right in (True, False) for v in VERDICTS}
+        for r in recs:
+            c[(r["right"], r["verdict"])] += 1
+        acc_r, acc_w = c[(True, ACCEPTED)], c[(False, ACCEPTED)]
+        n_right = sum(c[(True, v)] for v in VERDICTS)
+        amb = [r for r in recs if r["ambiguous"]]
+        return {
+            "n": len(recs),
+            "table": c,
+            "precision": acc_r / (acc_r + acc_w) if acc_r + acc_w else math.nan,
+            "recall": acc_r / n_right if n_right else math.nan,
+            "ambiguous": len(amb),
+            "ambiguous_to_right": sum(1 for r in amb if r["verdict"] == ACCEPTED and r["right"]),
+        }
+
+    def to_dict(self) -> dict:
+        sets = sorted({r["set"] for r in self.records})
+
+        def summary(s):
+            c = self.counts(s)
+            table = {
+                ("right" if right else "wrong"): {v: c["table"][(right, v)] for v in VERDICTS}
+                for right in (True, False)
+            }
+            return {**{k: v for k, v in c.items() if k != "table"}, "table": table}
+
+        return {
+            "log": self.name,
+            "odometry": self.odometry,
+            "noise": {f: getattr(self.noise, f) for f in self.noise.__dataclass_fields__},
+            "all": summary(None),
+            "sets": {s: summary(s) for s in sets},
+            "pairs": list(self.records),
+        }
+
+
+def run_validate(
+    source: str | os.PathLike,
+    *,
+    cap: int | None = 50,
+    sets: Sequence[str] | None = None,
+    odometry: bool = True,
+    noise: OdometryNoise | None = None,
+    config: MatchConfig | None = None,
+    seed: int = 0,
+    progress: Callable[[int, int], None] | None = None,
+) -> ValidateRun:
+    """Match and validate the pair sets of a log with reference poses (what
+    ``scanclique validate`` prints; :func:`scanclique.validation.pair_sets`).
+
+    Parameters
+    ----------
+    source : str or path-like
+        A log with reference poses (and odometry poses, with ``odometry``).
+    cap : int or None
+        At most this many pairs per set (None: all).
+    sets : sequence of str, optional
+        Some of ``"consecutive"``, ``"skip3"``, ``"revisit"`` (default all).
+    odometry : bool
+        Validate with the log's odometry along the path between the two scans.
+    noise : OdometryNoise, optional
+    config : MatchConfig, optional
+    seed : int
+        For the random draw of revisit pairs.
+    progress : callable(done, total), optional
+        Called after each pair.
+
+    Raises
+    ------
+    ScanError
+        A scan without a reference pose (or, with ``odometry``, without an odometry pose).
+    """
+    cfg = config or MatchConfig()
+    noise = noise or OdometryNoise()
+    scans = datasets.load_log(source)
+    if odometry:
+        for k, scan in enumerate(scans):
+            if scan.odometry is None:
+                raise ScanError(
+                    f"{os.fspath(source)}: scan {k} has no odometry pose (use --no-odometry)"
+                )
+    all_sets = pair_sets(scans, cap, seed)
+    wanted = list(all_sets) if sets is None else list(sets)
+    for name in wanted:
+        if name not in all_sets:
+            raise ScanIndexError(f"unknown pair set {name!r}: choose from {', '.join(all_sets)}")
+    jobs = [(name, i, j) for name in wanted for i, j in all_sets[name]]
+    prepared: dict[int, Any] = {}
+    records = []
+    for n_done, (set_name, i, j) in enumerate(jobs, start=1):
+        for k in (i, j):
+            if k not in prepared:
+                prepared[k] = prepare_scan(scans[k], cfg)
+        m = match_prepared(prepared[i], prepared[j], cfg)
+        ref = scans[i].reference.inverse() @ scans[j].reference
+        if odometry:
+            lo, hi = min(i, j), max(i, j)
+            path = [s.odometry for s in scans[lo : hi + 1]]
+            v = validate_match(m, scans[i].odometry, scans[j].odometry, noise, path=path)
+        else:
+            v = validate_match(m)
+        records.append(
+            {
+                "set": set_name,
+                "i": i,
+                "j": j,
+                "verdict": v.verdict,
+                "right": is_right(v.pose, ref),
+                "match_right": is_right(m.pose, ref),
+                "ambiguous": m.ambiguous,
+                "hypothesis": v.hypothesis,
+                "mahalanobis_sq": v.mahalanobis_sq,
+            }
+        )
+        if progress is not None:
+            progress(n_done, len(jobs))
+    return ValidateRun(_label(source), tuple(records), odometry, noise)
+
+
+def confusion_rows(run: ValidateRun, set_name: str | None = None) -> list[tuple[str, ...]]:
+    """Rows of the confusion table (right/wrong x accepted/rejected, the rejections by
+    verdict) and the precision and recall of ``accepted``."""
+    c = run.counts(set_name)
+    t = c["table"]
+    rows = []
+    for right in (True, False):
+        rejected = [t[(right, v)] for v in VERDICTS if v != ACCEPTED]
+        rows.append(
+            (
+                "right" if right else "wrong",
+                str(t[(right, ACCEPTED)]),
+                str(sum(rejected)),
+                *map(str, rejected),
+            )
+        )
+    return rows
 
 
 def _std(m: ScanMatch) -> dict | None:
@@ -354,6 +583,32 @@ def match_rows(run: MatchRun) -> list[tuple[str, str, str]]:
         if e is not None:
             add(("error translation", _num(e[0]), "m"))
             add(("error rotation", _num(math.degrees(e[1]), ".3f"), "deg"))
+    rows.extend(validation_rows(run.checked()))
+    return rows
+
+
+def validation_rows(v: Validation) -> list[tuple[str, str, str]]:
+    """The rows ``(metric, value, units)`` of a verdict (paper §7)."""
+    rows: list[tuple[str, str, str]] = [("verdict", v.verdict, "")]
+    for why in v.reasons:
+        rows.append(("  because", why, ""))
+    if v.hypothesis not in (None, 0):
+        rows.append(("chosen hypothesis", str(v.hypothesis), "index"))
+        if v.pose is not None:
+            rows.append(("chosen pose x", _num(v.pose.x), "m"))
+            rows.append(("chosen pose y", _num(v.pose.y), "m"))
+            rows.append(("chosen pose theta", _num(math.degrees(v.pose.theta), ".3f"), "deg"))
+    if v.prior is not None:
+        p = v.prior
+        rows.append(("odometry x", _num(p.x), "m"))
+        rows.append(("odometry y", _num(p.y), "m"))
+        rows.append(("odometry theta", _num(math.degrees(p.theta), ".3f"), "deg"))
+        d = np.sqrt(np.diag(np.asarray(v.prior_covariance)))
+        rows.append(("odometry std xy", _num(float(d[0])), "m"))
+        rows.append(("odometry std theta", _num(math.degrees(float(d[2])), ".3f"), "deg"))
+    if v.mahalanobis_sq is not None:
+        rows.append(("Mahalanobis distance", _num(math.sqrt(v.mahalanobis_sq), ".2f"), "sigma"))
+        rows.append(("gate (chi2 99 %, 3 dof)", _num(math.sqrt(v.gate), ".2f"), "sigma"))
     return rows
 
 
@@ -576,6 +831,27 @@ PaperOpt = Annotated[
     typer.Option("--paper", help="Start from the paper's exact configuration (paper_config())."),
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON only (for machines).")]
+_DEFAULT_NOISE = OdometryNoise()
+PerMetreOpt = Annotated[
+    float,
+    typer.Option(
+        "--odom-per-metre",
+        min=0.0,
+        help="Odometry translation error per metre travelled (1 sigma, m/m).",
+    ),
+]
+PerRadianOpt = Annotated[
+    float,
+    typer.Option(
+        "--odom-per-radian",
+        min=0.0,
+        help="Odometry heading error per radian turned (1 sigma, rad/rad).",
+    ),
+]
+
+
+def _noise(per_metre: float, per_radian: float) -> OdometryNoise:
+    return _guard(lambda: OdometryNoise(per_metre=per_metre, per_radian=per_radian))
 
 
 @app.command()
@@ -602,12 +878,24 @@ def match(
     save_config: Annotated[
         Path | None, typer.Option("--save-config", help="Write the configuration used (TOML).")
     ] = None,
+    odometry: Annotated[
+        bool,
+        typer.Option(
+            "--odometry",
+            help="Validate the pose against the scans' odometry (paper §7): Mahalanobis gate.",
+        ),
+    ] = False,
+    odom_per_metre: PerMetreOpt = _DEFAULT_NOISE.per_metre,
+    odom_per_radian: PerRadianOpt = _DEFAULT_NOISE.per_radian,
     json_out: JsonOpt = False,
 ) -> None:
-    """Match scan B against scan A: feature mapping (maximum clique) and pose.
+    """Match scan B against scan A: feature mapping (maximum clique), pose and verdict.
 
     The pose maps points of B into A's frame: p_a = R(theta) p_b + (x, y). When both scans
-    carry reference poses the table adds the reference relative pose and the errors.
+    carry reference poses the table adds the reference relative pose and the errors. The
+    verdict (accepted, rejected_odometry, ambiguous, too_few_features) judges the match on
+    its features alone, or with --odometry also against the odometry of the log (the
+    distance travelled summed over the scans in between).
 
     **Examples**
 
@@ -618,10 +906,13 @@ def match(
     scanclique match intel 120 125 --plot match.png
     scanclique match intel 120 125 --paper --json
     scanclique match intel 0 5 -c my.toml --save-config used.toml
+    scanclique match intel 120 125 --odometry
+    scanclique match csail 10 11 --odometry --odom-per-radian 0.3
     ```
     """
     cfg = _guard(lambda: load_config(config, paper))
-    run = _guard(lambda: run_match(source, a, b, cfg))
+    noise = _noise(odom_per_metre, odom_per_radian)
+    run = _guard(lambda: run_match(source, a, b, cfg, odometry=odometry, noise=noise))
     for n in run.notes:
         _note(n)
     if save_config is not None:
@@ -813,6 +1104,97 @@ def demo(
     con.print(run.verdict("reference" if real else "known pose"), soft_wrap=True)
     if run.match.pose is None:
         raise typer.Exit(1)
+
+
+@app.command()
+def validate(
+    source: Annotated[
+        str, typer.Argument(help="A log with reference poses (CARMEN, .npz, text) or intel.")
+    ],
+    cap: Annotated[
+        int, typer.Option("--cap", min=0, help="At most this many pairs per set (0: all).")
+    ] = 50,
+    sets: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="consecutive, skip3 or revisit (repeat; default all)."),
+    ] = None,
+    odometry: Annotated[
+        bool,
+        typer.Option("--odometry/--no-odometry", help="Use the log's odometry (default yes)."),
+    ] = True,
+    odom_per_metre: PerMetreOpt = _DEFAULT_NOISE.per_metre,
+    odom_per_radian: PerRadianOpt = _DEFAULT_NOISE.per_radian,
+    config: ConfigOpt = None,
+    paper: PaperOpt = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Match and validate the pair sets of a log; print the confusion table.
+
+    The pair sets are consecutive scans, scans three apart and revisits (scans at least
+    50 apart that see the same place). A verdict's pose is right when within 0.2 m and
+    2 deg of the reference; the table counts right and wrong poses by verdict, with the
+    precision (right accepted / accepted) and recall (right accepted / right) of
+    accepted.
+
+    **Examples**
+
+    ```
+    scanclique validate intel                 # 50 pairs per set, with odometry
+    scanclique validate csail --cap 0 --set consecutive
+    scanclique validate intel --no-odometry --json
+    ```
+    """
+    cfg = _guard(lambda: load_config(config, paper))
+    noise = _noise(odom_per_metre, odom_per_radian)
+    from rich.progress import Progress
+
+    with Progress(console=_err_console(), transient=True, disable=json_out) as bar:
+        task = bar.add_task("matching", total=None)
+
+        def tick(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        run = _guard(
+            lambda: run_validate(
+                source,
+                cap=None if cap == 0 else cap,
+                sets=sets or None,
+                odometry=odometry,
+                noise=noise,
+                config=cfg,
+                progress=tick,
+            )
+        )
+    if json_out:
+        _print_json(run.to_dict())
+        return
+    con = _console()
+    columns = ("Pose", "accepted", "rejected", "odometry", "ambiguous", "too few")
+    what = "with odometry" if odometry else "without odometry"
+    for set_name in sorted({r["set"] for r in run.records}):
+        c = run.counts(set_name)
+        con.print(_table(confusion_rows(run, set_name), f"{run.name} {set_name} ({what})", columns))
+        con.print(_summary(c), soft_wrap=True)
+    c = run.counts()
+    con.print(_table(confusion_rows(run), f"{run.name}: all pairs ({what})", columns))
+    con.print(_summary(c), soft_wrap=True)
+    con.print(
+        "right: the verdict's pose is within 0.2 m and 2 deg of the reference; rejected = "
+        "rejected_odometry (odometry) + ambiguous + too_few_features (too few)",
+        soft_wrap=True,
+    )
+
+
+def _summary(c: dict) -> str:
+    return (
+        f"{c['n']} pairs: precision of accepted {_pct(c['precision'])}, recall "
+        f"{_pct(c['recall'])}; odometry turned {c['ambiguous_to_right']} of "
+        f"{c['ambiguous']} ambiguous matches into a right accepted pose"
+    )
+
+
+def _pct(v: float) -> str:
+    return "n/a" if not math.isfinite(v) else f"{100 * v:.1f} %"
 
 
 @app.command("config")

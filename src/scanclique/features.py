@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .config import ClusterConfig, FeatureConfig
 from .scan import Scan
@@ -344,7 +345,7 @@ def _corners(lines: list[dict], scan: Scan, cfg: FeatureConfig):
             jac[:, 3] = -minv[:, 1] * (t2 @ corner)
             big = np.zeros((4, 4))
             big[:2, :2], big[2:, 2:] = r1["cov"], r2["cov"]
-            cov = jac @ big @ jac.T + np.eye(2) * cfg.range_sigma**2
+            cov = jac @ big @ jac.T  # the lines' own precision (NEES-checked, no floor)
             phi = math.atan2(corner[1], corner[0])
             beam = int(np.argmin(np.abs(scan.angles - phi)))
             out.append((corner, beam, cov))
@@ -517,10 +518,11 @@ def extract_features(
         is_fp = np.array(labels) == FOREGROUND_POINT
         if is_fp.sum() > 1:
             fp = np.array(pts)[is_fp]
-            d = np.linalg.norm(fp[:, None] - fp[None, :], axis=2)
-            np.fill_diagonal(d, np.inf)
+            # nearest other foreground point (k=2: the first hit is the point itself);
+            # a KD-tree keeps memory linear in the number of points
+            d, _ = cKDTree(fp).query(fp, k=2)
             crowded = np.zeros(len(pts), dtype=bool)
-            crowded[np.flatnonzero(is_fp)] = d.min(axis=1) < cfg.crowd_radius
+            crowded[np.flatnonzero(is_fp)] = d[:, 1] < cfg.crowd_radius
             keep = np.flatnonzero(~crowded)
             pts = [pts[i] for i in keep]
             labels = [labels[i] for i in keep]

@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import chdtri
 
 from .features import Features
 from .geometry import Pose2, rotation_matrix, wrap_angle
@@ -282,14 +283,24 @@ def _residuals_jacobian(m: MappedFeatures, pose: Pose2):
     return np.concatenate(r_list), np.concatenate(J_list), np.concatenate(C_list)
 
 
+def _chi2_99(dof: int) -> float:
+    """The 99 % quantile of the chi-square distribution with ``dof`` degrees of freedom."""
+    return float(chdtri(dof, 0.01))
+
+
 def _information(m: MappedFeatures, pose: Pose2):
     r, J, C = _residuals_jacobian(m, pose)
     Ci = np.linalg.inv(C + np.eye(2) * 1e-12)
     info = np.einsum("kai,kab,kbj->ij", J, Ci, J)
     maha = np.sqrt(np.maximum(np.einsum("ka,kab,kb->k", r, Ci, r), 0.0))
     dof = max(2 * len(r) - 3, 1)
-    rms = float(math.sqrt(np.sum(maha**2) / dof))
-    w, v = np.linalg.eigh(info)
+    ssr = float(np.sum(maha**2))
+    rms = float(math.sqrt(ssr / dof))
+    # a constellation whose residuals fail the chi-square test (1 %) disagrees with the
+    # assumed feature noise: scale the covariance by the variance of unit weight rms²
+    # rather than trust the nominal noise (a misfit pair biases the pose beyond it)
+    scale = rms**2 if 2 * len(r) > 3 and ssr > _chi2_99(dof) else 1.0
+    w, v = np.linalg.eigh(info / scale)
     ok = w > 1e-9 * max(w[-1], 1e-300)
     degenerate = not bool(ok.all())
     # sum over constrained directions of v v^T / w; unconstrained directions add inf to

@@ -45,6 +45,7 @@ import logging
 import math
 import os
 import zipfile
+import zlib
 from collections.abc import Iterable
 
 import numpy as np
@@ -139,7 +140,8 @@ def _load(path: str | os.PathLike) -> dict[str, np.ndarray]:
                 spath, None, "refused: the file needs unpickling (object arrays or not an .npz)"
             ) from None
         raise ParseError(spath, None, f"not a readable .npz archive ({exc})") from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as exc:
+        # damaged archives: truncated, bad CRC or deflate stream, unsupported zip features
         raise ParseError(spath, None, f"not a readable .npz archive ({exc})") from None
 
 

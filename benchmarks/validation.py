@@ -1,0 +1,335 @@
+"""Validation of scan matches (paper §7, issue #5): covariance consistency and verdicts.
+
+One command::
+
+    python benchmarks/validation.py                  # NEES on 600 simulated pairs, then
+                                                     # intel + csail, <= 400 pairs per set
+    python benchmarks/validation.py --nees 0         # real logs only
+    python benchmarks/validation.py --logs intel --cap 100 --nees 100
+
+1. **NEES.** Over ``--nees`` simulated pairs (:func:`scanclique.sim.simulate_pair`, range
+   noise equal to the configuration's ``features.range_sigma``, 0.02 m), the normalised
+   estimation error squared ``e^T P^-1 e`` of the feature-based estimate about the final
+   pose (:func:`scanclique.validation.feature_estimate`) with its covariance ``P``,
+   ``e = (x, y, theta)`` minus the truth. Gross mismatches are excluded: an estimate more
+   than 0.2 m or 2 degrees from the truth (a wrong association, the benchmarks' failure
+   criterion), and estimates whose covariance is degenerate (infinite). The mean NEES of
+   the N others should lie in the 95 % band of chi-square with 3N degrees of freedom
+   divided by N.
+2. **Verdicts.** Every pair of the pair sets (consecutive, skip3, revisit; see
+   :func:`scanclique.validation.pair_sets`) of the Intel and CSAIL logs, whose odom fields
+   hold raw wheel odometry, is matched once and validated
+   (:func:`scanclique.validation.validate_match`) with the odometry along the path between
+   the two scans, at three odometry levels: the logs' own, and the same with extra noise
+   added to every increment between consecutive scans (level k: 5k % of the distance,
+   5k % of the turn plus 0.5k degree per metre, one standard deviation, seeded), each
+   validated with the noise model widened by what was added. A verdict's pose is *right*
+   when within 0.2 m and 2 degrees of the reference. Precision = right accepted /
+   accepted; recall = right accepted / right (pairs whose chosen pose would be right).
+   Goal of issue #5: precision >= 99 % with recall >= 90 %. Also: how many ambiguous
+   matches odometry turned into a right accepted pose.
+
+Results go to ``benchmarks/results/validation-<date>.json``.
+Data: ``$SCANCLIQUE_DATA`` (default ``../shared/data``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import math
+import os
+import platform
+import time
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+from scipy.stats import chi2  # noqa: E402
+
+import scanclique as sc  # noqa: E402
+from scanclique.config import FeatureConfig, config_to_dict  # noqa: E402
+from scanclique.datasets import DataNotFoundError, load_log  # noqa: E402
+from scanclique.geometry import Pose2, wrap_angle  # noqa: E402
+from scanclique.match import match_prepared, prepare_scan  # noqa: E402
+from scanclique.validation import (  # noqa: E402
+    ACCEPTED,
+    VERDICTS,
+    OdometryNoise,
+    feature_estimate,
+    is_right,
+    pair_sets,
+    validate_match,
+)
+
+LOGS = ("intel", "csail")
+LEVELS = (0, 1, 2)
+GOAL_PRECISION, GOAL_RECALL = 0.99, 0.90
+NEES_SEED = 10_000
+
+
+def noise_model(level: int) -> OdometryNoise:
+    """The odometry model used at a degradation level: the default plus what was added."""
+    base = OdometryNoise()
+    return OdometryNoise(
+        per_metre=base.per_metre + 0.05 * level,
+        per_radian=base.per_radian + 0.05 * level,
+        rot_per_metre=base.rot_per_metre + math.radians(0.5) * level,
+        floor_metres=base.floor_metres,
+        floor_radians=base.floor_radians,
+    )
+
+
+def degraded_odometry(scans, level: int, seed: int = 0) -> list[Pose2]:
+    """The scans' odometry poses with extra noise on every increment (level 0: as logged)."""
+    odom = [s.odometry for s in scans]
+    if level == 0:
+        return odom
+    rng = np.random.default_rng(seed + level)
+    out = [odom[0]]
+    for a, b in zip(odom[:-1], odom[1:], strict=True):
+        u = a.inverse() @ b
+        d = math.hypot(u.x, u.y)
+        s_t = 0.05 * level * d
+        s_r = 0.05 * level * abs(u.theta) + math.radians(0.5) * level * d
+        n = rng.normal(size=3) * np.array([s_t, s_t, s_r])
+        out.append(out[-1] @ Pose2(u.x + n[0], u.y + n[1], u.theta + n[2]))
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Workers
+# ---------------------------------------------------------------------------------------
+_cache: dict = {}
+
+
+def _nees_worker(seeds):
+    cfg = sc.MatchConfig()
+    sigma = cfg.features.range_sigma
+    out = []
+    for seed in seeds:
+        pair = sc.sim.simulate_pair(np.random.default_rng(NEES_SEED + seed), range_sigma=sigma)
+        m = sc.match_scans(pair.scan_a, pair.scan_b, cfg)
+        est = feature_estimate(m)
+        if est is None:
+            out.append({"seed": seed, "kind": "no pose"})
+            continue
+        e = est.pose.as_array() - pair.pose_a_b.as_array()
+        e[2] = float(wrap_angle(e[2]))
+        P = np.asarray(est.covariance)
+        if not is_right(est.pose, pair.pose_a_b):
+            out.append({"seed": seed, "kind": "gross"})
+        elif not np.all(np.isfinite(P)):
+            out.append({"seed": seed, "kind": "degenerate"})
+        else:
+            out.append({"seed": seed, "kind": "ok", "nees": float(e @ np.linalg.solve(P, e))})
+    return out
+
+
+def _log_worker(args):
+    name, set_name, pair_list = args
+    cfg = sc.MatchConfig()
+    if name not in _cache:
+        _cache.clear()
+        scans = load_log(name)
+        _cache[name] = (scans, {}, {lv: degraded_odometry(scans, lv) for lv in LEVELS})
+    scans, prepared, odoms = _cache[name]
+    out = []
+    for i, j in pair_list:
+        for k in (i, j):
+            if k not in prepared:
+                prepared[k] = prepare_scan(scans[k], cfg)
+        m = match_prepared(prepared[i], prepared[j], cfg)
+        ref = scans[i].reference.inverse() @ scans[j].reference
+        rec = {
+            "log": name,
+            "set": set_name,
+            "i": i,
+            "j": j,
+            "match_right": is_right(m.pose, ref),
+            "ambiguous": m.ambiguous,
+        }
+        v = validate_match(m)
+        rec["none"] = {"verdict": v.verdict, "right": is_right(v.pose, ref)}
+        for lv in LEVELS:
+            od = odoms[lv]
+            v = validate_match(m, od[i], od[j], noise_model(lv), path=od[i : j + 1])
+            rec[f"level{lv}"] = {
+                "verdict": v.verdict,
+                "right": is_right(v.pose, ref),
+                "hypothesis": v.hypothesis,
+                "mahalanobis_sq": v.mahalanobis_sq,
+            }
+        out.append(rec)
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Summaries
+# ---------------------------------------------------------------------------------------
+def nees_summary(records: list[dict]) -> dict:
+    kinds = Counter(r["kind"] for r in records)
+    v = np.array([r["nees"] for r in records if r["kind"] == "ok"])
+    n = len(v)
+    lo, hi = (chi2.ppf(0.025, 3 * n) / n, chi2.ppf(0.975, 3 * n) / n) if n else (0.0, 0.0)
+    mean = float(v.mean()) if n else math.nan
+    return {
+        "pairs": len(records),
+        "used": n,
+        "excluded": {k: v for k, v in kinds.items() if k != "ok"},
+        "mean": mean,
+        "median": float(np.median(v)) if n else math.nan,
+        "band": [float(lo), float(hi)],
+        "consistent": bool(n and lo <= mean <= hi),
+        "fraction_above_chi2_99": float(np.mean(v > chi2.ppf(0.99, 3))) if n else math.nan,
+    }
+
+
+def confusion(records: list[dict], key: str) -> dict:
+    """Counts of (right/wrong pose) x verdict, precision and recall of ``accepted``."""
+    c = Counter((r[key]["right"], r[key]["verdict"]) for r in records)
+    acc_r, acc_w = c[(True, ACCEPTED)], c[(False, ACCEPTED)]
+    n_right = sum(v for (right, _), v in c.items() if right)
+    amb = [r for r in records if r["ambiguous"]]
+    resolved = sum(1 for r in amb if r[key]["verdict"] == ACCEPTED and r[key]["right"])
+    return {
+        "n": len(records),
+        "table": {
+            ("right" if right else "wrong"): {v: c[(right, v)] for v in VERDICTS}
+            for right in (True, False)
+        },
+        "accepted_right": acc_r,
+        "accepted_wrong": acc_w,
+        "right": n_right,
+        "precision": acc_r / (acc_r + acc_w) if acc_r + acc_w else math.nan,
+        "recall": acc_r / n_right if n_right else math.nan,
+        "ambiguous": len(amb),
+        "ambiguous_to_right": resolved,
+    }
+
+
+def _line(label: str, s: dict, goal: bool = False) -> str:
+    t = s["table"]
+    rej_r = s["right"] - s["accepted_right"]
+    rej_w = s["n"] - s["right"] - s["accepted_wrong"]
+    out = (
+        f"{label:42s} n={s['n']:5d}  right: accepted {s['accepted_right']:4d} rejected "
+        f"{rej_r:4d} | wrong: accepted {s['accepted_wrong']:3d} rejected {rej_w:4d}  "
+        f"precision {100 * s['precision']:5.1f}%  recall {100 * s['recall']:5.1f}%  "
+        f"ambiguous->right {s['ambiguous_to_right']}/{s['ambiguous']}"
+    )
+    if goal:
+        met = s["precision"] >= GOAL_PRECISION and s["recall"] >= GOAL_RECALL
+        out += f"  [goal >= 99 % / >= 90 %: {'met' if met else 'NOT met'}]"
+    verdicts = " ".join(f"{v}={t['right'][v]}/{t['wrong'][v]}" for v in VERDICTS)
+    return out + f"\n{'':42s} verdicts (right/wrong): {verdicts}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--logs", nargs="+", default=list(LOGS))
+    ap.add_argument("--cap", type=int, default=400, help="max pairs per set per log (0 = all)")
+    ap.add_argument("--nees", type=int, default=600, help="simulated pairs for NEES (0: skip)")
+    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default=None, help="JSON output path")
+    args = ap.parse_args(argv)
+    cap = None if args.cap <= 0 else args.cap
+    t_start = time.perf_counter()
+    doc: dict = {
+        "date": _dt.datetime.now().isoformat(timespec="seconds"),
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor(),
+            "cpus": os.cpu_count(),
+        },
+        "scanclique": sc.__version__,
+        "config": config_to_dict(sc.MatchConfig()),
+        "noise_models": {lv: vars_of(noise_model(lv)) for lv in LEVELS},
+    }
+    with ProcessPoolExecutor(max_workers=args.jobs) as ex:
+        if args.nees > 0:
+            chunks = [list(range(k, args.nees, args.jobs * 4)) for k in range(args.jobs * 4)]
+            recs = [r for part in ex.map(_nees_worker, [c for c in chunks if c]) for r in part]
+            s = nees_summary(recs)
+            doc["nees"] = s
+            sigma = FeatureConfig().range_sigma
+            print(
+                f"NEES  feature estimate about the final pose, {s['pairs']} simulated pairs "
+                f"(range noise {sigma} m): N={s['used']} used, excluded {s['excluded']}; "
+                f"mean NEES {s['mean']:.3f}, 95 % band [{s['band'][0]:.3f}, "
+                f"{s['band'][1]:.3f}]: {'consistent' if s['consistent'] else 'NOT consistent'}"
+                f" (median {s['median']:.2f}; chi-square(3) median 2.37; "
+                f"{100 * s['fraction_above_chi2_99']:.1f} % above its 99 % quantile)",
+                flush=True,
+            )
+        records: list[dict] = []
+        for name in args.logs:
+            try:
+                scans = load_log(name)
+            except DataNotFoundError as exc:
+                print(f"skip {name}: {exc}")
+                continue
+            for set_name, plist in pair_sets(scans, cap, args.seed).items():
+                chunks = [plist[k :: args.jobs * 4] for k in range(args.jobs * 4)]
+                jobs = [(name, set_name, c) for c in chunks if c]
+                recs = [r for part in ex.map(_log_worker, jobs) for r in part]
+                records.extend(recs)
+                print(f"matched {name} {set_name}: {len(recs)} pairs", flush=True)
+    if records:
+        print()
+        doc["verdicts"] = {}
+        keys = [("none", "no odometry")] + [
+            (f"level{lv}", "own odometry" if lv == 0 else f"odometry degraded x{lv}")
+            for lv in LEVELS
+        ]
+        for key, label in keys:
+            doc["verdicts"][key] = {"label": label, "all": confusion(records, key)}
+            for name in args.logs:
+                for set_name in ("consecutive", "skip3", "revisit"):
+                    sub = [r for r in records if r["log"] == name and r["set"] == set_name]
+                    if sub:
+                        s = confusion(sub, key)
+                        doc["verdicts"][key][f"{name}/{set_name}"] = s
+                        print(_line(f"  {label}: {name} {set_name}", s))
+            print(_line(f"ALL {label}", doc["verdicts"][key]["all"], goal=True))
+            print()
+    print(f"wall time {time.perf_counter() - t_start:.0f} s with {args.jobs} processes")
+    out = (
+        Path(args.out)
+        if args.out
+        else Path(__file__).resolve().parent
+        / "results"
+        / f"validation-{_dt.date.today().isoformat()}.json"
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(_jsonable(doc), indent=1))
+    print(f"wrote {out}")
+    return 0
+
+
+def vars_of(obj) -> dict:
+    return {f: getattr(obj, f) for f in obj.__dataclass_fields__}
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
