@@ -583,7 +583,12 @@ def match_rows(run: MatchRun) -> list[tuple[str, str, str]]:
         if e is not None:
             add(("error translation", _num(e[0]), "m"))
             add(("error rotation", _num(math.degrees(e[1]), ".3f"), "deg"))
-    rows.extend(validation_rows(run.checked()))
+    v = run.checked()
+    rows.extend(validation_rows(v))
+    if v.hypothesis not in (None, 0) and v.pose is not None and run.reference is not None:
+        t_err, r_err = v.pose.distance_to(run.reference)
+        rows.append(("chosen error translation", _num(t_err), "m"))
+        rows.append(("chosen error rotation", _num(math.degrees(r_err), ".3f"), "deg"))
     return rows
 
 
