@@ -237,7 +237,9 @@ def first_call_cost(compile_too: bool) -> list[str]:
     if compile_too:
         with tempfile.TemporaryDirectory() as tmp:
             env["NUMBA_CACHE_DIR"] = tmp
-            r = subprocess.run([sys.executable, "-c", _FIRST], env=env, capture_output=True, text=True)
+            r = subprocess.run(
+                [sys.executable, "-c", _FIRST], env=env, capture_output=True, text=True
+            )
         if r.returncode == 0:
             lines.append(f"first call, empty cache:    {float(r.stdout):.2f} s (numba compilation)")
     return lines
@@ -336,7 +338,10 @@ def _table(head, rows) -> str:
         return cap.get()
     except ImportError:
         widths = [max(len(str(r[i])) for r in [head] + rows) for i in range(len(head))]
-        lines = ["  ".join(str(c).rjust(w) for c, w in zip(r, widths)) for r in [head] + rows]
+        lines = [
+            "  ".join(str(c).rjust(w) for c, w in zip(r, widths, strict=True))
+            for r in [head] + rows
+        ]
         return "\n".join(lines)
 
 
@@ -371,7 +376,9 @@ def main(argv=None) -> int:
         if note:
             report.append(note)
         else:
-            report += section("Correspondence graphs of real scan pairs", graphs, peers, args.time_limit)
+            report += section(
+                "Correspondence graphs of real scan pairs", graphs, peers, args.time_limit
+            )
     print("\n".join(report))
     return 0
 

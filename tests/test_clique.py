@@ -245,6 +245,17 @@ def test_time_limit_is_honoured():
     assert len(top_cliques(adj, 3, time_limit=0.1)) == 3
 
 
+@pytest.mark.slow
+def test_time_limit_on_a_graph_that_cannot_be_finished():
+    adj = random_graph(1000, 0.9, 6)  # the case: far beyond any exact search
+    max_clique(random_graph(70, 0.5, 0))
+    t = time.perf_counter()
+    r = max_clique(adj, time_limit=0.5)
+    wall = time.perf_counter() - t
+    assert not r.optimal and is_clique(adj, r.vertices) and r.size >= 50
+    assert 0.5 <= r.elapsed <= wall <= 0.55 + 0.02  # within 10 % (+ result assembly)
+
+
 # -- CLI helper ----------------------------------------------------------------------------
 def test_solve_file(tmp_path):
     from scanclique.io.dimacs import write_dimacs

@@ -156,6 +156,33 @@ def asymmetry(adj):
 
 
 @numba.njit(cache=True)
+def check_packed(adj, bits):
+    """:func:`asymmetry` for an adjacency already packed into ``bits``: on sparse graphs by
+    looking up the mirror of each edge (O(m)), on dense ones tile by tile."""
+    n = adj.shape[0]
+    W = bits.shape[1]
+    m = 0
+    for i in range(n):
+        m += _popcount(bits[i], W)
+    if 8 * m > n * n:
+        return asymmetry(adj)
+    for i in range(n):
+        wi = i >> 6
+        bi = _ONE << np.uint64(i & 63)
+        if bits[i, wi] & bi:
+            return i, i
+        for w in range(W):
+            x = bits[i, w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                j = w * 64 + int(b)
+                if bits[j, wi] & bi == _ZERO:
+                    return i, j
+    return -1, -1
+
+
+@numba.njit(cache=True)
 def pack_small(adj):
     """Bitset rows of a small boolean adjacency, checked as :func:`asymmetry` does, in one
     pass (for small graphs the call overhead of NumPy would dominate)."""
@@ -182,12 +209,69 @@ def degeneracy_order(A, n):
     """Min-degree peeling: ``order`` (densest core first) and each vertex's core number.
 
     ``order[n - 1]`` is the first vertex peeled (minimum degree), ``order[0]`` the last.
-    O(n^2 + m): an argmin over the remaining vertices per step.
+    Graphs of up to 1024 vertices with density above 1/4 (where the search is hard and
+    the order matters) are peeled exactly, one vertex of minimum remaining degree at a
+    time (the lowest-numbered on ties: the smallest-last order of MCQ/MCS), in O(n^2).
+    Other graphs use Batagelj & Zaversnik's buckets, O(n W + m): the same core numbers,
+    a coarser order.
     """
     W = A.shape[1]
     deg = np.empty(n, np.int64)
+    dmax = 0
+    m2 = 0
     for v in range(n):
         deg[v] = _popcount(A[v], W)
+        dmax = max(dmax, deg[v])
+        m2 += deg[v]
+    if n <= 1024 and 4 * m2 > n * n:
+        return _peel_exact(A, n, deg)
+    start = np.zeros(dmax + 2, np.int64)
+    for v in range(n):
+        start[deg[v] + 1] += 1
+    for d in range(dmax + 1):
+        start[d + 1] += start[d]
+    vert = np.empty(n, np.int64)
+    pos = np.empty(n, np.int64)
+    fill = start.copy()
+    for v in range(n):
+        pos[v] = fill[deg[v]]
+        vert[pos[v]] = v
+        fill[deg[v]] += 1
+    order = np.empty(n, np.int64)
+    core = np.empty(n, np.int64)
+    for i in range(n):
+        # invariant: vert[i:] are the remaining vertices sorted by deg, their degree in
+        # the remaining graph; start[d] is where degree d begins within vert[i:]
+        v = vert[i]
+        core[v] = deg[v]
+        order[n - 1 - i] = v
+        for w in range(W):
+            x = A[v, w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                u = w * 64 + int(b)
+                if deg[u] <= deg[v]:  # peeled already, or on the same level
+                    continue
+                # move u to the front of its degree bucket, then shrink the bucket
+                du = deg[u]
+                pw = start[du]
+                y = vert[pw]
+                if y != u:
+                    pu = pos[u]
+                    vert[pu] = y
+                    pos[y] = pu
+                    vert[pw] = u
+                    pos[u] = pw
+                start[du] = pw + 1
+                deg[u] = du - 1
+    return order, core
+
+
+@numba.njit(cache=True)
+def _peel_exact(A, n, deg):
+    """Smallest-last peeling by an argmin per step (see :func:`degeneracy_order`)."""
+    W = A.shape[1]
     removed = np.zeros(n, np.bool_)
     order = np.empty(n, np.int64)
     core = np.empty(n, np.int64)
@@ -200,8 +284,7 @@ def degeneracy_order(A, n):
             if not removed[v] and deg[v] < bd:
                 bd = deg[v]
                 best = v
-        if bd > k:
-            k = bd
+        k = max(k, bd)
         core[best] = k
         order[n - 1 - i] = best
         removed[best] = True
@@ -247,7 +330,7 @@ def greedy_clique(B, n, P, t0, time_limit):
     bsize = 0
     cur = np.empty(n, np.int64)
     for s in range(n):
-        if (s & 63) == 63 and _now() - t0 > time_limit:
+        if (s & 1023) == 1023 and _now() - t0 > time_limit:
             break
         for w in range(W):
             P[w] = B[s, w]
@@ -273,6 +356,18 @@ def greedy_clique(B, n, P, t0, time_limit):
 
 
 @numba.njit(cache=True)
+def _rand(state, k):
+    """Uniform integer in ``[0, k)`` from a xorshift64 generator (Marsaglia 2003) kept in
+    ``state[0]``: deterministic, and numba's global generator is left alone."""
+    x = state[0]
+    x ^= x << np.uint64(13)
+    x ^= x >> np.uint64(7)
+    x ^= x << np.uint64(17)
+    state[0] = x
+    return int(x % np.uint64(k))
+
+
+@numba.njit(cache=True)
 def _ls_add(B, n, W, v, miss, sign):
     # every vertex u != v not adjacent to v gains (loses) one missing clique neighbour
     for w in range(W):
@@ -292,11 +387,12 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
 
     ``miss[v]`` counts the clique vertices not adjacent to ``v``: ``v`` can be added when
     it is 0 and swapped in (for its one non-neighbour) when it is 1. A vertex swapped or
-    dropped out is tabu for a few iterations. After Grosso, Locatelli & Pullan (2008) and
-    Wu & Hao (2012), much simplified. Stops after ``stall`` iterations without improvement.
+    dropped out is tabu for a few iterations. After ``stall`` iterations without a new
+    best, the search restarts from a random vertex. After Grosso, Locatelli & Pullan (2008)
+    and Wu & Hao (2012), much simplified.
     """
     W = B.shape[1]
-    np.random.seed(seed)
+    rng = np.full(1, np.uint64(seed) | _ONE, np.uint64)
     inC = np.zeros(n, np.bool_)
     C = np.empty(n + 1, np.int64)
     where = np.empty(n, np.int64)
@@ -317,8 +413,19 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
         # invariant: C[:size] is a clique; miss[v] = |C minus N(v) minus {v}|
         if (it & 255) == 255 and _now() - t0 > time_limit:
             break
-        if it - last > stall:
-            break
+        if it - last > stall:  # restart from a random vertex
+            while size > 0:
+                size -= 1
+                _ls_add(B, n, W, C[size], miss, -1)
+                inC[C[size]] = False
+            v = _rand(rng, n)
+            _ls_add(B, n, W, v, miss, 1)
+            inC[v] = True
+            where[v] = 0
+            C[0] = v
+            size = 1
+            last = it
+            continue
         na = 0
         ns = 0
         for v in range(n):
@@ -331,9 +438,9 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
                 cand_s[ns] = v
                 ns += 1
         if na > 0:
-            v = cand_a[np.random.randint(na)]
+            v = cand_a[_rand(rng, na)]
         elif ns > 0:
-            v = cand_s[np.random.randint(ns)]
+            v = cand_s[_rand(rng, ns)]
             # the one clique vertex not adjacent to v leaves
             u = -1
             for i in range(size):
@@ -347,11 +454,11 @@ def local_search(B, n, init, max_iter, stall, t0, time_limit, seed):
             size -= 1
             C[i] = C[size]
             where[C[i]] = i
-            tabu[u] = it + 7 + np.random.randint(ns + 1)
+            tabu[u] = it + 7 + _rand(rng, ns + 1)
         else:
             if size == 0:
                 break
-            u = C[np.random.randint(size)]
+            u = C[_rand(rng, size)]
             _ls_add(B, n, W, u, miss, -1)
             inC[u] = False
             i = where[u]
@@ -772,32 +879,83 @@ def bb_search(B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, 
 def solve(A, n, floor, mode, limit, time_limit, t0, opts):
     """Whole pipeline on bitset rows: order, renumber, initial clique, prune, search.
 
-    In mode 0 the search first runs with a small node budget: easy graphs end there. If
-    it does not, tabu local search improves the incumbent and the search starts again
-    with the higher bar (hard graphs repay the few milliseconds many times over).
+    Modes: 0 = a maximum clique (cliques larger than ``floor``); 1 = every clique of size
+    ``floor + 1``, at most ``limit``; 2 = mode 0, then, if it finished, mode 1 with
+    ``floor = omega - 1`` (every maximum clique), sharing the order and renumbering.
 
-    Returns ``(clique, nodes, status, found)`` in the caller's labels (status as in
-    :func:`bb_search`).
+    In mode 0 the search first runs with a small node budget and the plain colouring
+    bound: easy graphs end there. If it does not, tabu local search improves the
+    incumbent and the search starts again with the higher bar and the MaxSAT-style
+    filter (hard graphs repay the few milliseconds many times over).
+
+    Returns ``(clique, nodes, status, found, status_all)`` in the caller's labels: status
+    of the maximum clique search and of the enumeration (-1 when not run), as in
+    :func:`bb_search`.
     """
     W = A.shape[1]
     order, core = degeneracy_order(A, n)
     B = relabel(A, n, order)
     U = np.empty(W, np.uint64)
-    init = np.empty(0, np.int64)
-    if mode == 0:
-        init = greedy_clique(B, n, U, t0, time_limit)
-        kmax = 0
-        for i in range(n):
-            kmax = max(kmax, core[i])
-        if init.shape[0] > kmax and init.shape[0] > floor:
-            # a clique of size k + 1 needs a k-core: the degeneracy bound is met already
-            return _mapped_sorted(init, init.shape[0], order), 1, 0, np.empty((0, 1), np.int64)
     maxsat = (opts & OPT_MAXSAT) != 0
     mask = check_mask(n, W)
     nodes = 0
+    status = 0
+    best = np.empty(0, np.int64)
+    if mode != 1:
+        best, nodes, status = _maximum(
+            B, n, order, core, floor, time_limit, t0, opts, maxsat, mask, U
+        )
+    status_all = -1
+    found = np.empty((0, floor + 1), np.int64)
+    if mode == 1 or (mode == 2 and status == 0 and best.shape[0] > 0):
+        if mode == 2:
+            floor = best.shape[0] - 1
+        # k-core pruning: a clique of size floor + 1 lies inside the floor-core
+        P0 = np.zeros(W, np.uint64)
+        for i in range(n):
+            if core[order[i]] >= floor:
+                _setbit(P0, i)
+        _, used, status_all, found = bb_search(
+            B,
+            n,
+            P0,
+            np.empty(0, np.int64),
+            floor,
+            1,
+            limit,
+            time_limit,
+            t0,
+            mask,
+            maxsat,
+            1 << 62,
+        )
+        nodes += used
+    found_o = np.empty((found.shape[0], found.shape[1]), np.int64)
+    for r in range(found.shape[0]):
+        row = _mapped_sorted(found[r], found.shape[1], order)
+        for i in range(found.shape[1]):
+            found_o[r, i] = row[i]
+    return _mapped_sorted(best, best.shape[0], order), nodes, status, found_o, status_all
+
+
+@numba.njit(cache=True)
+def _maximum(B, n, order, core, floor, time_limit, t0, opts, maxsat, mask, U):
+    """Mode 0 of :func:`solve`: ``(clique, nodes, status)`` in the renumbered labels."""
+    init = greedy_clique(B, n, U, t0, time_limit)
+    kmax = 0
+    for i in range(n):
+        kmax = max(kmax, core[i])
+    if init.shape[0] > kmax and init.shape[0] > floor:
+        # a clique of size k + 1 needs a k-core: the degeneracy bound is met already
+        return init, 1, 0
+    W = B.shape[1]
+    nodes = 0
     budget = 1 << 62
-    if mode == 0 and (opts & OPT_LOCAL_SEARCH) != 0:
+    reason = maxsat
+    if (opts & OPT_LOCAL_SEARCH) != 0:
+        # a first, cheap try: plain colouring bound, a thousand nodes
         budget = 1000
+        reason = False
     while True:
         bar = max(floor, init.shape[0])
         # k-core pruning: a clique of size bar + 1 lies inside the bar-core
@@ -805,21 +963,16 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
         for i in range(n):
             if core[order[i]] >= bar:
                 _setbit(P0, i)
-        best, used, status, found = bb_search(
-            B, n, P0, init, floor, mode, limit, time_limit, t0, mask, maxsat, budget
+        best, used, status, _ = bb_search(
+            B, n, P0, init, floor, 0, 0, time_limit, t0, mask, reason, budget
         )
         nodes += used
         if status != 2:
-            break
-        iters = min(100 * n, 20_000_000 // (n + 1))
-        init = local_search(B, n, best, iters, 20 * n, t0, time_limit, 12345)
+            return best, nodes, status
+        iters = min(20 * n, 20_000_000 // (n + 1))
+        init = local_search(B, n, best, iters, max(500, 2 * n), t0, time_limit, 12345)
         budget = 1 << 62
-    found_o = np.empty((found.shape[0], found.shape[1]), np.int64)
-    for r in range(found.shape[0]):
-        row = _mapped_sorted(found[r], found.shape[1], order)
-        for i in range(found.shape[1]):
-            found_o[r, i] = row[i]
-    return _mapped_sorted(best, best.shape[0], order), nodes, status, found_o
+        reason = maxsat
 
 
 # --------------------------------------------------------------------------------------

@@ -11,6 +11,11 @@ Any undirected graph will do: a boolean adjacency matrix (the pipeline's case), 
 list, a networkx graph or a DIMACS ``.clq`` file (see :func:`as_adjacency`). Vertices are
 reported as 0-based indices (for networkx graphs: positions in ``list(G)``).
 
+The search runs in compiled kernels (:mod:`scanclique._clique_kernels`, numba, cached on
+disk: the first call in a fresh environment compiles for about half a minute, later
+processes load the cache in well under a second). ``benchmarks/clique.py`` compares it
+with igraph (cliquer), networkx and cliquematch on the DIMACS graphs.
+
 Examples
 --------
 >>> adj = np.zeros((5, 5), dtype=bool)
@@ -221,8 +226,8 @@ def _bits_checked(adj: np.ndarray) -> np.ndarray:
             adj = adj.copy()
         bits, u, v = K.pack_small(adj)
     else:
-        u, v = K.asymmetry(adj)
-        bits = None if u >= 0 else bitsets_from_adjacency(adj)
+        bits = bitsets_from_adjacency(adj)
+        u, v = K.check_packed(adj, bits)
     if u == v and u >= 0:
         raise GraphError(f"adjacency matrix has a self loop at vertex {u}")
     if u >= 0:
@@ -419,7 +424,7 @@ def _max_clique(A, t0, tl, lower_bound, weights) -> CliqueResult:
     floor = 0 if lower_bound is None else max(int(lower_bound) - 1, 0)
     if n == 0:
         return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0)
-    best, nodes, status, _ = _run(A, floor, 0, 0, tl, t0)
+    best, nodes, status, _, _ = _run(A, floor, 0, 0, tl, t0)
     timed_out = status == 1
     optimal = (not timed_out) and best.shape[0] > floor
     if best.shape[0] == 0:  # n >= 1: a single vertex is always a clique
@@ -466,20 +471,16 @@ def _all_maximum(A, t0, tl, limit) -> AllCliquesResult:
     n = A.shape[0]
     if n == 0:
         return AllCliquesResult((), 0, True, True, time.perf_counter() - t0)
-    first = _max_clique(A, t0, tl, None, None)
-    omega = first.size
+    best, _, status, found, status_all = _run(A, 0, 2, max(limit, 0), tl, t0)
+    optimal = status == 0
+    # status_all: 0 = all enumerated, 1 = out of time, 3 = more than `limit`, -1 = not run
+    cl = list(found) if found.shape[0] else [best]
     if limit <= 0:
-        return AllCliquesResult((), omega, False, first.optimal, time.perf_counter() - t0)
-    if omega == 1:  # every vertex
-        cl = [np.array([v]) for v in range(min(n, limit))]
-        return AllCliquesResult(tuple(cl), 1, n <= limit, first.optimal, time.perf_counter() - t0)
-    _, _, status, found = _run(A, omega - 1, 1, limit, tl, t0)
-    timed_out, overflow = status == 1, status == 3
-    cl = list(found)
-    if not cl:  # time ran out before the enumeration met the known clique
-        cl = [first.vertices]
-    complete = first.optimal and not timed_out and not overflow
-    return AllCliquesResult(tuple(cl), omega, complete, first.optimal, time.perf_counter() - t0)
+        cl = []
+    for c in cl:
+        c.flags.writeable = False
+    complete = optimal and status_all == 0
+    return AllCliquesResult(tuple(cl), best.shape[0], complete, optimal, time.perf_counter() - t0)
 
 
 def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
