@@ -10,10 +10,10 @@ import pytest
 from conftest import require_log
 
 import scanclique as sc
+from scanclique.config import MatchConfig
 from scanclique.features import POINT_LABEL_NAMES
 from scanclique.geometry import Pose2
 from scanclique.graph import NODE_KIND_NAMES
-from scanclique.config import MatchConfig
 from scanclique.match import ScanMatch, match_prepared, match_scans, prepare_scan
 from scanclique.scan import Scan
 from scanclique.sim import simulate_pair
