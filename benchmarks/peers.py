@@ -88,7 +88,12 @@ from scanclique import clique as _clique  # noqa: E402
 from scanclique.correspondence import correspondence_graph  # noqa: E402
 from scanclique.datasets import DataNotFoundError, load_log, relations_path  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
-from scanclique.match import _estimate, match_prepared, pose_score, prepare_scan  # noqa: E402
+from scanclique.match import (  # noqa: E402
+    estimate_clique_pose,
+    match_prepared,
+    pose_score,
+    prepare_scan,
+)
 from scanclique.refine import icp_point_to_line  # noqa: E402
 
 LOGS = ("intel", "csail", "freiburg")
@@ -248,7 +253,7 @@ class Runner:
             else:
                 c = np.asarray(_clique.max_clique(cg.adjacency, time_limit=2.0).vertices)
             if len(c) >= cfg.pose.min_pairs:
-                est = _estimate(pa.features, pb.features, cg.pairs[np.sort(c)], cfg)
+                est = estimate_clique_pose(pa.features, pb.features, cg.pairs[np.sort(c)], cfg)
                 if est is not None:
                     pose = est.pose
                     if cfg.refine.enabled:

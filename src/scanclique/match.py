@@ -48,6 +48,7 @@ __all__ = [
     "ScanMatch",
     "prepare_scan",
     "pose_score",
+    "estimate_clique_pose",
     "match_prepared",
     "match_scans",
 ]
@@ -260,11 +261,14 @@ def _points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
     return np.concatenate((node_pairs[is_pt], node_pairs[~is_pt]))
 
 
-def _estimate(
+def estimate_clique_pose(
     fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConfig
 ) -> PoseEstimate | None:
-    """Pose of one clique (paper §6), with one round of outlier rejection for the
-    least-squares method: pairs whose Mahalanobis residual exceeds 3.5 are dropped."""
+    """Pose of one clique of the correspondence graph (paper §6): ``node_pairs`` (K, 2) of
+    (node of A, node of B) in feature-graph order; the paper's median method or weighted
+    least squares with one round of outlier rejection (pairs whose Mahalanobis residual
+    exceeds 3.5 are dropped). The pose maps B's frame into A's; None when the pairs cannot
+    fix one."""
     m = mapped_features(fa, fb, node_pairs)
     if cfg.pose.method == "median":
         return estimate_pose_median(m)
@@ -434,7 +438,7 @@ def match_prepared(
             continue
         node_pairs = cg.pairs[np.sort(c)]
         if cfg.pose.method == "median":
-            est = _estimate(fa, fb, node_pairs, cfg)
+            est = estimate_clique_pose(fa, fb, node_pairs, cfg)
             pose = None if est is None else est.pose
         else:
             est, pose = None, closed_form_pose(mapped_features(fa, fb, node_pairs))
@@ -481,7 +485,9 @@ def match_prepared(
             break
     full = []
     for h in distinct:
-        est = h.estimate if h.estimate is not None else _estimate(fa, fb, h.node_pairs, cfg)
+        est = h.estimate
+        if est is None:
+            est = estimate_clique_pose(fa, fb, h.node_pairs, cfg)
         if est is None:
             continue
         full.append(
