@@ -72,12 +72,12 @@ class Pose2:
     theta: float
 
     def __post_init__(self) -> None:
-        vals = (self.x, self.y, self.theta)
-        if not all(math.isfinite(float(v)) for v in vals):
-            raise ScanError(f"Pose2 needs finite x, y, theta; got {vals}")
-        object.__setattr__(self, "x", float(self.x))
-        object.__setattr__(self, "y", float(self.y))
-        object.__setattr__(self, "theta", _wrap_scalar(float(self.theta)))
+        x, y, t = float(self.x), float(self.y), float(self.theta)
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(t)):
+            raise ScanError(f"Pose2 needs finite x, y, theta; got {(self.x, self.y, self.theta)}")
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "theta", _wrap_scalar(t))
 
     # -- constructors ---------------------------------------------------------------
     @classmethod
@@ -153,9 +153,13 @@ class Pose2:
         return p @ self.rotation.T + self.translation
 
     def distance_to(self, other: Pose2) -> tuple[float, float]:
-        """``(translation error in metres, |rotation error| in radians)`` between two poses."""
-        d = self.inverse() @ other
-        return math.hypot(d.x, d.y), abs(d.theta)
+        """``(translation error in metres, |rotation error| in radians)`` between two poses:
+        the length and angle of ``self.inverse() @ other`` (a rotation keeps lengths, so
+        the translation error is the distance between the two positions)."""
+        return (
+            math.hypot(other.x - self.x, other.y - self.y),
+            abs(_wrap_scalar(other.theta - self.theta)),
+        )
 
     def __repr__(self) -> str:
         return f"Pose2(x={self.x:.4f}, y={self.y:.4f}, theta={self.theta:.4f})"

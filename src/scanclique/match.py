@@ -18,6 +18,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import _clique_kernels as _CK
+from . import _match_kernels as _K
 from . import clique as _clique
 from .config import MatchConfig
 from .correspondence import CorrespondenceGraph, correspondence_graph
@@ -26,15 +28,16 @@ from .geometry import Pose2
 from .graph import NODE_KIND_NAMES, FeatureGraph, feature_graph
 from .pose import (
     PoseEstimate,
-    closed_form_pose,
-    estimate_pose_lsq,
+    estimate_pose_lsq_pairs,
     estimate_pose_median,
     mapped_features,
     pair_consistent,
+    points_first,
 )
 from .refine import (
     ReferenceCloud,
     agreement,
+    free_ranges,
     free_space_conflicts,
     icp_point_to_line,
     reference_cloud,
@@ -92,7 +95,8 @@ class PreparedScan:
     """What the pipeline derives from one scan, reusable across many matches.
 
     ``points`` are the scan's valid points (sensor frame); ``sample`` at most
-    ``refine.sample_points`` of them, evenly spaced in beam order, for scoring and ICP."""
+    ``refine.sample_points`` of them, evenly spaced in beam order, for scoring and ICP;
+    ``free`` the free range along each beam (:func:`scanclique.refine.free_ranges`)."""
 
     scan: Scan
     features: Features
@@ -100,6 +104,7 @@ class PreparedScan:
     cloud: ReferenceCloud
     points: np.ndarray
     sample: np.ndarray
+    free: np.ndarray
     seconds: dict = field(default_factory=dict)
 
 
@@ -217,9 +222,17 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     cloud = reference_cloud(pts)
     n_s = cfg.refine.sample_points
     sample = pts if len(pts) <= n_s else pts[np.linspace(0, len(pts) - 1, n_s).round().astype(int)]
+    sample = np.ascontiguousarray(sample)
     t2 = time.perf_counter()
     return PreparedScan(
-        scan, feats, graph, cloud, pts, sample, {"features": t1 - t0, "graph": t2 - t1}
+        scan,
+        feats,
+        graph,
+        cloud,
+        pts,
+        sample,
+        free_ranges(scan),
+        {"features": t1 - t0, "graph": t2 - t1},
     )
 
 
@@ -231,6 +244,8 @@ def pose_score(
     and the same for A's points against B's, minus ``refine.conflict_weight`` times the
     mean fraction of points lying in the other scan's observed free space."""
     cfg = config or MatchConfig()
+    if pa.cloud.windowed and pb.cloud.windowed:
+        return _score(pa, pb, pose.x, pose.y, pose.theta, cfg)
     d = cfg.refine.inlier_distance
     score = 0.5 * (
         agreement(pa.cloud, pb.sample, pose, d) + agreement(pb.cloud, pa.sample, pose.inverse(), d)
@@ -240,6 +255,34 @@ def pose_score(
         c_ba = free_space_conflicts(pb.scan, pa.sample, pose=pose.inverse())
         score -= cfg.refine.conflict_weight * 0.5 * (c_ab + c_ba)
     return score
+
+
+#: free-space conflict test of the score: a point conflicts when nearer than the beams'
+#: ranges by more than CONFLICT_MARGIN + CONFLICT_RATIO * range (metres)
+CONFLICT_MARGIN = 0.2
+CONFLICT_RATIO = 0.02
+
+
+def _scan_args(p: PreparedScan) -> tuple:
+    return (p.cloud.bearings, p.cloud.points, p.scan.angles, p.free, p.sample)
+
+
+def _score(pa: PreparedScan, pb: PreparedScan, x: float, y: float, th: float, cfg) -> float:
+    """:func:`pose_score` of the pose ``(x, y, th)``, compiled (windowed clouds)."""
+    r = cfg.refine
+    return float(
+        _K.pose_score(
+            *_scan_args(pa),
+            *_scan_args(pb),
+            float(x),
+            float(y),
+            float(th),
+            r.inlier_distance,
+            r.conflict_weight,
+            CONFLICT_MARGIN,
+            CONFLICT_RATIO,
+        )
+    )
 
 
 def _node_pairs_to_feature_pairs(
@@ -255,12 +298,6 @@ def _node_pairs_to_feature_pairs(
     return tuple(out)
 
 
-def _points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
-    """Node pairs reordered points first, then lines (the order of ``mapped_features``)."""
-    is_pt = node_pairs[:, 0] < n_points_a
-    return np.concatenate((node_pairs[is_pt], node_pairs[~is_pt]))
-
-
 def estimate_clique_pose(
     fa: Features, fb: Features, node_pairs: np.ndarray, cfg: MatchConfig
 ) -> PoseEstimate | None:
@@ -269,44 +306,43 @@ def estimate_clique_pose(
     least squares with one round of outlier rejection (pairs whose Mahalanobis residual
     exceeds 3.5 are dropped). The pose maps B's frame into A's; None when the pairs cannot
     fix one."""
-    m = mapped_features(fa, fb, node_pairs)
     if cfg.pose.method == "median":
-        return estimate_pose_median(m)
-    est = estimate_pose_lsq(m)
+        return estimate_pose_median(mapped_features(fa, fb, node_pairs))
+    est = estimate_pose_lsq_pairs(fa, fb, node_pairs)
     if est is None:
         return None
     bad = est.residuals > 3.5
     if bad.any() and (~bad).sum() >= cfg.pose.min_pairs:
-        m2 = mapped_features(fa, fb, _points_first(node_pairs, fa.n_points)[~bad])
-        est2 = estimate_pose_lsq(m2, initial=est.pose)
-        if est2 is not None:
-            return est2
+        ordered = points_first(node_pairs, fa.n_points)
+        return estimate_pose_lsq_pairs(fa, fb, ordered[~bad], initial=est.pose)
     return est
 
 
-def _vertex_cliques(adj: np.ndarray, k: int, min_size: int, deadline: float) -> list[np.ndarray]:
-    """For the ``k`` vertices of highest degree, the maximum clique containing the vertex
-    (a maximum clique of its closed neighbourhood), while time lasts."""
-    deg = adj.sum(axis=1)
-    out = []
-    for v in np.argsort(-deg, kind="stable")[:k]:
-        if deg[v] + 1 < min_size:
-            break
-        remaining = deadline - time.perf_counter()
-        if remaining <= 0:
-            break
-        nb = np.flatnonzero(adj[v])
-        r = _clique.max_clique(adj[np.ix_(nb, nb)], time_limit=remaining)
-        if r.size + 1 >= min_size:
-            out.append(np.sort(np.append(nb[np.asarray(r.vertices)], v)))
-    return out
+def _hypothesis_cliques(cg: CorrespondenceGraph, cfg: MatchConfig, t0: float):
+    """The cliques that become hypotheses (see :func:`match_prepared`, step 2), one
+    compiled call: ``(cliques, omega, optimal)``."""
+    cc = cfg.clique
+    bits = _clique.bitsets_from_adjacency(cg.adjacency)
+    data, indptr, count, omega, optimal, _ = _K.hypothesis_cliques(
+        bits,
+        cg.n_nodes,
+        cc.max_hypotheses,
+        cc.peel,
+        cc.per_vertex,
+        cfg.pose.min_pairs,
+        float(cc.time_limit),
+        float(t0),
+        _CK.OPT_DEFAULT,
+    )
+    cliques = [data[indptr[i] : indptr[i + 1]] for i in range(count)]
+    return _unique(cliques), int(omega), bool(optimal)
 
 
 def _unique(cliques: list[np.ndarray]) -> list[np.ndarray]:
-    """Distinct cliques, order kept."""
+    """Distinct cliques (sorted int64 label arrays), order kept."""
     seen, out = set(), []
     for c in cliques:
-        key = tuple(np.sort(c).tolist())
+        key = c.tobytes()
         if key not in seen:
             seen.add(key)
             out.append(np.asarray(c))
@@ -356,6 +392,69 @@ def _empty(
     )
 
 
+def _quick_hypotheses(
+    pa: PreparedScan, pb: PreparedScan, cg: CorrespondenceGraph, cliques: list, cfg: MatchConfig
+) -> list[Hypothesis]:
+    """A pose per clique and its raw-scan score, best-ranked first: the closed-form pose
+    (or the paper's median estimate with ``pose.method="median"``), scored by
+    :func:`pose_score`, in compiled batches where the clouds allow."""
+    fa, fb = pa.features, pb.features
+    if not cliques:
+        return []
+    node_pairs = [cg.pairs[c] for c in cliques]
+    sizes = np.array([len(c) for c in cliques])
+    if cfg.pose.method == "median":
+        ests = [estimate_clique_pose(fa, fb, npairs, cfg) for npairs in node_pairs]
+        ok = np.array([e is not None for e in ests])
+        poses = np.array([e.pose.as_array() if e is not None else np.zeros(3) for e in ests])
+    else:
+        ests = [None] * len(cliques)
+        flat = np.ascontiguousarray(np.concatenate(node_pairs))
+        indptr = np.concatenate(([0], np.cumsum(sizes)))
+        poses = np.empty((len(cliques), 3))
+        ok = np.empty(len(cliques), dtype=bool)
+        _K.closed_form_batch(
+            flat,
+            indptr,
+            fa.n_points,
+            fb.n_points,
+            fa.points_xy,
+            fb.points_xy,
+            fa.lines_rho_alpha,
+            fb.lines_rho_alpha,
+            poses,
+            ok,
+        )
+    if pa.cloud.windowed and pb.cloud.windowed:
+        scores = np.empty(len(cliques))
+        r = cfg.refine
+        _K.score_batch(
+            poses,
+            ok,
+            *_scan_args(pa),
+            *_scan_args(pb),
+            r.inlier_distance,
+            r.conflict_weight,
+            CONFLICT_MARGIN,
+            CONFLICT_RATIO,
+            scores,
+        )
+    else:
+        scores = np.array(
+            [
+                pose_score(pa, pb, Pose2.from_array(x), cfg) if k else -np.inf
+                for x, k in zip(poses, ok, strict=True)
+            ]
+        )
+    rank = scores + cfg.refine.size_weight * sizes
+    out = []
+    for i in np.argsort(-rank, kind="stable"):
+        if ok[i]:
+            pose = Pose2.from_array(poses[i])
+            out.append(Hypothesis(node_pairs[i], int(sizes[i]), pose, float(scores[i]), ests[i]))
+    return out
+
+
 def match_prepared(
     pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None
 ) -> ScanMatch:
@@ -391,31 +490,9 @@ def match_prepared(
     if n_nodes == 0:
         return _empty(pa, pb, "no feature of A has a feature of the same type in B", seconds)
 
-    # 2. maximum cliques (paper §5.3), then disjoint alternatives by peeling
+    # 2. maximum cliques (paper §5.3), disjoint alternatives by peeling, vertex-guided
     t = time.perf_counter()
-    deadline = t + cfg.clique.time_limit
-    res = _clique.all_maximum_cliques(
-        cg.adjacency, limit=cfg.clique.max_hypotheses, time_limit=cfg.clique.time_limit
-    )
-    cliques = [np.asarray(c) for c in res.cliques]
-    optimal = bool(res.optimal)
-    omega = int(res.omega)
-    alive = np.ones(n_nodes, dtype=bool)
-    for _ in range(cfg.clique.peel):
-        for c in cliques:
-            alive[c] = False
-        left = np.flatnonzero(alive)
-        remaining = deadline - time.perf_counter()
-        if left.size < min_pairs or remaining <= 0:
-            break
-        sub = cg.adjacency[np.ix_(left, left)]
-        r = _clique.max_clique(sub, time_limit=remaining)
-        if r.size < min_pairs:
-            break
-        cliques.append(left[np.asarray(r.vertices)])
-    if cfg.clique.per_vertex > 0:
-        cliques.extend(_vertex_cliques(cg.adjacency, cfg.clique.per_vertex, min_pairs, deadline))
-    cliques = _unique(cliques)
+    cliques, omega, optimal = _hypothesis_cliques(cg, cfg, t)
     seconds["clique"] = time.perf_counter() - t
     if omega < min_pairs:
         return _empty(
@@ -431,36 +508,8 @@ def match_prepared(
 
     # 3. a quick pose per clique (paper §6), scored against the raw scans
     t = time.perf_counter()
-    hyps: list[Hypothesis] = []
-    scored: list[tuple[np.ndarray, float]] = []  # (x, y, theta), score: one per pose cluster
-    for c in cliques:
-        if len(c) < min_pairs:
-            continue
-        node_pairs = cg.pairs[np.sort(c)]
-        if cfg.pose.method == "median":
-            est = estimate_clique_pose(fa, fb, node_pairs, cfg)
-            pose = None if est is None else est.pose
-        else:
-            est, pose = None, closed_form_pose(mapped_features(fa, fb, node_pairs))
-        if pose is None:
-            continue
-        # cliques that share most of an association give nearly the same pose: score a
-        # pose within 2 cm and 0.2 degrees of one already scored as that one
-        x = pose.as_array()
-        score = next(
-            (
-                sc
-                for y, sc in scored
-                if abs(x[0] - y[0]) < 0.02
-                and abs(x[1] - y[1]) < 0.02
-                and abs((x[2] - y[2] + math.pi) % (2 * math.pi) - math.pi) < 0.0035
-            ),
-            None,
-        )
-        if score is None:
-            score = pose_score(pa, pb, pose, cfg)
-            scored.append((x, score))
-        hyps.append(Hypothesis(node_pairs, len(c), pose, score, est))
+    cliques = [c for c in cliques if len(c) >= min_pairs]
+    hyps = _quick_hypotheses(pa, pb, cg, cliques, cfg)
     if not hyps:
         seconds["pose"] = time.perf_counter() - t
         return _empty(
@@ -473,7 +522,6 @@ def match_prepared(
             optimal,
             omega,
         )
-    hyps.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
 
     # 4. the best few distinct hypotheses: full weighted estimate with covariance, then
     #    ICP on the raw points (refine.enabled), and rank again
@@ -545,13 +593,13 @@ def match_prepared(
 
     # 6. ambiguity: a distinct runner-up that explains the raw scans nearly as well
     ambiguous = any(
-        _distinct(h.pose, best.pose)
-        and h.score >= 0.9 * best.score
+        h.score >= 0.9 * best.score
         and h.clique_size >= best.clique_size - 1
+        and _distinct(h.pose, best.pose)
         for h in hyps[1:]
     )
     # the mapping reported: the chosen clique's pairs that agree with the final pose
-    ordered = _points_first(best.node_pairs, fa.n_points)
+    ordered = points_first(best.node_pairs, fa.n_points)
     cc = cfg.correspondence
     keep = pair_consistent(
         mapped_features(fa, fb, ordered), best.pose, cc.point_point, cc.line_line, cc.point_line

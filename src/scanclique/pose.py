@@ -17,12 +17,14 @@ pose ``T_a_b`` of B's sensor frame in A's frame (it maps B points into A:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import chdtri
 
+from . import _match_kernels as K
 from .features import Features
 from .geometry import Pose2, rotation_matrix, wrap_angle
 
@@ -35,6 +37,10 @@ __all__ = [
     "arun_2d",
     "closed_form_pose",
     "pair_consistent",
+    "points_first",
+    "closed_form_pose_pairs",
+    "estimate_pose_lsq_pairs",
+    "covariance_from_information",
 ]
 
 
@@ -283,6 +289,7 @@ def _residuals_jacobian(m: MappedFeatures, pose: Pose2):
     return np.concatenate(r_list), np.concatenate(J_list), np.concatenate(C_list)
 
 
+@functools.lru_cache(maxsize=256)
 def _chi2_99(dof: int) -> float:
     """The 99 % quantile of the chi-square distribution with ``dof`` degrees of freedom."""
     return float(chdtri(dof, 0.01))
@@ -293,24 +300,27 @@ def _information(m: MappedFeatures, pose: Pose2):
     Ci = np.linalg.inv(C + np.eye(2) * 1e-12)
     info = np.einsum("kai,kab,kbj->ij", J, Ci, J)
     maha = np.sqrt(np.maximum(np.einsum("ka,kab,kb->k", r, Ci, r), 0.0))
-    dof = max(2 * len(r) - 3, 1)
-    ssr = float(np.sum(maha**2))
-    rms = float(math.sqrt(ssr / dof))
-    # a constellation whose residuals fail the chi-square test (1 %) disagrees with the
-    # assumed feature noise: scale the covariance by the variance of unit weight rms²
-    # rather than trust the nominal noise (a misfit pair biases the pose beyond it)
-    scale = rms**2 if 2 * len(r) > 3 and ssr > _chi2_99(dof) else 1.0
-    w, v = np.linalg.eigh(info / scale)
-    ok = w > 1e-9 * max(w[-1], 1e-300)
-    degenerate = not bool(ok.all())
-    # sum over constrained directions of v v^T / w; unconstrained directions add inf to
-    # exactly the entries they touch (an axis-aligned corridor keeps its finite
-    # across-corridor and heading variances)
-    cov = (v[:, ok] / w[ok]) @ v[:, ok].T
-    for k in np.flatnonzero(~ok):
-        touched = np.abs(v[:, k]) > 1e-9
-        cov[np.ix_(touched, touched)] = np.inf
+    cov, rms, degenerate = covariance_from_information(info, float(np.sum(maha**2)), len(r))
     return cov, maha, rms, degenerate
+
+
+def covariance_from_information(info: np.ndarray, ssr: float, n_pairs: int):
+    """Pose covariance from the information matrix ``info`` (3x3) of ``n_pairs`` mapped
+    pairs (two residuals each) whose squared Mahalanobis residuals sum to ``ssr``.
+
+    Returns ``(covariance, rms, degenerate)``: ``rms`` is the root mean square normalised
+    residual (``sqrt(ssr / dof)``, ``dof = 2 n - 3``); when the residuals fail the
+    chi-square test at 1 % the covariance is scaled by ``rms**2`` (the constellation
+    disagrees with the assumed feature noise, and a misfit pair biases the pose beyond
+    it). Directions the features do not constrain get ``inf`` in exactly the entries they
+    touch (an axis-aligned corridor keeps finite across-corridor and heading variances).
+    """
+    dof = max(2 * n_pairs - 3, 1)
+    rms = float(math.sqrt(ssr / dof))
+    scale = rms**2 if 2 * n_pairs > 3 and ssr > _chi2_99(dof) else 1.0
+    cov = np.empty((3, 3))
+    full = K.covariance(np.ascontiguousarray(info, dtype=float), float(scale), cov)
+    return cov, rms, not full
 
 
 def estimate_pose_lsq(
@@ -344,3 +354,69 @@ def estimate_pose_lsq(
     pose = Pose2.from_array(x)
     cov, res, rms, degenerate = _information(m, pose)
     return PoseEstimate(pose, cov, rms, res, degenerate)
+
+
+# --------------------------------------------------------------------------------------
+# The same estimates straight from two Features and node pairs (compiled)
+# --------------------------------------------------------------------------------------
+def points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
+    """Node pairs ``(K, 2)`` reordered points first, then lines, each in their order (the
+    order of :func:`mapped_features` and of the residuals)."""
+    node_pairs = np.asarray(node_pairs, dtype=np.int64).reshape(-1, 2)
+    is_pt = node_pairs[:, 0] < n_points_a
+    return np.ascontiguousarray(np.concatenate((node_pairs[is_pt], node_pairs[~is_pt])))
+
+
+def closed_form_pose_pairs(fa: Features, fb: Features, node_pairs: np.ndarray) -> Pose2 | None:
+    """:func:`closed_form_pose` of ``mapped_features(fa, fb, node_pairs)``, compiled."""
+    pairs = np.ascontiguousarray(node_pairs, dtype=np.int64).reshape(-1, 2)
+    out = np.empty(3)
+    ok = K.closed_form(
+        pairs,
+        fa.n_points,
+        fb.n_points,
+        fa.points_xy,
+        fb.points_xy,
+        fa.lines_rho_alpha,
+        fb.lines_rho_alpha,
+        out,
+    )
+    return Pose2.from_array(out) if ok else None
+
+
+def estimate_pose_lsq_pairs(
+    fa: Features,
+    fb: Features,
+    node_pairs: np.ndarray,
+    initial: Pose2 | None = None,
+    iterations: int = 5,
+) -> PoseEstimate | None:
+    """:func:`estimate_pose_lsq` of ``mapped_features(fa, fb, node_pairs)``: the same
+    weighted Gauss–Newton and covariance, compiled, without gathering the features.
+    Residuals are in points-first order (:func:`points_first`)."""
+    pairs = points_first(node_pairs, fa.n_points)
+    if initial is None:
+        initial = closed_form_pose_pairs(fa, fb, pairs)
+        if initial is None:
+            return None
+    info = np.empty((3, 3))
+    maha = np.empty(len(pairs))
+    x, ssr = K.lsq_pose(
+        pairs,
+        fa.n_points,
+        fb.n_points,
+        fa.points_xy,
+        fa.points_cov,
+        fa.lines_rho_alpha,
+        fa.lines_cov,
+        fb.points_xy,
+        fb.points_cov,
+        fb.lines_rho_alpha,
+        fb.lines_cov,
+        initial.as_array(),
+        int(iterations),
+        info,
+        maha,
+    )
+    cov, rms, degenerate = covariance_from_information(info, float(ssr), len(pairs))
+    return PoseEstimate(Pose2.from_array(x), cov, rms, maha, degenerate)

@@ -15,10 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import _match_kernels as K
 from .geometry import Pose2, rotation_matrix, wrap_angle
 from .scan import Scan
 
@@ -28,6 +28,7 @@ __all__ = [
     "agreement",
     "free_space_conflicts",
     "nearest",
+    "free_ranges",
     "icp_point_to_line",
     "IcpResult",
 ]
@@ -35,108 +36,65 @@ __all__ = [
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ReferenceCloud:
-    """Scan A's valid points prepared for nearest-neighbour queries.
+    """A scan's valid points prepared for nearest-neighbour queries.
 
     Attributes
     ----------
     points : ndarray, shape (M, 2)
+        The points (sensor frame), sorted by bearing (stable: a scan's beam order).
     normals : ndarray, shape (M, 2)
-        Unit surface normals from a PCA of each point's neighbourhood (zero where the
-        neighbourhood is too thin to say).
-    tree : scipy.spatial.cKDTree
+        Unit surface normals from a PCA of each point's neighbourhood (its 5 nearest
+        points within 0.3 m; zero where fewer than 3 are that near).
+    bearings : ndarray, shape (M,)
+        ``atan2(y, x)`` of each point, ascending.
+    tree : scipy.spatial.cKDTree or None
+        Built only for clouds of more than :data:`BRUTE_FORCE_MAX` points; smaller ones
+        are searched by bearing window (exact, compiled; see
+        :mod:`scanclique._match_kernels`).
     """
 
     points: np.ndarray
     normals: np.ndarray
-    tree: cKDTree
+    bearings: np.ndarray
+    tree: cKDTree | None
+
+    @property
+    def windowed(self) -> bool:
+        """True when queries use the compiled bearing-window search."""
+        return self.tree is None
 
 
-def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> ReferenceCloud:
-    """Prepare ``(M, 2)`` points (sensor frame of A) for :func:`agreement` and ICP."""
-    p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
-    tree = cKDTree(p)
-    normals = np.zeros_like(p)
-    if len(p) >= 3:
-        kk = min(k, len(p))
-        d, idx = tree.query(p, k=kk)
-        nb = p[idx]  # (M, k, 2)
-        w = (d <= radius).astype(float)
-        cnt = w.sum(axis=1)
-        mean = np.einsum("mk,mkd->md", w, nb) / np.maximum(cnt, 1)[:, None]
-        q = (nb - mean[:, None, :]) * w[:, :, None]
-        cov = np.einsum("mki,mkj->mij", q, q)
-        _, vec = np.linalg.eigh(cov)
-        normals = vec[:, :, 0]
-        normals[cnt < 3] = 0.0
-    return ReferenceCloud(p, normals, tree)
-
-
-#: Reference clouds up to this many points are searched by compiled brute force (exact, and
-#: far cheaper than a KD-tree query's overhead at scan sizes); larger ones by the KD-tree.
+#: Clouds up to this many points are searched by bearing window (a few candidates per
+#: query on a scan); larger ones (a dense window would hold thousands) by a KD-tree.
 BRUTE_FORCE_MAX = 4096
 
 
-@numba.njit(cache=True, nogil=True)
-def _nearest_kernel(ref, pts, c, s, tx, ty, dmax2, idx_out, d2_out):  # pragma: no cover
-    """For each point of ``pts`` moved by (R(c, s), t): index of and squared distance to its
-    nearest ``ref`` point within ``sqrt(dmax2)`` (index -1 and dmax2 when none)."""
-    for i in range(pts.shape[0]):
-        x = c * pts[i, 0] - s * pts[i, 1] + tx
-        y = s * pts[i, 0] + c * pts[i, 1] + ty
-        best = dmax2
-        bj = -1
-        for j in range(ref.shape[0]):
-            dx = ref[j, 0] - x
-            dy = ref[j, 1] - y
-            d2 = dx * dx + dy * dy
-            if d2 < best:
-                best = d2
-                bj = j
-        idx_out[i] = bj
-        d2_out[i] = best
-
-
-@numba.njit(cache=True, nogil=True)
-def _agreement_kernel(ref, pts, c, s, tx, ty, d2max):  # pragma: no cover
-    """How many moved ``pts`` have a ``ref`` point within ``sqrt(d2max)``."""
-    count = 0
-    for i in range(pts.shape[0]):
-        x = c * pts[i, 0] - s * pts[i, 1] + tx
-        y = s * pts[i, 0] + c * pts[i, 1] + ty
-        for j in range(ref.shape[0]):
-            dx = ref[j, 0] - x
-            dy = ref[j, 1] - y
-            if dx * dx + dy * dy < d2max:
-                count += 1
-                break
-    return count
-
-
-@numba.njit(cache=True, nogil=True)
-def _conflict_kernel(angles, free, pts, c, s, tx, ty, margin, ratio):  # pragma: no cover
-    """How many moved ``pts`` lie in the free space seen along the nearest beams."""
-    n = angles.size
-    half = 0.5 * (angles[n - 1] - angles[0]) / (n - 1)
-    count = 0
-    for i in range(pts.shape[0]):
-        x = c * pts[i, 0] - s * pts[i, 1] + tx
-        y = s * pts[i, 0] + c * pts[i, 1] + ty
-        phi = math.atan2(y, x)
-        if phi < angles[0] - half or phi > angles[n - 1] + half:
-            continue
-        r = math.sqrt(x * x + y * y)
-        k = np.searchsorted(angles, phi)
-        k = min(max(k, 1), n - 1)
-        if abs(angles[k - 1] - phi) < abs(angles[k] - phi):
-            k -= 1
-        lo = free[k]
-        if k > 0:
-            lo = min(lo, free[k - 1])
-        if k < n - 1:
-            lo = min(lo, free[k + 1])
-        if r < lo - (margin + ratio * r):
-            count += 1
-    return count
+def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> ReferenceCloud:
+    """Prepare ``(M, 2)`` points (sensor frame, the sensor at the origin) for
+    :func:`agreement`, :func:`nearest` and the ICP."""
+    p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+    bear = np.arctan2(p[:, 1], p[:, 0])
+    if len(p) > 1 and np.any(np.diff(bear) < 0):
+        order = np.argsort(bear, kind="stable")
+        p, bear = np.ascontiguousarray(p[order]), bear[order]
+    normals = np.zeros_like(p)
+    if len(p) <= BRUTE_FORCE_MAX:
+        if len(p) >= 3:
+            K.cloud_normals(bear, p, int(k), float(radius), normals)
+        return ReferenceCloud(p, normals, bear, None)
+    tree = cKDTree(p)
+    kk = min(k, len(p))
+    d, idx = tree.query(p, k=kk)
+    nb = p[idx]  # (M, k, 2)
+    w = (d <= radius).astype(float)
+    cnt = w.sum(axis=1)
+    mean = np.einsum("mk,mkd->md", w, nb) / np.maximum(cnt, 1)[:, None]
+    q = (nb - mean[:, None, :]) * w[:, :, None]
+    cov = np.einsum("mki,mkj->mij", q, q)
+    _, vec = np.linalg.eigh(cov)
+    normals = vec[:, :, 0]
+    normals[cnt < 3] = 0.0
+    return ReferenceCloud(p, normals, bear, tree)
 
 
 def _moved(pose: Pose2 | None):
@@ -147,12 +105,13 @@ def _moved(pose: Pose2 | None):
 
 def nearest(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance: float):
     """Nearest A point of each B point moved by ``pose`` (maps B into A), within
-    ``max_distance``: ``(index, distance)`` arrays, index -1 and distance inf when none."""
+    ``max_distance``: ``(index into ref.points, distance)`` arrays, index -1 and distance
+    inf when none."""
     pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
-    if len(ref.points) <= BRUTE_FORCE_MAX:
+    if ref.windowed:
         idx = np.empty(len(pts), dtype=np.int64)
         d2 = np.empty(len(pts))
-        _nearest_kernel(ref.points, pts, *_moved(pose), max_distance**2, idx, d2)
+        K.nearest_many(ref.bearings, ref.points, pts, *_moved(pose), max_distance, idx, d2)
         found = idx >= 0
         return idx, np.where(found, np.sqrt(d2), np.inf)
     d, idx = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=max_distance)
@@ -168,11 +127,19 @@ def agreement(
     pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
     if len(pts) == 0 or len(ref.points) == 0:
         return 0.0
-    if len(ref.points) <= BRUTE_FORCE_MAX:
-        count = _agreement_kernel(ref.points, pts, *_moved(pose), inlier_distance**2)
+    if ref.windowed:
+        count = K.agreement_count(
+            ref.bearings, ref.points, pts, *_moved(pose), float(inlier_distance)
+        )
         return count / len(pts)
     d, _ = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=inlier_distance)
     return float(np.mean(np.isfinite(d)))
+
+
+def free_ranges(scan: Scan) -> np.ndarray:
+    """The free range along each beam of ``scan``: the measured range where valid, 0
+    (nothing known) otherwise."""
+    return np.where(scan.valid, scan.ranges, 0.0)
 
 
 def free_space_conflicts(
@@ -195,10 +162,10 @@ def free_space_conflicts(
     n = scan.n_beams
     if len(p) == 0 or n < 2:
         return 0.0
-    # free range along each beam: the measured range where valid, unknown (0) otherwise;
     # a point conflicts only when its beam and both neighbours saw past it
-    free = np.where(scan.valid, scan.ranges, 0.0)
-    count = _conflict_kernel(scan.angles, free, p, *_moved(pose), float(margin), float(ratio))
+    count = K.conflict_count(
+        scan.angles, free_ranges(scan), p, *_moved(pose), float(margin), float(ratio)
+    )
     return count / len(p)
 
 
@@ -231,12 +198,31 @@ def icp_point_to_line(
     ``min sum w (n·(R p + t - q))² + eps |R p + t - q|²`` (the small point-to-point term
     keeps sliding along a corridor bounded) with Huber weights.
     """
-    pts = np.asarray(points_b, dtype=float).reshape(-1, 2)
-    x = initial.as_array()
-    fitness, rmse, it = 0.0, math.inf, 0
+    pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
     if len(pts) < 3 or len(ref.points) < 3:
         return IcpResult(initial, 0.0, math.inf, 0)
-    eps = 0.05
+    if ref.windowed:
+        out = np.empty(3)
+        fitness, rmse, it = K.icp(
+            ref.bearings,
+            ref.points,
+            ref.normals,
+            pts,
+            initial.as_array(),
+            int(iterations),
+            float(max_correspondence),
+            float(min_correspondence),
+            out,
+        )
+        return IcpResult(Pose2.from_array(out), float(fitness), float(rmse), int(it))
+    return _icp_tree(ref, pts, initial, iterations, max_correspondence, min_correspondence)
+
+
+def _icp_tree(ref, pts, initial, iterations, max_correspondence, min_correspondence):
+    """:func:`icp_point_to_line` over a KD-tree (clouds too large for the window search)."""
+    x = initial.as_array()
+    fitness, rmse, it = 0.0, math.inf, 0
+    eps = K.ICP_POINT_WEIGHT
     for it in range(1, iterations + 1):
         dmax = max(min_correspondence, max_correspondence * 0.7 ** (it - 1))
         R = rotation_matrix(x[2])
@@ -253,7 +239,7 @@ def icp_point_to_line(
         dp = np.column_stack((-rp[:, 1], rp[:, 0]))
         r_line = np.einsum("kd,kd->k", n, diff)
         J_line = np.column_stack((n[:, 0], n[:, 1], np.einsum("kd,kd->k", n, dp)))
-        scale = 0.05
+        scale = K.ICP_HUBER
         w = np.where(np.abs(r_line) < scale, 1.0, scale / np.maximum(np.abs(r_line), 1e-12))
         H = (J_line * w[:, None]).T @ J_line
         g = (J_line * w[:, None]).T @ r_line

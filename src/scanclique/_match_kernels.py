@@ -1,0 +1,988 @@
+"""Compiled kernels of the matching stages (private; see :mod:`scanclique.refine`,
+:mod:`scanclique.pose` and :mod:`scanclique.match`).
+
+Everything that runs once per hypothesis or once per point of a hypothesis lives here, so
+that a whole scan match costs a handful of calls from Python instead of thousands of
+small NumPy operations.
+
+Nearest-neighbour search without a tree. A scan's points are sorted by bearing (the angle
+of the point seen from the sensor, in ``(-pi, pi]``). A reference point within distance
+``d`` of a query point at range ``r > d`` has a bearing within ``asin(d / r)`` of the
+query's (the distance from the query to the ray at angle ``dphi`` is ``r sin(dphi)``), so
+only that window of the sorted points is searched: exact, and a few points per query on a
+laser scan. A query nearer than ``d`` to the sensor searches everything.
+
+Poses are ``(x, y, theta)`` mapping B's frame into A's: ``p_a = R(theta) p_b + (x, y)``.
+Feature arrays follow :class:`scanclique.features.Features`: points ``(Np, 2)`` with
+covariances ``(Np, 2, 2)``, lines ``(Nl, 2)`` as ``(rho, alpha)`` with covariances; node
+``k`` of a feature graph is point ``k`` when ``k < Np`` and line ``k - Np`` otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from . import _clique_kernels as CK
+
+_njit = numba.njit(cache=True, nogil=True)
+
+#: Huber scale (m) and weight of the point-to-point term of the ICP (see icp_point_to_line)
+ICP_HUBER = 0.05
+ICP_POINT_WEIGHT = 0.05
+
+
+# --------------------------------------------------------------------------------------
+# Small dense algebra
+# --------------------------------------------------------------------------------------
+@_njit
+def wrap(a):  # pragma: no cover - compiled
+    """Angle wrapped to ``[-pi, pi)`` (as :func:`scanclique.geometry.wrap_angle`)."""
+    w = (a + math.pi) % (2.0 * math.pi) - math.pi
+    return w - 2.0 * math.pi if w >= math.pi else w
+
+
+@_njit
+def solve3(H, g, out):  # pragma: no cover - compiled
+    """``out = H^-1 g`` for a 3x3 system, Gaussian elimination with partial pivoting.
+    Returns False when ``H`` is singular."""
+    M = np.empty((3, 4))
+    for i in range(3):
+        for j in range(3):
+            M[i, j] = H[i, j]
+        M[i, 3] = g[i]
+    for col in range(3):
+        piv = col
+        for r in range(col + 1, 3):
+            if abs(M[r, col]) > abs(M[piv, col]):
+                piv = r
+        if M[piv, col] == 0.0:
+            return False
+        if piv != col:
+            for j in range(4):
+                tmp = M[col, j]
+                M[col, j] = M[piv, j]
+                M[piv, j] = tmp
+        for r in range(col + 1, 3):
+            f = M[r, col] / M[col, col]
+            for j in range(col, 4):
+                M[r, j] -= f * M[col, j]
+    for i in range(2, -1, -1):
+        s = M[i, 3]
+        for j in range(i + 1, 3):
+            s -= M[i, j] * out[j]
+        out[i] = s / M[i, i]
+    return True
+
+
+@_njit
+def smallest_eigvec2(a, b, c):  # pragma: no cover - compiled
+    """Unit eigenvector of the smallest eigenvalue of the symmetric ``[[a, b], [b, c]]``."""
+    if b == 0.0:
+        return (1.0, 0.0) if a <= c else (0.0, 1.0)
+    h = 0.5 * (a - c)
+    lam = 0.5 * (a + c) - math.sqrt(h * h + b * b)
+    u0, u1 = lam - c, b
+    v0, v1 = b, lam - a
+    nu = math.hypot(u0, u1)
+    nv = math.hypot(v0, v1)
+    if nu >= nv:
+        return (u0 / nu, u1 / nu)
+    return (v0 / nv, v1 / nv)
+
+
+# --------------------------------------------------------------------------------------
+# Bearing-window search
+# --------------------------------------------------------------------------------------
+@_njit
+def _lower(a, x):  # pragma: no cover - compiled
+    """First index ``i`` with ``a[i] >= x`` (``a`` ascending)."""
+    lo, hi = 0, a.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@_njit
+def _upper(a, x):  # pragma: no cover - compiled
+    """First index ``i`` with ``a[i] > x`` (``a`` ascending)."""
+    lo, hi = 0, a.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@_njit
+def _window(bear, x, y, d, rng):  # pragma: no cover - compiled
+    """Index ranges ``[rng[0], rng[1])``, ``[rng[2], rng[3])``, ``[rng[4], rng[5])`` of
+    the points (sorted by bearing ``bear``) that can lie within ``d`` of ``(x, y)``."""
+    n = bear.shape[0]
+    rng[2] = rng[3] = rng[4] = rng[5] = 0
+    r = math.sqrt(x * x + y * y)
+    if r <= d:
+        rng[0] = 0
+        rng[1] = n
+        return
+    w = math.asin(d / r) + 1e-9
+    phi = math.atan2(y, x)
+    lo, hi = phi - w, phi + w
+    rng[0] = _lower(bear, lo)
+    rng[1] = _upper(bear, hi)
+    if lo < -math.pi:
+        rng[2] = _lower(bear, lo + 2.0 * math.pi)
+        rng[3] = n
+    if hi > math.pi:
+        rng[5] = _upper(bear, hi - 2.0 * math.pi)
+
+
+@_njit
+def has_near(bear, pts, x, y, d, rng):  # pragma: no cover - compiled
+    """Whether some point of ``pts`` lies strictly within ``d`` of ``(x, y)``."""
+    return has_near_polar(bear, pts, x, y, math.sqrt(x * x + y * y), math.atan2(y, x), d, rng)
+
+
+@_njit
+def has_near_polar(bear, pts, x, y, r, phi, d, rng):  # pragma: no cover - compiled
+    """:func:`has_near` given the range ``r`` and bearing ``phi`` of ``(x, y)``.
+
+    Walks outwards from the bearing of ``(x, y)`` (a hit is usually the next beam), both
+    ways until the bearings leave the window; the general window (:func:`_window`) when
+    the query is near the sensor or the window wraps around +-pi."""
+    d2 = d * d
+    n = bear.shape[0]
+    if r > d and n > 0:
+        w = math.asin(d / r) + 1e-9
+        if phi - w >= -math.pi and phi + w <= math.pi:
+            k = _lower(bear, phi)
+            lo = k - 1
+            hi = k
+            lo_ok = lo >= 0
+            hi_ok = hi < n
+            while lo_ok or hi_ok:
+                if hi_ok:
+                    if bear[hi] - phi > w:
+                        hi_ok = False
+                    else:
+                        dx = pts[hi, 0] - x
+                        dy = pts[hi, 1] - y
+                        if dx * dx + dy * dy < d2:
+                            return True
+                        hi += 1
+                        hi_ok = hi < n
+                if lo_ok:
+                    if phi - bear[lo] > w:
+                        lo_ok = False
+                    else:
+                        dx = pts[lo, 0] - x
+                        dy = pts[lo, 1] - y
+                        if dx * dx + dy * dy < d2:
+                            return True
+                        lo -= 1
+                        lo_ok = lo >= 0
+            return False
+    _window(bear, x, y, d, rng)
+    for kk in range(3):
+        for j in range(rng[2 * kk], rng[2 * kk + 1]):
+            dx = pts[j, 0] - x
+            dy = pts[j, 1] - y
+            if dx * dx + dy * dy < d2:
+                return True
+    return False
+
+
+@_njit
+def nearest_one(bear, pts, x, y, dmax, rng):  # pragma: no cover - compiled
+    """``(index, squared distance)`` of the nearest point of ``pts`` strictly within
+    ``dmax`` of ``(x, y)``; ``(-1, dmax**2)`` when there is none.
+
+    Walks outwards from the query's bearing, the window narrowing to the best distance
+    found so far; the general window (:func:`_window`) near the sensor or across +-pi."""
+    best = dmax * dmax
+    bj = -1
+    n = bear.shape[0]
+    r = math.sqrt(x * x + y * y)
+    if r > dmax and n > 0:
+        phi = math.atan2(y, x)
+        w = math.asin(dmax / r) + 1e-9
+        if phi - w >= -math.pi and phi + w <= math.pi:
+            k = _lower(bear, phi)
+            lo = k - 1
+            hi = k
+            lo_ok = lo >= 0
+            hi_ok = hi < n
+            while lo_ok or hi_ok:
+                if hi_ok:
+                    if bear[hi] - phi > w:
+                        hi_ok = False
+                    else:
+                        dx = pts[hi, 0] - x
+                        dy = pts[hi, 1] - y
+                        d2 = dx * dx + dy * dy
+                        if d2 < best:
+                            best = d2
+                            bj = hi
+                            w = math.asin(min(math.sqrt(d2) / r, 1.0)) + 1e-9
+                        hi += 1
+                        hi_ok = hi < n
+                if lo_ok:
+                    if phi - bear[lo] > w:
+                        lo_ok = False
+                    else:
+                        dx = pts[lo, 0] - x
+                        dy = pts[lo, 1] - y
+                        d2 = dx * dx + dy * dy
+                        if d2 < best:
+                            best = d2
+                            bj = lo
+                            w = math.asin(min(math.sqrt(d2) / r, 1.0)) + 1e-9
+                        lo -= 1
+                        lo_ok = lo >= 0
+            return bj, best
+    _window(bear, x, y, dmax, rng)
+    for k in range(3):
+        for j in range(rng[2 * k], rng[2 * k + 1]):
+            dx = pts[j, 0] - x
+            dy = pts[j, 1] - y
+            d2 = dx * dx + dy * dy
+            if d2 < best:
+                best = d2
+                bj = j
+    return bj, best
+
+
+@_njit
+def nearest_many(bear, ref, pts, c, s, tx, ty, dmax, idx_out, d2_out):  # pragma: no cover
+    """:func:`nearest_one` for every point of ``pts`` moved by ``(R(c, s), t)``."""
+    rng = np.empty(6, np.int64)
+    for i in range(pts.shape[0]):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        j, d2 = nearest_one(bear, ref, x, y, dmax, rng)
+        idx_out[i] = j
+        d2_out[i] = d2
+
+
+@_njit
+def agreement_count(bear, ref, pts, c, s, tx, ty, d):  # pragma: no cover - compiled
+    """How many points of ``pts`` moved by ``(R(c, s), t)`` have a ``ref`` point within
+    ``d``."""
+    rng = np.empty(6, np.int64)
+    count = 0
+    for i in range(pts.shape[0]):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        if has_near(bear, ref, x, y, d, rng):
+            count += 1
+    return count
+
+
+@_njit
+def cloud_normals(bear, pts, k, radius, normals):  # pragma: no cover - compiled
+    """Unit normal of each point: the direction of least spread of its ``k`` nearest
+    points (itself included) within ``radius``; zero when fewer than 3 are that near."""
+    n = pts.shape[0]
+    r2 = radius * radius
+    rng = np.empty(6, np.int64)
+    bd = np.empty(k)
+    bi = np.empty(k, np.int64)
+    for i in range(n):
+        x, y = pts[i, 0], pts[i, 1]
+        _window(bear, x, y, radius, rng)
+        m = 0
+        for kk in range(3):
+            for j in range(rng[2 * kk], rng[2 * kk + 1]):
+                dx = pts[j, 0] - x
+                dy = pts[j, 1] - y
+                d2 = dx * dx + dy * dy
+                if d2 > r2 or (m == k and d2 >= bd[m - 1]):
+                    continue
+                # insert into the sorted list of the k nearest so far
+                p = m if m < k else k - 1
+                while p > 0 and bd[p - 1] > d2:
+                    bd[p] = bd[p - 1]
+                    bi[p] = bi[p - 1]
+                    p -= 1
+                bd[p] = d2
+                bi[p] = j
+                if m < k:
+                    m += 1
+        if m < 3:
+            normals[i, 0] = 0.0
+            normals[i, 1] = 0.0
+            continue
+        mx = 0.0
+        my = 0.0
+        for q in range(m):
+            mx += pts[bi[q], 0]
+            my += pts[bi[q], 1]
+        mx /= m
+        my /= m
+        a = 0.0
+        b = 0.0
+        cc = 0.0
+        for q in range(m):
+            ux = pts[bi[q], 0] - mx
+            uy = pts[bi[q], 1] - my
+            a += ux * ux
+            b += ux * uy
+            cc += uy * uy
+        nx, ny = smallest_eigvec2(a, b, cc)
+        normals[i, 0] = nx
+        normals[i, 1] = ny
+
+
+# --------------------------------------------------------------------------------------
+# Free space
+# --------------------------------------------------------------------------------------
+@_njit
+def _in_free_space(angles, free, half, r, phi, margin, ratio):  # pragma: no cover - compiled
+    """Whether the point at range ``r`` and bearing ``phi`` lies nearer than the nearest
+    beam and both its neighbours by more than ``margin + ratio * r`` (``half``: half the
+    mean beam spacing)."""
+    n = angles.shape[0]
+    if phi < angles[0] - half or phi > angles[n - 1] + half:
+        return False
+    k = _lower(angles, phi)
+    k = min(max(k, 1), n - 1)
+    if abs(angles[k - 1] - phi) < abs(angles[k] - phi):
+        k -= 1
+    lo = free[k]
+    if k > 0:
+        lo = min(lo, free[k - 1])
+    if k < n - 1:
+        lo = min(lo, free[k + 1])
+    return r < lo - (margin + ratio * r)
+
+
+@_njit
+def conflict_count(angles, free, pts, c, s, tx, ty, margin, ratio):  # pragma: no cover
+    """How many ``pts`` moved by ``(R(c, s), t)`` lie in the free space seen along the
+    nearest beam and both its neighbours (``free``: measured range, 0 when invalid):
+    nearer than all three by more than ``margin + ratio * range``."""
+    n = angles.size
+    if n < 2:
+        return 0
+    half = 0.5 * (angles[n - 1] - angles[0]) / (n - 1)
+    count = 0
+    for i in range(pts.shape[0]):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        r = math.sqrt(x * x + y * y)
+        if _in_free_space(angles, free, half, r, math.atan2(y, x), margin, ratio):
+            count += 1
+    return count
+
+
+@_njit
+def _one_way(
+    bear, ref, angles, free, pts, c, s, tx, ty, d, conflicts, margin, ratio
+):  # pragma: no cover
+    """Fractions of ``pts`` moved by ``(R(c, s), t)`` that agree with (are within ``d``
+    of) ``ref``, and (when ``conflicts``) that lie in the free space of the scan of
+    ``angles``/``free``."""
+    m = pts.shape[0]
+    if m == 0:
+        return 0.0, 0.0
+    n = angles.shape[0]
+    half = 0.5 * (angles[n - 1] - angles[0]) / (n - 1) if n >= 2 else 0.0
+    check_free = conflicts and n >= 2
+    has_ref = ref.shape[0] > 0
+    rng = np.empty(6, np.int64)
+    agree = 0
+    conflict = 0
+    for i in range(m):
+        x = c * pts[i, 0] - s * pts[i, 1] + tx
+        y = s * pts[i, 0] + c * pts[i, 1] + ty
+        r = math.sqrt(x * x + y * y)
+        phi = math.atan2(y, x)
+        if has_ref and has_near_polar(bear, ref, x, y, r, phi, d, rng):
+            agree += 1
+        if check_free and _in_free_space(angles, free, half, r, phi, margin, ratio):
+            conflict += 1
+    return agree / m, conflict / m
+
+
+@_njit
+def pose_score(
+    a_bear,
+    a_ref,
+    a_angles,
+    a_free,
+    a_sample,
+    b_bear,
+    b_ref,
+    b_angles,
+    b_free,
+    b_sample,
+    x,
+    y,
+    th,
+    d,
+    conflict_weight,
+    margin,
+    ratio,
+):  # pragma: no cover - compiled
+    """Symmetric raw-scan score of the pose ``(x, y, th)`` (maps B into A): the mean of
+    the fractions of B's sample near A's points and of A's sample near B's points, minus
+    ``conflict_weight`` times the mean fraction of samples in the other scan's free
+    space. See :func:`scanclique.match.pose_score`."""
+    c = math.cos(th)
+    s = math.sin(th)
+    ix = -(c * x + s * y)
+    iy = -(-s * x + c * y)
+    conflicts = conflict_weight > 0.0
+    ag_ab, c_ab = _one_way(
+        a_bear, a_ref, a_angles, a_free, b_sample, c, s, x, y, d, conflicts, margin, ratio
+    )
+    ag_ba, c_ba = _one_way(
+        b_bear, b_ref, b_angles, b_free, a_sample, c, -s, ix, iy, d, conflicts, margin, ratio
+    )
+    score = 0.5 * (ag_ab + ag_ba)
+    if conflicts:
+        score -= conflict_weight * 0.5 * (c_ab + c_ba)
+    return score
+
+
+# --------------------------------------------------------------------------------------
+# ICP
+# --------------------------------------------------------------------------------------
+@_njit
+def icp(bear, ref, normals, pts, x0, iterations, max_corr, min_corr, out):  # pragma: no cover
+    """Point-to-line ICP of ``pts`` (B) onto ``ref`` (A, sorted by bearing ``bear``, with
+    ``normals``) from ``x0``; see :func:`scanclique.refine.icp_point_to_line`.
+
+    Writes the pose to ``out`` and returns ``(fitness, rmse, iterations run)``."""
+    x = np.empty(3)
+    x[:] = x0[:]
+    n = pts.shape[0]
+    fitness = 0.0
+    rmse = math.inf
+    it = 0
+    rng = np.empty(6, np.int64)
+    H = np.empty((3, 3))
+    g = np.empty(3)
+    dx = np.empty(3)
+    J = np.empty(3)
+    eps = ICP_POINT_WEIGHT
+    for it in range(1, iterations + 1):
+        dmax = max(min_corr, max_corr * 0.7 ** (it - 1))
+        c = math.cos(x[2])
+        s = math.sin(x[2])
+        H[:] = 0.0
+        g[:] = 0.0
+        ok = 0
+        ssr = 0.0
+        for i in range(n):
+            rpx = c * pts[i, 0] - s * pts[i, 1]
+            rpy = s * pts[i, 0] + c * pts[i, 1]
+            px = rpx + x[0]
+            py = rpy + x[1]
+            j, _ = nearest_one(bear, ref, px, py, dmax, rng)
+            if j < 0:
+                continue
+            ok += 1
+            ddx = px - ref[j, 0]
+            ddy = py - ref[j, 1]
+            nx = normals[j, 0]
+            ny = normals[j, 1]
+            dpx = -rpy
+            dpy = rpx
+            r = nx * ddx + ny * ddy
+            ssr += r * r
+            J[0] = nx
+            J[1] = ny
+            J[2] = nx * dpx + ny * dpy
+            ar = abs(r)
+            w = 1.0 if ar < ICP_HUBER else ICP_HUBER / max(ar, 1e-12)
+            for a in range(3):
+                g[a] += w * J[a] * r
+                for b in range(3):
+                    H[a, b] += w * J[a] * J[b]
+            # weak point-to-point term: Jx = (1, 0, dpx), Jy = (0, 1, dpy)
+            H[0, 0] += eps
+            H[1, 1] += eps
+            H[0, 2] += eps * dpx
+            H[2, 0] += eps * dpx
+            H[1, 2] += eps * dpy
+            H[2, 1] += eps * dpy
+            H[2, 2] += eps * (dpx * dpx + dpy * dpy)
+            g[0] += eps * ddx
+            g[1] += eps * ddy
+            g[2] += eps * (dpx * ddx + dpy * ddy)
+        if ok < 3:
+            break
+        for a in range(3):
+            H[a, a] += 1e-9
+        if not solve3(H, g, dx):
+            break
+        x[0] -= dx[0]
+        x[1] -= dx[1]
+        x[2] = wrap(x[2] - dx[2])
+        fitness = ok / n
+        rmse = math.sqrt(ssr / ok)
+        if max(abs(dx[0]), abs(dx[1])) < 1e-4 and abs(dx[2]) < 1e-5 and dmax <= min_corr:
+            break
+    out[:] = x[:]
+    return fitness, rmse, it
+
+
+# --------------------------------------------------------------------------------------
+# Poses from mapped features (paper §6)
+# --------------------------------------------------------------------------------------
+@_njit
+def closed_form(pairs, npa, npb, Pa, Pb, La, Lb, out):  # pragma: no cover - compiled
+    """Quick pose of mapped node pairs ``pairs`` (K, 2): the rotation from Arun et al. on
+    the points (two or more, spread over 0.2 m) or else the circular mean of the line
+    rotations; then the least-squares translation from points and line offsets (the
+    minimum-norm solution when they do not fix it). See
+    :func:`scanclique.pose.closed_form_pose`. Writes ``out`` and returns False when no
+    rotation can be fixed."""
+    K = pairs.shape[0]
+    kp = 0
+    cax = cay = cbx = cby = 0.0
+    minx = miny = math.inf
+    maxx = maxy = -math.inf
+    for k in range(K):
+        a = pairs[k, 0]
+        if a < npa:
+            b = pairs[k, 1]
+            kp += 1
+            cax += Pa[a, 0]
+            cay += Pa[a, 1]
+            cbx += Pb[b, 0]
+            cby += Pb[b, 1]
+            minx = min(minx, Pb[b, 0])
+            maxx = max(maxx, Pb[b, 0])
+            miny = min(miny, Pb[b, 1])
+            maxy = max(maxy, Pb[b, 1])
+    kl = K - kp
+    if kp >= 2 and max(maxx - minx, maxy - miny) > 0.2:
+        cax /= kp
+        cay /= kp
+        cbx /= kp
+        cby /= kp
+        ss = 0.0
+        sc = 0.0
+        for k in range(K):
+            a = pairs[k, 0]
+            if a < npa:
+                b = pairs[k, 1]
+                qax, qay = Pa[a, 0] - cax, Pa[a, 1] - cay
+                qbx, qby = Pb[b, 0] - cbx, Pb[b, 1] - cby
+                ss += qbx * qay - qby * qax
+                sc += qbx * qax + qby * qay
+        th = math.atan2(ss, sc)
+    elif kl > 0:
+        ss = 0.0
+        sc = 0.0
+        for k in range(K):
+            a = pairs[k, 0]
+            if a >= npa:
+                rot = La[a - npa, 1] - Lb[pairs[k, 1] - npb, 1]
+                ss += math.sin(rot)
+                sc += math.cos(rot)
+        th = math.atan2(ss, sc)
+    else:
+        return False
+    c = math.cos(th)
+    s = math.sin(th)
+    # normal equations N t = v of the translation rows (points: identity; lines: n^T)
+    n00 = n01 = n11 = v0 = v1 = 0.0
+    for k in range(K):
+        a = pairs[k, 0]
+        b = pairs[k, 1]
+        if a < npa:
+            n00 += 1.0
+            n11 += 1.0
+            v0 += Pa[a, 0] - (c * Pb[b, 0] - s * Pb[b, 1])
+            v1 += Pa[a, 1] - (s * Pb[b, 0] + c * Pb[b, 1])
+        else:
+            ap = Lb[b - npb, 1] + th
+            nx, ny = math.cos(ap), math.sin(ap)
+            rhs = La[a - npa, 0] - Lb[b - npb, 0]
+            n00 += nx * nx
+            n01 += nx * ny
+            n11 += ny * ny
+            v0 += nx * rhs
+            v1 += ny * rhs
+    rows = 2 * kp + kl
+    # eigen-decomposition of N; singular values of the row matrix are their square roots;
+    # keep those above numpy.linalg.lstsq's default cut-off (minimum-norm solution)
+    h = 0.5 * (n00 - n11)
+    rad = math.sqrt(h * h + n01 * n01)
+    l1 = 0.5 * (n00 + n11) + rad
+    l2 = 0.5 * (n00 + n11) - rad
+    if l1 <= 0.0:
+        return False
+    e1x, e1y = smallest_eigvec2(-n00, -n01, -n11)  # eigenvector of the largest eigenvalue
+    e2x, e2y = -e1y, e1x
+    cut = 2.220446049250313e-16 * max(rows, 2)
+    tx = (e1x * v0 + e1y * v1) / l1 * e1x
+    ty = (e1x * v0 + e1y * v1) / l1 * e1y
+    if l2 > 0.0 and math.sqrt(l2) > cut * math.sqrt(l1):
+        p2 = (e2x * v0 + e2y * v1) / l2
+        tx += p2 * e2x
+        ty += p2 * e2y
+    out[0] = tx
+    out[1] = ty
+    out[2] = th
+    return True
+
+
+@_njit
+def closed_form_batch(pairs, indptr, npa, npb, Pa, Pb, La, Lb, poses, ok):  # pragma: no cover
+    """:func:`closed_form` of every clique: clique ``i`` is ``pairs[indptr[i]:indptr[i+1]]``."""
+    out = np.empty(3)
+    for i in range(indptr.shape[0] - 1):
+        ok[i] = closed_form(pairs[indptr[i] : indptr[i + 1]], npa, npb, Pa, Pb, La, Lb, out)
+        poses[i, 0] = out[0]
+        poses[i, 1] = out[1]
+        poses[i, 2] = out[2]
+
+
+@_njit
+def score_batch(
+    poses,
+    ok,
+    a_bear,
+    a_ref,
+    a_angles,
+    a_free,
+    a_sample,
+    b_bear,
+    b_ref,
+    b_angles,
+    b_free,
+    b_sample,
+    d,
+    conflict_weight,
+    margin,
+    ratio,
+    scores,
+):  # pragma: no cover - compiled
+    """:func:`pose_score` of every pose with ``ok`` set (others get ``-inf``). Cliques
+    that share most of an association give nearly the same pose: a pose within 2 cm and
+    0.2 degrees of one already scored gets that one's score."""
+    for i in range(poses.shape[0]):
+        if not ok[i]:
+            scores[i] = -math.inf
+            continue
+        same = -1
+        for j in range(i):
+            if (
+                ok[j]
+                and abs(poses[i, 0] - poses[j, 0]) < 0.02
+                and abs(poses[i, 1] - poses[j, 1]) < 0.02
+                and abs(wrap(poses[i, 2] - poses[j, 2])) < 0.0035
+            ):
+                same = j
+                break
+        if same >= 0:
+            scores[i] = scores[same]
+            continue
+        scores[i] = pose_score(
+            a_bear,
+            a_ref,
+            a_angles,
+            a_free,
+            a_sample,
+            b_bear,
+            b_ref,
+            b_angles,
+            b_free,
+            b_sample,
+            poses[i, 0],
+            poses[i, 1],
+            poses[i, 2],
+            d,
+            conflict_weight,
+            margin,
+            ratio,
+        )
+
+
+@_njit
+def _blocks(pairs, npa, npb, Pa, PCa, La, LCa, Pb, PCb, Lb, LCb, x, r, J, Ci):  # pragma: no cover
+    """Residual ``r[k]`` (2), Jacobian ``J[k]`` (2x3) and inverse combined covariance
+    ``Ci[k]`` (2x2) of each mapped pair at pose ``x``; see
+    :func:`scanclique.pose._residuals_jacobian`."""
+    c = math.cos(x[2])
+    s = math.sin(x[2])
+    for k in range(pairs.shape[0]):
+        a = pairs[k, 0]
+        b = pairs[k, 1]
+        for i in range(2):
+            for j in range(3):
+                J[k, i, j] = 0.0
+        if a < npa:
+            bx, by = Pb[b, 0], Pb[b, 1]
+            r[k, 0] = c * bx - s * by + x[0] - Pa[a, 0]
+            r[k, 1] = s * bx + c * by + x[1] - Pa[a, 1]
+            J[k, 0, 0] = 1.0
+            J[k, 1, 1] = 1.0
+            J[k, 0, 2] = -s * bx - c * by
+            J[k, 1, 2] = c * bx - s * by
+            # C = Ca + R Cb R^T
+            p00, p01, p11 = PCb[b, 0, 0], PCb[b, 0, 1], PCb[b, 1, 1]
+            q01 = PCb[b, 1, 0]
+            r00 = c * c * p00 - c * s * (p01 + q01) + s * s * p11
+            r01 = c * s * p00 + c * c * p01 - s * s * q01 - s * c * p11
+            r10 = c * s * p00 - s * s * p01 + c * c * q01 - s * c * p11
+            r11 = s * s * p00 + s * c * (p01 + q01) + c * c * p11
+            c00 = PCa[a, 0, 0] + r00
+            c01 = PCa[a, 0, 1] + r01
+            c10 = PCa[a, 1, 0] + r10
+            c11 = PCa[a, 1, 1] + r11
+        else:
+            ia = a - npa
+            ib = b - npb
+            ap = Lb[ib, 1] + x[2]
+            nx, ny = math.cos(ap), math.sin(ap)
+            lever = -ny * x[0] + nx * x[1]
+            r[k, 0] = Lb[ib, 0] + nx * x[0] + ny * x[1] - La[ia, 0]
+            r[k, 1] = wrap(ap - La[ia, 1])
+            J[k, 0, 0] = nx
+            J[k, 0, 1] = ny
+            J[k, 0, 2] = lever
+            J[k, 1, 2] = 1.0
+            # C = Ca + G Cb G^T, G = [[1, lever], [0, 1]]
+            b00, b01, b10, b11 = LCb[ib, 0, 0], LCb[ib, 0, 1], LCb[ib, 1, 0], LCb[ib, 1, 1]
+            g00 = b00 + lever * (b10 + b01) + lever * lever * b11
+            g01 = b01 + lever * b11
+            g10 = b10 + lever * b11
+            c00 = LCa[ia, 0, 0] + g00
+            c01 = LCa[ia, 0, 1] + g01
+            c10 = LCa[ia, 1, 0] + g10
+            c11 = LCa[ia, 1, 1] + b11
+        c00 += 1e-12
+        c11 += 1e-12
+        det = c00 * c11 - c01 * c10
+        Ci[k, 0, 0] = c11 / det
+        Ci[k, 0, 1] = -c01 / det
+        Ci[k, 1, 0] = -c10 / det
+        Ci[k, 1, 1] = c00 / det
+
+
+@_njit
+def _normal_equations(r, J, Ci, H, g):  # pragma: no cover - compiled
+    """``H = sum J^T Ci J``, ``g = sum J^T Ci r`` over the blocks."""
+    H[:] = 0.0
+    g[:] = 0.0
+    for k in range(r.shape[0]):
+        for i in range(3):
+            # (J^T Ci)[i, :] for this block
+            t0 = J[k, 0, i] * Ci[k, 0, 0] + J[k, 1, i] * Ci[k, 1, 0]
+            t1 = J[k, 0, i] * Ci[k, 0, 1] + J[k, 1, i] * Ci[k, 1, 1]
+            g[i] += t0 * r[k, 0] + t1 * r[k, 1]
+            for j in range(3):
+                H[i, j] += t0 * J[k, 0, j] + t1 * J[k, 1, j]
+
+
+@_njit
+def lsq_pose(
+    pairs, npa, npb, Pa, PCa, La, LCa, Pb, PCb, Lb, LCb, x0, iterations, info, maha
+):  # pragma: no cover - compiled
+    """Gauss–Newton weighted least squares of the pose of mapped pairs (``pairs``, points
+    first) from ``x0``; see :func:`scanclique.pose.estimate_pose_lsq`.
+
+    Returns ``(x, ssr)``: the pose and the sum of squared Mahalanobis residuals at it, and
+    writes the information matrix ``info`` (3x3) and each pair's Mahalanobis residual
+    ``maha`` (K) at the pose."""
+    K = pairs.shape[0]
+    r = np.empty((K, 2))
+    J = np.empty((K, 2, 3))
+    Ci = np.empty((K, 2, 2))
+    H = np.empty((3, 3))
+    g = np.empty(3)
+    dx = np.empty(3)
+    x = np.empty(3)
+    x[:] = x0[:]
+    for _ in range(iterations):
+        _blocks(pairs, npa, npb, Pa, PCa, La, LCa, Pb, PCb, Lb, LCb, x, r, J, Ci)
+        _normal_equations(r, J, Ci, H, g)
+        reg = 1e-9 * max(H[0, 0] + H[1, 1] + H[2, 2], 1e-12)
+        for i in range(3):
+            H[i, i] += reg
+        if not solve3(H, g, dx):
+            break
+        x[0] -= dx[0]
+        x[1] -= dx[1]
+        x[2] = wrap(x[2] - dx[2])
+        if max(abs(dx[0]), abs(dx[1]), abs(dx[2])) < 1e-6:
+            break
+    _blocks(pairs, npa, npb, Pa, PCa, La, LCa, Pb, PCb, Lb, LCb, x, r, J, Ci)
+    _normal_equations(r, J, Ci, info, g)
+    ssr = 0.0
+    for k in range(K):
+        q = r[k, 0] * (Ci[k, 0, 0] * r[k, 0] + Ci[k, 0, 1] * r[k, 1]) + r[k, 1] * (
+            Ci[k, 1, 0] * r[k, 0] + Ci[k, 1, 1] * r[k, 1]
+        )
+        q = max(q, 0.0)
+        maha[k] = math.sqrt(q)
+        ssr += q
+    return x, ssr
+
+
+@_njit
+def covariance(info, scale, cov):  # pragma: no cover - compiled
+    """Covariance of ``info / scale`` (3x3 information) into ``cov``; directions with an
+    eigenvalue below 1e-9 of the largest get ``inf`` in exactly the entries they touch.
+    Returns True when every direction is constrained."""
+    w, v = np.linalg.eigh(info / scale)
+    top = max(w[2], 1e-300)
+    cov[:] = 0.0
+    full = True
+    for k in range(3):
+        if w[k] > 1e-9 * top:
+            for i in range(3):
+                for j in range(3):
+                    cov[i, j] += v[i, k] * v[j, k] / w[k]
+        else:
+            full = False
+    if not full:
+        for k in range(3):
+            if not w[k] > 1e-9 * top:
+                for i in range(3):
+                    if abs(v[i, k]) > 1e-9:
+                        for j in range(3):
+                            if abs(v[j, k]) > 1e-9:
+                                cov[i, j] = math.inf
+    return full
+
+
+# --------------------------------------------------------------------------------------
+# Clique hypotheses (paper §5.3 and this library's additions)
+# --------------------------------------------------------------------------------------
+@_njit
+def _induced(A, verts):  # pragma: no cover - compiled
+    """Bitset rows of the subgraph of ``A`` induced by ``verts`` (relabelled 0..m-1)."""
+    m = verts.shape[0]
+    W = max((m + 63) // 64, 1)
+    S = np.zeros((m, W), np.uint64)
+    one = np.uint64(1)
+    for i in range(m):
+        row = A[verts[i]]
+        for j in range(m):
+            v = verts[j]
+            if (row[v >> 6] >> np.uint64(v & 63)) & one:
+                S[i, j >> 6] |= one << np.uint64(j & 63)
+    return S
+
+
+@_njit
+def _append(store, count, clique):  # pragma: no cover - compiled
+    """Append ``clique`` to the flat store ``(data, indptr)``; returns the new store."""
+    data, indptr = store
+    start = indptr[count]
+    need = start + clique.shape[0]
+    if need > data.shape[0]:
+        nd = np.empty(max(2 * data.shape[0], need), np.int64)
+        nd[:start] = data[:start]
+        data = nd
+    if count + 2 > indptr.shape[0]:
+        ni = np.zeros(2 * indptr.shape[0] + 2, np.int64)
+        ni[: count + 1] = indptr[: count + 1]
+        indptr = ni
+    data[start:need] = clique
+    indptr[count + 1] = need
+    return (data, indptr)
+
+
+@_njit
+def hypothesis_cliques(
+    A, n, limit, peel, per_vertex, min_size, time_limit, t0, opts
+):  # pragma: no cover - compiled
+    """The cliques that become association hypotheses, in one compiled call.
+
+    1. every maximum clique of ``A`` (bitset rows, ``n`` vertices), at most ``limit``;
+    2. ``peel`` times: the maximum clique of the vertices no clique so far uses (stops
+       below ``min_size`` vertices);
+    3. for the ``per_vertex`` vertices of highest degree (ties to the lower label): the
+       maximum clique containing the vertex, when at least ``min_size`` large. A vertex
+       of a maximum clique is skipped when step 1 listed every maximum clique (its
+       clique would be one of them).
+
+    All within ``time_limit`` seconds of ``t0`` (``time.perf_counter`` clock). Returns
+    ``(data, indptr, count, omega, optimal, complete)``: clique ``i`` is
+    ``data[indptr[i]:indptr[i + 1]]`` (sorted labels); ``optimal`` when omega was proven,
+    ``complete`` when step 1 listed every maximum clique.
+    """
+    store = (np.empty(64, np.int64), np.zeros(16, np.int64))
+    count = 0
+    best, _, status, found, status_all = CK.solve(A, n, 0, 2, limit, time_limit, t0, opts)
+    optimal = status == 0
+    complete = optimal and status_all == 0
+    omega = best.shape[0]
+    in_max = np.zeros(n, np.bool_)
+    if limit > 0:
+        if found.shape[0] > 0:
+            for r in range(found.shape[0]):
+                store = _append(store, count, found[r])
+                count += 1
+        else:
+            store = _append(store, count, best)
+            count += 1
+    for i in range(count):
+        data, indptr = store
+        for j in range(indptr[i], indptr[i + 1]):
+            in_max[data[j]] = True
+    # 2. peeling
+    alive = np.ones(n, np.bool_)
+    for _ in range(peel):
+        data, indptr = store
+        for j in range(indptr[count]):
+            alive[data[j]] = False
+        left = np.flatnonzero(alive)
+        if left.shape[0] < min_size or CK._now() - t0 >= time_limit:
+            break
+        sub = _induced(A, left)
+        r, _, _, _, _ = CK.solve(sub, left.shape[0], 0, 0, 0, time_limit, t0, opts)
+        if r.shape[0] < min_size:
+            break
+        store = _append(store, count, np.sort(left[r]))
+        count += 1
+    # 3. vertex-guided cliques
+    if per_vertex > 0:
+        deg = np.zeros(n, np.int64)
+        for v in range(n):
+            for w in range(A.shape[1]):
+                deg[v] += np.int64(CK._ctpop(A[v, w]))
+        order = np.argsort(-deg, kind="mergesort")
+        one = np.uint64(1)
+        for q in range(min(per_vertex, n)):
+            v = order[q]
+            if deg[v] + 1 < min_size:
+                break
+            if CK._now() - t0 >= time_limit:
+                break
+            if complete and in_max[v]:
+                continue
+            nb = np.empty(deg[v], np.int64)
+            m = 0
+            for u in range(n):
+                if (A[v, u >> 6] >> np.uint64(u & 63)) & one:
+                    nb[m] = u
+                    m += 1
+            if m == 0:
+                r = np.empty(0, np.int64)
+            else:
+                sub = _induced(A, nb)
+                r, _, _, _, _ = CK.solve(sub, m, 0, 0, 0, time_limit, t0, opts)
+            if r.shape[0] + 1 >= min_size:
+                c = np.empty(r.shape[0] + 1, np.int64)
+                c[: r.shape[0]] = nb[r]
+                c[r.shape[0]] = v
+                store = _append(store, count, np.sort(c))
+                count += 1
+    data, indptr = store
+    return data, indptr[: count + 1].copy(), count, omega, optimal, complete
