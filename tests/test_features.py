@@ -6,14 +6,19 @@ import math
 
 import numpy as np
 import pytest
+from conftest import require_log
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from scanclique.config import ClusterConfig, FeatureConfig
+from scanclique.datasets import load_log
 from scanclique.features import (
     CORNER,
     EDGE_CCW,
     EDGE_CW,
     FOREGROUND_POINT,
     Features,
+    _extract_features_reference,
     cluster_scan,
     extract_features,
     fit_line_tls,
@@ -21,7 +26,7 @@ from scanclique.features import (
 )
 from scanclique.geometry import Pose2
 from scanclique.scan import Scan
-from scanclique.sim import World, room_world, simulate_scan
+from scanclique.sim import World, random_world, room_world, simulate_scan
 
 
 # -- helpers ---------------------------------------------------------------------------------
@@ -446,3 +451,134 @@ def test_features_are_read_only_and_consistent():
     for (rho, alpha), ends in zip(f.lines_rho_alpha, f.lines_ends, strict=True):
         n = np.array([math.cos(alpha), math.sin(alpha)])
         np.testing.assert_allclose(ends @ n, rho, atol=1e-9)
+
+
+# -- the compiled kernel agrees with the NumPy reference -------------------------------------
+# extract_features runs one numba kernel; _extract_features_reference is the same algorithm
+# written with the stage functions above. They must agree to round-off: same features, same
+# kinds, same order.
+FIELDS = [
+    "points_xy",
+    "points_label",
+    "points_cov",
+    "points_beam",
+    "lines_rho_alpha",
+    "lines_ends",
+    "lines_cov",
+    "lines_beams",
+    "lines_n_points",
+    "clusters",
+]
+
+AGREEMENT_CONFIGS = {
+    "default": (FeatureConfig(), ClusterConfig()),
+    "paper": (FeatureConfig(corners=False, typed_edges=False), ClusterConfig()),
+    "no-lines": (FeatureConfig(lines=False), ClusterConfig()),
+    "no-corners": (FeatureConfig(corners=False), ClusterConfig()),
+    "no-points": (FeatureConfig(foreground_points=False, foreground_edges=False), ClusterConfig()),
+    "no-crowd": (FeatureConfig(crowd_radius=0.0, min_cluster_beams=1), ClusterConfig()),
+    "gaps": (
+        FeatureConfig(line_min_points=2, line_min_length=0.05, crowd_radius=1.0),
+        ClusterConfig(max_gap_beams=2),
+    ),
+    "loose": (
+        FeatureConfig(
+            merge_angle=0.3,
+            merge_distance=0.5,
+            line_max_rms=0.2,
+            corner_reach=3.0,
+            split_distance=0.2,
+        ),
+        ClusterConfig(),
+    ),
+}
+
+
+def assert_same_features(fast: Features, ref: Features) -> None:
+    for name in FIELDS:
+        a, b = getattr(fast, name), getattr(ref, name)
+        assert a.shape == b.shape and a.dtype == b.dtype, (name, a.shape, b.shape)
+        if a.dtype.kind == "f":
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12, err_msg=name)
+        else:
+            np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def random_scan(seed: int) -> Scan:
+    """A simulated scan of a random building; every third one with its ranges corrupted by
+    NaN, inf, negative, max-range and stray returns (range_min 0.1)."""
+    rng = np.random.default_rng(seed)
+    world = random_world(rng)
+    x0, y0, x1, y1 = world.free_regions[int(rng.integers(len(world.free_regions)))]
+    pose = Pose2(rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(-math.pi, math.pi))
+    s = simulate_scan(
+        world,
+        pose,
+        n_beams=int(rng.choice([181, 361, 720])),
+        max_range=float(rng.choice([6.0, 30.0])),
+        range_sigma=float(rng.choice([0.0, 0.01, 0.03])),
+        dropout=float(rng.choice([0.0, 0.05])),
+        rng=rng,
+    )
+    if seed % 3 == 2:
+        r = np.array(s.ranges)
+        u = rng.random(r.size)
+        r[u < 0.03] = np.nan
+        r[(u >= 0.03) & (u < 0.05)] = np.inf
+        r[(u >= 0.05) & (u < 0.07)] = -1.0
+        r[(u >= 0.07) & (u < 0.10)] = s.range_max
+        stray = (u >= 0.10) & (u < 0.15)
+        r[stray] = rng.uniform(0.2, 3.0, int(stray.sum()))
+        s = Scan(r, s.angles, range_min=0.1, range_max=s.range_max)
+    return s
+
+
+@pytest.mark.parametrize("config", AGREEMENT_CONFIGS.values(), ids=AGREEMENT_CONFIGS.keys())
+def test_kernel_agrees_with_reference_on_simulated_scans(config):
+    fcfg, ccfg = config
+    for seed in range(40):
+        s = random_scan(seed)
+        assert_same_features(
+            extract_features(s, fcfg, ccfg), _extract_features_reference(s, fcfg, ccfg)
+        )
+
+
+def test_kernel_agrees_with_reference_on_hand_made_scenes():
+    scans = [
+        scene(ROOM),
+        scene(ROOM + box(2.0, 0.5, 3.0, 2.0), [(1.5, -2.0)], [0.15], sigma=0.01),
+        scene([[[3.0, -4.0], [3.0, -0.5]], [[3.03, 0.5], [3.03, 4.0]]]),  # merged across a gap
+        scene(ROOM, [(1.5, -1.0), (1.5, -0.8)], [0.05, 0.05]),  # two poles: crowded
+    ]
+    scans += [Scan.from_ranges(r) for r in ([np.nan] * 5, [2.0], [], [2.0, 2.0], [0.0] * 5)]
+    for s in scans:
+        assert_same_features(extract_features(s), _extract_features_reference(s))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.floats(0.05, 12.0),
+            st.sampled_from([np.nan, np.inf, -1.0, 80.0]),
+        ),
+        min_size=0,
+        max_size=120,
+    ),
+    st.integers(1, 8),
+)
+def test_kernel_agrees_with_reference_on_piecewise_ranges(values, run):
+    # runs of equal or slowly changing ranges, so that clusters, lines and edges all occur
+    r = np.repeat(np.asarray(values, float), run)
+    r = r + 0.001 * np.arange(r.size) % 0.05
+    s = Scan.from_ranges(r)
+    assert_same_features(extract_features(s), _extract_features_reference(s))
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("log", ["intel", "csail"])
+def test_kernel_agrees_with_reference_on_real_scans(log):
+    require_log(log)
+    scans = load_log(log)
+    for s in scans[:: max(1, len(scans) // 60)]:
+        assert_same_features(extract_features(s), _extract_features_reference(s))

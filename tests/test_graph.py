@@ -10,9 +10,23 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from scanclique.config import CorrespondenceConfig, FeatureConfig
-from scanclique.features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
+from scanclique.features import (
+    CORNER,
+    EDGE_CCW,
+    EDGE_CW,
+    FOREGROUND_POINT,
+    Features,
+    extract_features,
+)
 from scanclique.geometry import Pose2
-from scanclique.graph import LINE, NODE_KIND_NAMES, PARALLEL_MAX_ANGLE, feature_graph
+from scanclique.graph import (
+    LINE,
+    NODE_KIND_NAMES,
+    PARALLEL_MAX_ANGLE,
+    _feature_graph_reference,
+    feature_graph,
+)
+from scanclique.sim import room_world, simulate_scan
 
 PAPER = CorrespondenceConfig(signed=False, parallel_offset=False)
 
@@ -290,3 +304,70 @@ def test_adaptive_tolerance_grows_with_feature_uncertainty_and_never_below_paper
     assert adaptive.tolerances[0, 0, 1] == 0.30  # precise: the paper's tolerance
     # far pair: 3 * sqrt(2 * (0.04 + 0.04)) = 1.2 m
     assert adaptive.tolerances[0, 2, 3] == pytest.approx(1.2)
+
+
+# -- the compiled kernel agrees with the NumPy reference -------------------------------------
+GRAPH_CONFIGS = {
+    "default": CorrespondenceConfig(),
+    "paper": PAPER,
+    "adaptive": CorrespondenceConfig(adaptive=2.0),
+    "unsigned-offset": CorrespondenceConfig(signed=False),
+    "no-offset": CorrespondenceConfig(parallel_offset=False),
+}
+
+
+def assert_same_graph(fast, ref):
+    """Equal labels, kinds and NaN pattern; values to round-off (angles modulo 2 pi)."""
+    for name in ("labels", "kinds", "circular"):
+        a, b = getattr(fast, name), getattr(ref, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    assert fast.n_points == ref.n_points
+    assert fast.invariants.shape == ref.invariants.shape
+    np.testing.assert_array_equal(np.isnan(fast.invariants), np.isnan(ref.invariants))
+    ok = ~np.isnan(ref.invariants)
+    d = np.abs(fast.invariants - ref.invariants)
+    for k in np.flatnonzero(ref.circular):
+        d[k] = np.abs((fast.invariants[k] - ref.invariants[k] + math.pi) % (2 * math.pi) - math.pi)
+    assert np.all(d[ok] <= 1e-9 * np.maximum(1.0, np.abs(ref.invariants[ok])))
+    np.testing.assert_allclose(fast.tolerances, ref.tolerances, rtol=1e-12, atol=0)
+
+
+def random_covariances(rng, n):
+    a = rng.normal(0.0, 0.1, (n, 2, 2))
+    return a @ a.transpose(0, 2, 1) + 1e-6 * np.eye(2)
+
+
+@settings(max_examples=150, deadline=None)
+@given(scenes(), st.sampled_from(sorted(GRAPH_CONFIGS)), st.booleans(), st.integers(0, 2**31))
+def test_kernel_agrees_with_reference(scene, config, typed, seed):
+    f, _ = scene
+    f = Features(
+        f.points_xy,
+        f.points_label,
+        random_covariances(np.random.default_rng(seed), f.n_points),
+        f.points_beam,
+        f.lines_rho_alpha,
+        f.lines_ends,
+        f.lines_cov,
+        f.lines_beams,
+        f.lines_n_points,
+        f.clusters,
+    )
+    cfg, fcfg = GRAPH_CONFIGS[config], FeatureConfig(typed_edges=typed)
+    assert_same_graph(feature_graph(f, cfg, fcfg), _feature_graph_reference(f, cfg, fcfg))
+
+
+@pytest.mark.parametrize("config", GRAPH_CONFIGS.values(), ids=GRAPH_CONFIGS.keys())
+def test_kernel_agrees_with_reference_on_extracted_features(config):
+    rng = np.random.default_rng(3)
+    world = room_world(8.0, 6.0, rng=rng, doorways=2, pillars=2, clutter=5)
+    for _ in range(10):
+        pose = Pose2(rng.uniform(1.0, 7.0), rng.uniform(1.0, 5.0), rng.uniform(-3.0, 3.0))
+        f = extract_features(simulate_scan(world, pose, rng=rng))
+        assert_same_graph(feature_graph(f, config), _feature_graph_reference(f, config))
+
+
+def test_empty_graph_agrees_with_reference():
+    f = make_features()
+    assert_same_graph(feature_graph(f), _feature_graph_reference(f))

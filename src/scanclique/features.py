@@ -17,10 +17,15 @@ Three feature kinds of the paper, plus corners:
   of one cluster that meet at a large angle: a point feature as stable as the walls.
 
 All coordinates are in the sensor frame, metres and radians.
+
+:func:`extract_features` runs as one compiled kernel (:mod:`scanclique._feature_kernels`,
+about 0.05 ms for a 361-beam scan); the stage functions here, composed in
+:func:`_extract_features_reference`, are the readable algorithm it must agree with.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass
@@ -368,6 +373,25 @@ def _chains(scan: Scan, xy: np.ndarray, cfg: FeatureConfig) -> list[np.ndarray]:
 # --------------------------------------------------------------------------------------
 # Stage 3: features (paper §4)
 # --------------------------------------------------------------------------------------
+_K = None
+
+
+def _kernels():
+    """The compiled kernels, imported on first use (importing numba takes a moment)."""
+    global _K
+    if _K is None:
+        from . import _feature_kernels
+
+        _K = _feature_kernels
+    return _K
+
+
+@functools.lru_cache(maxsize=64)
+def _kernel_params(config: FeatureConfig | None, cluster_config: ClusterConfig | None):
+    """The kernel's flat settings for a pair of (frozen, hashable) configurations."""
+    return _kernels().params(config or FeatureConfig(), cluster_config or ClusterConfig())
+
+
 def _point_cov(r: float, a: float, cfg: FeatureConfig, beam_width: float) -> np.ndarray:
     """Covariance of a point at range r, bearing a: range noise along the beam, half a beam
     width of bearing uncertainty across it (an edge is only known to the beam)."""
@@ -424,7 +448,25 @@ def extract_features(
     >>> f = extract_features(Scan(r, ang))
     >>> f.counts()["foreground_point"], f.n_lines >= 1
     (1, True)
+
+    Notes
+    -----
+    The work is one call of a compiled kernel (:func:`scanclique._feature_kernels.extract`,
+    numba). :func:`_extract_features_reference` below is the same algorithm written out in
+    NumPy with the stage functions of this module; it is the readable specification, and
+    the tests require the two to agree to round-off.
     """
+    p = _kernel_params(config, cluster_config)
+    out = _kernels().extract(scan.ranges, scan.angles, scan.valid, scan.range_max, p)
+    return Features(*out)
+
+
+def _extract_features_reference(
+    scan: Scan,
+    config: FeatureConfig | None = None,
+    cluster_config: ClusterConfig | None = None,
+) -> Features:
+    """:func:`extract_features` in NumPy, step by step: the reference of the compiled kernel."""
     cfg = config or FeatureConfig()
     clusters = cluster_scan(scan, cluster_config)
     xy = scan.xy()

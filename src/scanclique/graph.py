@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import CorrespondenceConfig, FeatureConfig
+from .errors import GraphError
 from .features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
 
 __all__ = ["LINE", "NODE_KIND_NAMES", "PARALLEL_MAX_ANGLE", "FeatureGraph", "feature_graph"]
@@ -89,6 +90,21 @@ class FeatureGraph:
         return int(self.labels.size)
 
 
+_DEFAULT_CORRESPONDENCE = CorrespondenceConfig()
+_DEFAULT_FEATURES = FeatureConfig()
+_K = None
+
+
+def _kernels():
+    """The compiled kernels, imported on first use (importing numba takes a moment)."""
+    global _K
+    if _K is None:
+        from . import _feature_kernels
+
+        _K = _feature_kernels
+    return _K
+
+
 def _line_normals(alpha: np.ndarray) -> np.ndarray:
     return np.column_stack((np.cos(alpha), np.sin(alpha)))
 
@@ -124,7 +140,62 @@ def feature_graph(
     ...              np.zeros(0, int), np.zeros((0, 2), int))
     >>> float(feature_graph(f).invariants[0, 0, 1])
     5.0
+
+    Notes
+    -----
+    The arrays come from one compiled kernel (:func:`scanclique._feature_kernels.graph_layers`,
+    numba); :func:`_feature_graph_reference` computes the same with NumPy and is what the
+    tests hold it to.
     """
+    cfg = config or _DEFAULT_CORRESPONDENCE
+    typed = (feature_config or _DEFAULT_FEATURES).typed_edges
+    P, L = features.n_points, features.n_lines
+    xy = np.asarray(features.points_xy, dtype=np.float64)
+    label = np.asarray(features.points_label, dtype=np.int8)
+    cov = np.asarray(features.points_cov, dtype=np.float64)
+    rho_alpha = np.asarray(features.lines_rho_alpha, dtype=np.float64)
+    # the kernel does not check bounds: refuse arrays that disagree with the counts
+    if (
+        xy.shape != (P, 2)
+        or label.shape != (P,)
+        or cov.shape != (P, 2, 2)
+        or rho_alpha.shape != (L, 2)
+    ):
+        raise GraphError(
+            f"features: expected points_xy (P, 2), points_label (P,), points_cov (P, 2, 2) and "
+            f"lines_rho_alpha (L, 2); got {xy.shape}, {label.shape}, {cov.shape}, "
+            f"{rho_alpha.shape}"
+        )
+    labels, kinds, inv, tol = _kernels().graph_layers(
+        xy,
+        label,
+        cov,
+        rho_alpha,
+        bool(typed),
+        float(cfg.point_point),
+        float(cfg.point_line),
+        float(cfg.line_line),
+        bool(cfg.signed),
+        bool(cfg.parallel_offset),
+        float(cfg.adaptive),
+        float(_PARALLEL_SIN),
+    )
+    return FeatureGraph(
+        labels=labels,
+        kinds=kinds,
+        invariants=inv,
+        tolerances=tol,
+        circular=np.array([False, cfg.signed, False]),
+        n_points=P,
+    )
+
+
+def _feature_graph_reference(
+    features: Features,
+    config: CorrespondenceConfig | None = None,
+    feature_config: FeatureConfig | None = None,
+) -> FeatureGraph:
+    """:func:`feature_graph` in NumPy: the reference of the compiled kernel."""
     cfg = config or CorrespondenceConfig()
     fcfg = feature_config or FeatureConfig()
     P, L = features.n_points, features.n_lines
