@@ -28,6 +28,9 @@ import numpy as np
 from . import _clique_kernels as CK
 
 _njit = numba.njit(cache=True, nogil=True)
+#: for the helpers called once per point: inlined into the caller at numba IR level, so
+#: that the arrays they take are not reference-counted on every call
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 #: Huber scale (m) and weight of the point-to-point term of the ICP (see icp_point_to_line)
 ICP_HUBER = 0.05
@@ -37,14 +40,14 @@ ICP_POINT_WEIGHT = 0.05
 # --------------------------------------------------------------------------------------
 # Small dense algebra
 # --------------------------------------------------------------------------------------
-@_njit
+@_inline
 def wrap(a):  # pragma: no cover - compiled
     """Angle wrapped to ``[-pi, pi)`` (as :func:`scanclique.geometry.wrap_angle`)."""
     w = (a + math.pi) % (2.0 * math.pi) - math.pi
     return w - 2.0 * math.pi if w >= math.pi else w
 
 
-@_njit
+@_inline
 def solve3(H, g, out):  # pragma: no cover - compiled
     """``out = H^-1 g`` for a 3x3 system, Gaussian elimination with partial pivoting.
     Returns False when ``H`` is singular."""
@@ -77,7 +80,7 @@ def solve3(H, g, out):  # pragma: no cover - compiled
     return True
 
 
-@_njit
+@_inline
 def smallest_eigvec2(a, b, c):  # pragma: no cover - compiled
     """Unit eigenvector of the smallest eigenvalue of the symmetric ``[[a, b], [b, c]]``."""
     if b == 0.0:
@@ -97,36 +100,67 @@ def smallest_eigvec2(a, b, c):  # pragma: no cover - compiled
 # Bearing-window search
 # --------------------------------------------------------------------------------------
 @_njit
-def _lower(a, x):  # pragma: no cover - compiled
-    """First index ``i`` with ``a[i] >= x`` (``a`` ascending)."""
-    lo, hi = 0, a.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
+def make_index(a, bins_per_item):  # pragma: no cover - compiled
+    """A search index over the ascending array ``a``: ``(a, bins, lo, scale)`` where
+    ``bins[q]`` is the first index with ``a[i] >= lo + q / scale``. :func:`lower` then
+    binary-searches one or two bins instead of the whole array."""
+    n = a.shape[0]
+    nb = max(1, min(int(bins_per_item * n) + 1, 1 << 16))
+    lo = a[0] if n > 0 else 0.0
+    hi = a[n - 1] if n > 0 else 1.0
+    span = hi - lo
+    scale = nb / span if span > 0.0 else 1.0
+    bins = np.empty(nb + 1, np.int64)
+    i = 0
+    for q in range(nb + 1):
+        edge = lo + q / scale
+        while i < n and a[i] < edge:
+            i += 1
+        bins[q] = i
+    return (a, bins, lo, scale)
+
+
+@_inline
+def lower(ix, x):  # pragma: no cover - compiled
+    """First index ``i`` with ``a[i] >= x`` for the index ``ix`` of ``a``
+    (:func:`make_index`)."""
+    a, bins, lo, scale = ix
+    nb = bins.shape[0] - 1
+    f = (x - lo) * scale
+    if not f < nb - 1:  # also NaN
+        i0 = bins[max(nb - 2, 0)]
+        i1 = a.shape[0]
+    elif f < 1.0:
+        i0 = 0
+        i1 = bins[min(2, nb)]
+    else:
+        q = int(f)
+        i0 = bins[q - 1]
+        i1 = bins[q + 2]
+    while i0 < i1:
+        mid = (i0 + i1) >> 1
         if a[mid] < x:
-            lo = mid + 1
+            i0 = mid + 1
         else:
-            hi = mid
-    return lo
+            i1 = mid
+    return i0
 
 
-@_njit
-def _upper(a, x):  # pragma: no cover - compiled
-    """First index ``i`` with ``a[i] > x`` (``a`` ascending)."""
-    lo, hi = 0, a.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] <= x:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
+@_inline
+def upper(ix, x):  # pragma: no cover - compiled
+    """First index ``i`` with ``a[i] > x`` (see :func:`lower`)."""
+    a = ix[0]
+    i = lower(ix, x)
+    while i < a.shape[0] and a[i] <= x:
+        i += 1
+    return i
 
 
-@_njit
-def _window(bear, x, y, d, rng):  # pragma: no cover - compiled
+@_inline
+def _window(ix, x, y, d, rng):  # pragma: no cover - compiled
     """Index ranges ``[rng[0], rng[1])``, ``[rng[2], rng[3])``, ``[rng[4], rng[5])`` of
-    the points (sorted by bearing ``bear``) that can lie within ``d`` of ``(x, y)``."""
-    n = bear.shape[0]
+    the points (bearings indexed by ``ix``) that can lie within ``d`` of ``(x, y)``."""
+    n = ix[0].shape[0]
     rng[2] = rng[3] = rng[4] = rng[5] = 0
     r = math.sqrt(x * x + y * y)
     if r <= d:
@@ -136,34 +170,45 @@ def _window(bear, x, y, d, rng):  # pragma: no cover - compiled
     w = math.asin(d / r) + 1e-9
     phi = math.atan2(y, x)
     lo, hi = phi - w, phi + w
-    rng[0] = _lower(bear, lo)
-    rng[1] = _upper(bear, hi)
+    rng[0] = lower(ix, lo)
+    rng[1] = upper(ix, hi)
     if lo < -math.pi:
-        rng[2] = _lower(bear, lo + 2.0 * math.pi)
+        rng[2] = lower(ix, lo + 2.0 * math.pi)
         rng[3] = n
     if hi > math.pi:
-        rng[5] = _upper(bear, hi - 2.0 * math.pi)
+        rng[5] = upper(ix, hi - 2.0 * math.pi)
+
+
+@_inline
+def _half_window(z):  # pragma: no cover - compiled
+    """An upper bound of ``asin(z)`` for ``0 <= z < 1`` (``tan(asin z)``, cheaper), plus a
+    little: the half-width in bearing of a disc of radius ``z r`` at range ``r``."""
+    if z >= 0.999:
+        return math.pi
+    return z / math.sqrt(1.0 - z * z) + 1e-9
 
 
 @_njit
-def has_near(bear, pts, x, y, d, rng):  # pragma: no cover - compiled
-    """Whether some point of ``pts`` lies strictly within ``d`` of ``(x, y)``."""
-    return has_near_polar(bear, pts, x, y, math.sqrt(x * x + y * y), math.atan2(y, x), d, rng)
+def has_near(ix, pts, x, y, d, rng):  # pragma: no cover - compiled
+    """Whether some point of ``pts`` (bearings indexed by ``ix``) lies strictly within
+    ``d`` of ``(x, y)``."""
+    return has_near_polar(ix, pts, x, y, math.sqrt(x * x + y * y), math.atan2(y, x), d, rng)
 
 
-@_njit
-def has_near_polar(bear, pts, x, y, r, phi, d, rng):  # pragma: no cover - compiled
+@_inline
+def has_near_polar(ix, pts, x, y, r, phi, d, rng):  # pragma: no cover - compiled
     """:func:`has_near` given the range ``r`` and bearing ``phi`` of ``(x, y)``.
 
     Walks outwards from the bearing of ``(x, y)`` (a hit is usually the next beam), both
     ways until the bearings leave the window; the general window (:func:`_window`) when
     the query is near the sensor or the window wraps around +-pi."""
     d2 = d * d
+    bear = ix[0]
     n = bear.shape[0]
     if r > d and n > 0:
-        w = math.asin(d / r) + 1e-9
+        w = _half_window(d / r)
         if phi - w >= -math.pi and phi + w <= math.pi:
-            k = _lower(bear, phi)
+            k = lower(ix, phi)
             lo = k - 1
             hi = k
             lo_ok = lo >= 0
@@ -190,7 +235,7 @@ def has_near_polar(bear, pts, x, y, r, phi, d, rng):  # pragma: no cover - compi
                         lo -= 1
                         lo_ok = lo >= 0
             return False
-    _window(bear, x, y, d, rng)
+    _window(ix, x, y, d, rng)
     for kk in range(3):
         for j in range(rng[2 * kk], rng[2 * kk + 1]):
             dx = pts[j, 0] - x
@@ -200,8 +245,8 @@ def has_near_polar(bear, pts, x, y, r, phi, d, rng):  # pragma: no cover - compi
     return False
 
 
-@_njit
-def nearest_one(bear, pts, x, y, dmax, rng):  # pragma: no cover - compiled
+@_inline
+def nearest_one(ix, pts, x, y, dmax, rng):  # pragma: no cover - compiled
     """``(index, squared distance)`` of the nearest point of ``pts`` strictly within
     ``dmax`` of ``(x, y)``; ``(-1, dmax**2)`` when there is none.
 
@@ -209,13 +254,14 @@ def nearest_one(bear, pts, x, y, dmax, rng):  # pragma: no cover - compiled
     found so far; the general window (:func:`_window`) near the sensor or across +-pi."""
     best = dmax * dmax
     bj = -1
+    bear = ix[0]
     n = bear.shape[0]
     r = math.sqrt(x * x + y * y)
     if r > dmax and n > 0:
         phi = math.atan2(y, x)
-        w = math.asin(dmax / r) + 1e-9
+        w = _half_window(dmax / r)
         if phi - w >= -math.pi and phi + w <= math.pi:
-            k = _lower(bear, phi)
+            k = lower(ix, phi)
             lo = k - 1
             hi = k
             lo_ok = lo >= 0
@@ -231,7 +277,7 @@ def nearest_one(bear, pts, x, y, dmax, rng):  # pragma: no cover - compiled
                         if d2 < best:
                             best = d2
                             bj = hi
-                            w = math.asin(min(math.sqrt(d2) / r, 1.0)) + 1e-9
+                            w = _half_window(math.sqrt(d2) / r)
                         hi += 1
                         hi_ok = hi < n
                 if lo_ok:
@@ -244,11 +290,11 @@ def nearest_one(bear, pts, x, y, dmax, rng):  # pragma: no cover - compiled
                         if d2 < best:
                             best = d2
                             bj = lo
-                            w = math.asin(min(math.sqrt(d2) / r, 1.0)) + 1e-9
+                            w = _half_window(math.sqrt(d2) / r)
                         lo -= 1
                         lo_ok = lo >= 0
             return bj, best
-    _window(bear, x, y, dmax, rng)
+    _window(ix, x, y, dmax, rng)
     for k in range(3):
         for j in range(rng[2 * k], rng[2 * k + 1]):
             dx = pts[j, 0] - x
@@ -261,19 +307,19 @@ def nearest_one(bear, pts, x, y, dmax, rng):  # pragma: no cover - compiled
 
 
 @_njit
-def nearest_many(bear, ref, pts, c, s, tx, ty, dmax, idx_out, d2_out):  # pragma: no cover
+def nearest_many(ix, ref, pts, c, s, tx, ty, dmax, idx_out, d2_out):  # pragma: no cover
     """:func:`nearest_one` for every point of ``pts`` moved by ``(R(c, s), t)``."""
     rng = np.empty(6, np.int64)
     for i in range(pts.shape[0]):
         x = c * pts[i, 0] - s * pts[i, 1] + tx
         y = s * pts[i, 0] + c * pts[i, 1] + ty
-        j, d2 = nearest_one(bear, ref, x, y, dmax, rng)
+        j, d2 = nearest_one(ix, ref, x, y, dmax, rng)
         idx_out[i] = j
         d2_out[i] = d2
 
 
 @_njit
-def agreement_count(bear, ref, pts, c, s, tx, ty, d):  # pragma: no cover - compiled
+def agreement_count(ix, ref, pts, c, s, tx, ty, d):  # pragma: no cover - compiled
     """How many points of ``pts`` moved by ``(R(c, s), t)`` have a ``ref`` point within
     ``d``."""
     rng = np.empty(6, np.int64)
@@ -281,41 +327,87 @@ def agreement_count(bear, ref, pts, c, s, tx, ty, d):  # pragma: no cover - comp
     for i in range(pts.shape[0]):
         x = c * pts[i, 0] - s * pts[i, 1] + tx
         y = s * pts[i, 0] + c * pts[i, 1] + ty
-        if has_near(bear, ref, x, y, d, rng):
+        if has_near(ix, ref, x, y, d, rng):
             count += 1
     return count
 
 
+@_inline
+def _keep_nearest(bd, bi, m, k, d2, j):  # pragma: no cover - compiled
+    """Insert candidate ``j`` at squared distance ``d2`` into the ascending list
+    ``bd``/``bi`` of the ``m`` (at most ``k``) nearest so far; returns the new ``m``."""
+    if m == k and d2 >= bd[m - 1]:
+        return m
+    p = m if m < k else k - 1
+    while p > 0 and bd[p - 1] > d2:
+        bd[p] = bd[p - 1]
+        bi[p] = bi[p - 1]
+        p -= 1
+    bd[p] = d2
+    bi[p] = j
+    return m + 1 if m < k else m
+
+
 @_njit
-def cloud_normals(bear, pts, k, radius, normals):  # pragma: no cover - compiled
+def cloud_normals(ix, pts, k, radius, normals):  # pragma: no cover - compiled
     """Unit normal of each point: the direction of least spread of its ``k`` nearest
-    points (itself included) within ``radius``; zero when fewer than 3 are that near."""
+    points (itself included) within ``radius``; zero when fewer than 3 are that near.
+
+    ``pts`` are sorted by bearing (indexed by ``ix``): the search walks outwards from
+    the point's own index, the bearing window narrowing to the ``k``-th distance found."""
     n = pts.shape[0]
     r2 = radius * radius
     rng = np.empty(6, np.int64)
     bd = np.empty(k)
     bi = np.empty(k, np.int64)
+    bear = ix[0]
     for i in range(n):
         x, y = pts[i, 0], pts[i, 1]
-        _window(bear, x, y, radius, rng)
+        r = math.sqrt(x * x + y * y)
         m = 0
-        for kk in range(3):
-            for j in range(rng[2 * kk], rng[2 * kk + 1]):
-                dx = pts[j, 0] - x
-                dy = pts[j, 1] - y
-                d2 = dx * dx + dy * dy
-                if d2 > r2 or (m == k and d2 >= bd[m - 1]):
-                    continue
-                # insert into the sorted list of the k nearest so far
-                p = m if m < k else k - 1
-                while p > 0 and bd[p - 1] > d2:
-                    bd[p] = bd[p - 1]
-                    bi[p] = bi[p - 1]
-                    p -= 1
-                bd[p] = d2
-                bi[p] = j
-                if m < k:
-                    m += 1
+        w = _half_window(radius / r) if r > 0.0 else math.pi
+        if w < math.pi and bear[i] - w >= -math.pi and bear[i] + w <= math.pi:
+            m = _keep_nearest(bd, bi, m, k, 0.0, i)
+            lo = i - 1
+            hi = i + 1
+            lo_ok = lo >= 0
+            hi_ok = hi < n
+            while lo_ok or hi_ok:
+                if hi_ok:
+                    if bear[hi] - bear[i] > w:
+                        hi_ok = False
+                    else:
+                        dx = pts[hi, 0] - x
+                        dy = pts[hi, 1] - y
+                        d2 = dx * dx + dy * dy
+                        if d2 <= r2:
+                            m = _keep_nearest(bd, bi, m, k, d2, hi)
+                            if m == k:
+                                w = min(w, _half_window(math.sqrt(bd[k - 1]) / r))
+                        hi += 1
+                        hi_ok = hi < n
+                if lo_ok:
+                    if bear[i] - bear[lo] > w:
+                        lo_ok = False
+                    else:
+                        dx = pts[lo, 0] - x
+                        dy = pts[lo, 1] - y
+                        d2 = dx * dx + dy * dy
+                        if d2 <= r2:
+                            m = _keep_nearest(bd, bi, m, k, d2, lo)
+                            if m == k:
+                                w = min(w, _half_window(math.sqrt(bd[k - 1]) / r))
+                        lo -= 1
+                        lo_ok = lo >= 0
+        else:
+            _window(ix, x, y, radius, rng)
+            for kk in range(3):
+                for j in range(rng[2 * kk], rng[2 * kk + 1]):
+                    dx = pts[j, 0] - x
+                    dy = pts[j, 1] - y
+                    d2 = dx * dx + dy * dy
+                    if d2 <= r2:
+                        m = _keep_nearest(bd, bi, m, k, d2, j)
         if m < 3:
             normals[i, 0] = 0.0
             normals[i, 1] = 0.0
@@ -344,15 +436,16 @@ def cloud_normals(bear, pts, k, radius, normals):  # pragma: no cover - compiled
 # --------------------------------------------------------------------------------------
 # Free space
 # --------------------------------------------------------------------------------------
-@_njit
-def _in_free_space(angles, free, half, r, phi, margin, ratio):  # pragma: no cover - compiled
+@_inline
+def _in_free_space(aix, free, half, r, phi, margin, ratio):  # pragma: no cover - compiled
     """Whether the point at range ``r`` and bearing ``phi`` lies nearer than the nearest
     beam and both its neighbours by more than ``margin + ratio * r`` (``half``: half the
-    mean beam spacing)."""
+    mean beam spacing; ``aix`` the index of the beam angles)."""
+    angles = aix[0]
     n = angles.shape[0]
     if phi < angles[0] - half or phi > angles[n - 1] + half:
         return False
-    k = _lower(angles, phi)
+    k = lower(aix, phi)
     k = min(max(k, 1), n - 1)
     if abs(angles[k - 1] - phi) < abs(angles[k] - phi):
         k -= 1
@@ -365,10 +458,12 @@ def _in_free_space(angles, free, half, r, phi, margin, ratio):  # pragma: no cov
 
 
 @_njit
-def conflict_count(angles, free, pts, c, s, tx, ty, margin, ratio):  # pragma: no cover
+def conflict_count(aix, free, pts, c, s, tx, ty, margin, ratio):  # pragma: no cover
     """How many ``pts`` moved by ``(R(c, s), t)`` lie in the free space seen along the
     nearest beam and both its neighbours (``free``: measured range, 0 when invalid):
-    nearer than all three by more than ``margin + ratio * range``."""
+    nearer than all three by more than ``margin + ratio * range``; ``aix``: the index of
+    the beam angles, :func:`make_index`)."""
+    angles = aix[0]
     n = angles.size
     if n < 2:
         return 0
@@ -378,21 +473,23 @@ def conflict_count(angles, free, pts, c, s, tx, ty, margin, ratio):  # pragma: n
         x = c * pts[i, 0] - s * pts[i, 1] + tx
         y = s * pts[i, 0] + c * pts[i, 1] + ty
         r = math.sqrt(x * x + y * y)
-        if _in_free_space(angles, free, half, r, math.atan2(y, x), margin, ratio):
+        if _in_free_space(aix, free, half, r, math.atan2(y, x), margin, ratio):
             count += 1
     return count
 
 
 @_njit
 def _one_way(
-    bear, ref, angles, free, pts, c, s, tx, ty, d, conflicts, margin, ratio
+    ix, ref, aix, free, pts, c, s, tx, ty, d, conflicts, margin, ratio
 ):  # pragma: no cover
     """Fractions of ``pts`` moved by ``(R(c, s), t)`` that agree with (are within ``d``
-    of) ``ref``, and (when ``conflicts``) that lie in the free space of the scan of
-    ``angles``/``free``."""
+    of) ``ref`` (bearings indexed by ``ix``), and (when ``conflicts``) that lie in the
+    free space of the scan whose beam angles are indexed by ``aix``, free ranges
+    ``free``."""
     m = pts.shape[0]
     if m == 0:
         return 0.0, 0.0
+    angles = aix[0]
     n = angles.shape[0]
     half = 0.5 * (angles[n - 1] - angles[0]) / (n - 1) if n >= 2 else 0.0
     check_free = conflicts and n >= 2
@@ -405,23 +502,23 @@ def _one_way(
         y = s * pts[i, 0] + c * pts[i, 1] + ty
         r = math.sqrt(x * x + y * y)
         phi = math.atan2(y, x)
-        if has_ref and has_near_polar(bear, ref, x, y, r, phi, d, rng):
+        if has_ref and has_near_polar(ix, ref, x, y, r, phi, d, rng):
             agree += 1
-        if check_free and _in_free_space(angles, free, half, r, phi, margin, ratio):
+        if check_free and _in_free_space(aix, free, half, r, phi, margin, ratio):
             conflict += 1
     return agree / m, conflict / m
 
 
 @_njit
 def pose_score(
-    a_bear,
+    a_ix,
     a_ref,
-    a_angles,
+    a_aix,
     a_free,
     a_sample,
-    b_bear,
+    b_ix,
     b_ref,
-    b_angles,
+    b_aix,
     b_free,
     b_sample,
     x,
@@ -438,14 +535,14 @@ def pose_score(
     space. See :func:`scanclique.match.pose_score`."""
     c = math.cos(th)
     s = math.sin(th)
-    ix = -(c * x + s * y)
-    iy = -(-s * x + c * y)
+    inv_x = -(c * x + s * y)
+    inv_y = -(-s * x + c * y)
     conflicts = conflict_weight > 0.0
     ag_ab, c_ab = _one_way(
-        a_bear, a_ref, a_angles, a_free, b_sample, c, s, x, y, d, conflicts, margin, ratio
+        a_ix, a_ref, a_aix, a_free, b_sample, c, s, x, y, d, conflicts, margin, ratio
     )
     ag_ba, c_ba = _one_way(
-        b_bear, b_ref, b_angles, b_free, a_sample, c, -s, ix, iy, d, conflicts, margin, ratio
+        b_ix, b_ref, b_aix, b_free, a_sample, c, -s, inv_x, inv_y, d, conflicts, margin, ratio
     )
     score = 0.5 * (ag_ab + ag_ba)
     if conflicts:
@@ -457,8 +554,8 @@ def pose_score(
 # ICP
 # --------------------------------------------------------------------------------------
 @_njit
-def icp(bear, ref, normals, pts, x0, iterations, max_corr, min_corr, out):  # pragma: no cover
-    """Point-to-line ICP of ``pts`` (B) onto ``ref`` (A, sorted by bearing ``bear``, with
+def icp(ix, ref, normals, pts, x0, iterations, max_corr, min_corr, out):  # pragma: no cover
+    """Point-to-line ICP of ``pts`` (B) onto ``ref`` (A, bearings indexed by ``ix``, with
     ``normals``) from ``x0``; see :func:`scanclique.refine.icp_point_to_line`.
 
     Writes the pose to ``out`` and returns ``(fitness, rmse, iterations run)``."""
@@ -487,7 +584,7 @@ def icp(bear, ref, normals, pts, x0, iterations, max_corr, min_corr, out):  # pr
             rpy = s * pts[i, 0] + c * pts[i, 1]
             px = rpx + x[0]
             py = rpy + x[1]
-            j, _ = nearest_one(bear, ref, px, py, dmax, rng)
+            j, _ = nearest_one(ix, ref, px, py, dmax, rng)
             if j < 0:
                 continue
             ok += 1
@@ -654,14 +751,14 @@ def closed_form_batch(pairs, indptr, npa, npb, Pa, Pb, La, Lb, poses, ok):  # pr
 def score_batch(
     poses,
     ok,
-    a_bear,
+    a_ix,
     a_ref,
-    a_angles,
+    a_aix,
     a_free,
     a_sample,
-    b_bear,
+    b_ix,
     b_ref,
-    b_angles,
+    b_aix,
     b_free,
     b_sample,
     d,
@@ -691,14 +788,14 @@ def score_batch(
             scores[i] = scores[same]
             continue
         scores[i] = pose_score(
-            a_bear,
+            a_ix,
             a_ref,
-            a_angles,
+            a_aix,
             a_free,
             a_sample,
-            b_bear,
+            b_ix,
             b_ref,
-            b_angles,
+            b_aix,
             b_free,
             b_sample,
             poses[i, 0],
@@ -986,3 +1083,100 @@ def hypothesis_cliques(
                 count += 1
     data, indptr = store
     return data, indptr[: count + 1].copy(), count, omega, optimal, complete
+
+
+# --------------------------------------------------------------------------------------
+# The best few hypotheses: full estimate, score, ICP, score (one call for all)
+# --------------------------------------------------------------------------------------
+@_njit
+def _points_first_into(pairs, npa, out):  # pragma: no cover - compiled
+    """``pairs`` reordered points first, then lines, each in their order, into ``out``."""
+    k = 0
+    for i in range(pairs.shape[0]):
+        if pairs[i, 0] < npa:
+            out[k, 0] = pairs[i, 0]
+            out[k, 1] = pairs[i, 1]
+            k += 1
+    for i in range(pairs.shape[0]):
+        if pairs[i, 0] >= npa:
+            out[k, 0] = pairs[i, 0]
+            out[k, 1] = pairs[i, 1]
+            k += 1
+
+
+@_njit
+def refine_candidates(
+    pairs, indptr, npa, npb,
+    Pa, PCa, La, LCa, Pb, PCb, Lb, LCb,
+    a_ix, a_ref, a_normals, a_aix, a_free, a_sample,
+    b_ix, b_ref, b_aix, b_free, b_sample,
+    min_pairs, outlier, d, conflict_weight, margin, ratio,
+    icp_on, iterations, max_corr, min_corr,
+    ok, x_est, info, ssr, used, maha, score_est, x_icp, score_icp,
+):  # fmt: skip  # pragma: no cover - compiled
+    """For each candidate clique ``pairs[indptr[i]:indptr[i+1]]``: the weighted least
+    squares pose from the closed form (5 Gauss–Newton steps), once more without the pairs
+    whose Mahalanobis residual exceeds ``outlier`` when at least ``min_pairs`` remain;
+    its raw-scan score; then (``icp_on``) point-to-line ICP of B's sample onto A from it,
+    and the ICP pose's score.
+
+    Writes per candidate: ``ok`` (a pose was found), ``x_est`` (3), ``info`` (3x3) and
+    ``ssr`` at the estimate, ``used`` (pairs kept), ``maha`` (their Mahalanobis residuals,
+    points first, at ``indptr[i]``...), ``score_est``, ``x_icp`` and ``score_icp``
+    (``-inf`` when no ICP ran).
+    """
+    K = pairs.shape[0]
+    ordered = np.empty((K, 2), np.int64)
+    start_x = np.empty(3)
+    out_icp = np.empty(3)
+    for i in range(indptr.shape[0] - 1):
+        s0 = indptr[i]
+        s1 = indptr[i + 1]
+        sub = ordered[s0:s1]
+        _points_first_into(pairs[s0:s1], npa, sub)
+        ok[i] = closed_form(sub, npa, npb, Pa, Pb, La, Lb, start_x)
+        score_icp[i] = -math.inf
+        if not ok[i]:
+            continue
+        m = maha[s0:s1]
+        x, q = lsq_pose(sub, npa, npb, Pa, PCa, La, LCa, Pb, PCb, Lb, LCb, start_x, 5, info[i], m)
+        n_used = s1 - s0
+        n_good = 0
+        for k in range(s1 - s0):
+            if m[k] <= outlier:
+                n_good += 1
+        if n_good < s1 - s0 and n_good >= min_pairs:
+            keep = np.empty((n_good, 2), np.int64)
+            g = 0
+            for k in range(s1 - s0):
+                if m[k] <= outlier:
+                    keep[g, 0] = sub[k, 0]
+                    keep[g, 1] = sub[k, 1]
+                    g += 1
+            x, q = lsq_pose(
+                keep, npa, npb, Pa, PCa, La, LCa, Pb, PCb, Lb, LCb, x, 5, info[i], m[:n_good]
+            )
+            n_used = n_good
+        used[i] = n_used
+        ssr[i] = q
+        x_est[i, 0] = x[0]
+        x_est[i, 1] = x[1]
+        x_est[i, 2] = x[2]
+        score_est[i] = pose_score(
+            a_ix, a_ref, a_aix, a_free, a_sample,
+            b_ix, b_ref, b_aix, b_free, b_sample,
+            x[0], x[1], x[2], d, conflict_weight, margin, ratio,
+        )  # fmt: skip
+        if icp_on and b_sample.shape[0] >= 3:
+            if a_ref.shape[0] >= 3:
+                icp(a_ix, a_ref, a_normals, b_sample, x, iterations, max_corr, min_corr, out_icp)
+            else:
+                out_icp[:] = x[:]
+            x_icp[i, 0] = out_icp[0]
+            x_icp[i, 1] = out_icp[1]
+            x_icp[i, 2] = out_icp[2]
+            score_icp[i] = pose_score(
+                a_ix, a_ref, a_aix, a_free, a_sample,
+                b_ix, b_ref, b_aix, b_free, b_sample,
+                out_icp[0], out_icp[1], out_icp[2], d, conflict_weight, margin, ratio,
+            )  # fmt: skip

@@ -231,7 +231,7 @@ class CliqueConfig:
 
     time_limit: float = 2.0
     max_hypotheses: int = 8
-    peel: int = 6
+    peel: int = 3
     per_vertex: int = 40
 
     def __post_init__(self) -> None:
@@ -281,8 +281,8 @@ class RefineConfig:
     """
 
     enabled: bool = True
-    candidates: int = 4
-    sample_points: int = 180
+    candidates: int = 3
+    sample_points: int = 120
     size_weight: float = 0.01
     min_score: float = 0.1
     iterations: int = 15

@@ -28,6 +28,7 @@ from .geometry import Pose2
 from .graph import NODE_KIND_NAMES, FeatureGraph, feature_graph
 from .pose import (
     PoseEstimate,
+    covariance_from_information,
     estimate_pose_lsq_pairs,
     estimate_pose_median,
     mapped_features,
@@ -41,6 +42,7 @@ from .refine import (
     free_space_conflicts,
     icp_point_to_line,
     reference_cloud,
+    search_index,
 )
 from .scan import Scan
 
@@ -58,6 +60,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: the stages timed in ``ScanMatch.seconds``: ``pose`` is the quick pose and score of every
+#: clique, ``refine`` the full estimate of the best few, their ICP and rescoring
 STAGES = ("features", "graph", "correspondence", "clique", "pose", "refine")
 
 
@@ -96,7 +100,9 @@ class PreparedScan:
 
     ``points`` are the scan's valid points (sensor frame); ``sample`` at most
     ``refine.sample_points`` of them, evenly spaced in beam order, for scoring and ICP;
-    ``free`` the free range along each beam (:func:`scanclique.refine.free_ranges`)."""
+    ``free`` the free range along each beam (:func:`scanclique.refine.free_ranges`);
+    ``angle_index`` the search index of the beam angles
+    (:func:`scanclique.refine.search_index`)."""
 
     scan: Scan
     features: Features
@@ -105,6 +111,7 @@ class PreparedScan:
     points: np.ndarray
     sample: np.ndarray
     free: np.ndarray
+    angle_index: tuple
     seconds: dict = field(default_factory=dict)
 
 
@@ -232,6 +239,7 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
         pts,
         sample,
         free_ranges(scan),
+        search_index(scan.angles),
         {"features": t1 - t0, "graph": t2 - t1},
     )
 
@@ -261,10 +269,12 @@ def pose_score(
 #: ranges by more than CONFLICT_MARGIN + CONFLICT_RATIO * range (metres)
 CONFLICT_MARGIN = 0.2
 CONFLICT_RATIO = 0.02
+#: a clique's pairs whose Mahalanobis residual exceeds this are dropped from its estimate
+OUTLIER_MAHALANOBIS = 3.5
 
 
 def _scan_args(p: PreparedScan) -> tuple:
-    return (p.cloud.bearings, p.cloud.points, p.scan.angles, p.free, p.sample)
+    return (p.cloud.index, p.cloud.points, p.angle_index, p.free, p.sample)
 
 
 def _score(pa: PreparedScan, pb: PreparedScan, x: float, y: float, th: float, cfg) -> float:
@@ -311,7 +321,7 @@ def estimate_clique_pose(
     est = estimate_pose_lsq_pairs(fa, fb, node_pairs)
     if est is None:
         return None
-    bad = est.residuals > 3.5
+    bad = est.residuals > OUTLIER_MAHALANOBIS
     if bad.any() and (~bad).sum() >= cfg.pose.min_pairs:
         ordered = points_first(node_pairs, fa.n_points)
         return estimate_pose_lsq_pairs(fa, fb, ordered[~bad], initial=est.pose)
@@ -455,6 +465,87 @@ def _quick_hypotheses(
     return out
 
 
+def _refine_candidates(
+    pa: PreparedScan, pb: PreparedScan, distinct: list[Hypothesis], cfg: MatchConfig
+) -> list[Hypothesis]:
+    """Step 4 of :func:`match_prepared` in one compiled call: for each candidate, the
+    weighted least-squares estimate with covariance (:func:`estimate_clique_pose`), its
+    score, and (``refine.enabled``) the ICP from it, kept when it scores at least as
+    well."""
+    fa, fb, r = pa.features, pb.features, cfg.refine
+    if not distinct:
+        return []
+    sizes = [len(h.node_pairs) for h in distinct]
+    flat = np.ascontiguousarray(np.concatenate([h.node_pairs for h in distinct]))
+    indptr = np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
+    n = len(distinct)
+    ok = np.empty(n, dtype=bool)
+    x_est, x_icp = np.empty((n, 3)), np.empty((n, 3))
+    info = np.empty((n, 3, 3))
+    ssr, score_est, score_icp = np.empty(n), np.empty(n), np.empty(n)
+    used = np.empty(n, dtype=np.int64)
+    maha = np.empty(len(flat))
+    _K.refine_candidates(
+        flat, indptr, fa.n_points, fb.n_points,
+        fa.points_xy, fa.points_cov, fa.lines_rho_alpha, fa.lines_cov,
+        fb.points_xy, fb.points_cov, fb.lines_rho_alpha, fb.lines_cov,
+        pa.cloud.index, pa.cloud.points, pa.cloud.normals, pa.angle_index, pa.free, pa.sample,
+        *_scan_args(pb),
+        cfg.pose.min_pairs, OUTLIER_MAHALANOBIS, r.inlier_distance, r.conflict_weight,
+        CONFLICT_MARGIN, CONFLICT_RATIO,
+        r.enabled, r.iterations, r.max_correspondence, r.inlier_distance,
+        ok, x_est, info, ssr, used, maha, score_est, x_icp, score_icp,
+    )  # fmt: skip
+    out = []
+    for i, h in enumerate(distinct):
+        if not ok[i]:
+            continue
+        cov, rms, degenerate = covariance_from_information(info[i], ssr[i], int(used[i]))
+        res = maha[indptr[i] : indptr[i] + used[i]].copy()
+        est = PoseEstimate(Pose2.from_array(x_est[i]), cov, rms, res, degenerate)
+        if score_icp[i] >= score_est[i]:
+            pose, score, refined = Pose2.from_array(x_icp[i]), float(score_icp[i]), True
+        else:
+            pose, score, refined = est.pose, float(score_est[i]), False
+        out.append(Hypothesis(h.node_pairs, h.clique_size, pose, score, est, refined))
+    return out
+
+
+def _refine_candidates_slow(
+    pa: PreparedScan, pb: PreparedScan, distinct: list[Hypothesis], cfg: MatchConfig
+) -> list[Hypothesis]:
+    """:func:`_refine_candidates` for the median method and for clouds too large for the
+    compiled search, one step at a time."""
+    full = []
+    for h in distinct:
+        est = h.estimate
+        if est is None:
+            est = estimate_clique_pose(pa.features, pb.features, h.node_pairs, cfg)
+        if est is None:
+            continue
+        full.append(
+            Hypothesis(
+                h.node_pairs, h.clique_size, est.pose, pose_score(pa, pb, est.pose, cfg), est
+            )
+        )
+    if cfg.refine.enabled and len(pb.sample) >= 3:
+        for k, h in enumerate(full):
+            icp = icp_point_to_line(
+                pa.cloud,
+                pb.sample,
+                h.pose,
+                iterations=cfg.refine.iterations,
+                max_correspondence=cfg.refine.max_correspondence,
+                min_correspondence=cfg.refine.inlier_distance,
+            )
+            score = pose_score(pa, pb, icp.pose, cfg)
+            if score >= h.score:
+                full[k] = Hypothesis(
+                    h.node_pairs, h.clique_size, icp.pose, score, h.estimate, refined=True
+                )
+    return full
+
+
 def match_prepared(
     pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None
 ) -> ScanMatch:
@@ -531,35 +622,12 @@ def match_prepared(
             distinct.append(h)
         if len(distinct) >= cfg.refine.candidates:
             break
-    full = []
-    for h in distinct:
-        est = h.estimate
-        if est is None:
-            est = estimate_clique_pose(fa, fb, h.node_pairs, cfg)
-        if est is None:
-            continue
-        full.append(
-            Hypothesis(
-                h.node_pairs, h.clique_size, est.pose, pose_score(pa, pb, est.pose, cfg), est
-            )
-        )
     seconds["pose"] = time.perf_counter() - t
     t = time.perf_counter()
-    if cfg.refine.enabled and len(pb.sample) >= 3:
-        for k, h in enumerate(full):
-            icp = icp_point_to_line(
-                pa.cloud,
-                pb.sample,
-                h.pose,
-                iterations=cfg.refine.iterations,
-                max_correspondence=cfg.refine.max_correspondence,
-                min_correspondence=cfg.refine.inlier_distance,
-            )
-            score = pose_score(pa, pb, icp.pose, cfg)
-            if score >= h.score:
-                full[k] = Hypothesis(
-                    h.node_pairs, h.clique_size, icp.pose, score, h.estimate, refined=True
-                )
+    if cfg.pose.method == "lsq" and pa.cloud.windowed and pb.cloud.windowed:
+        full = _refine_candidates(pa, pb, distinct, cfg)
+    else:
+        full = _refine_candidates_slow(pa, pb, distinct, cfg)
     seconds["refine"] = time.perf_counter() - t
     if not full:
         return _empty(

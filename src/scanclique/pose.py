@@ -363,8 +363,8 @@ def points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
     """Node pairs ``(K, 2)`` reordered points first, then lines, each in their order (the
     order of :func:`mapped_features` and of the residuals)."""
     node_pairs = np.asarray(node_pairs, dtype=np.int64).reshape(-1, 2)
-    is_pt = node_pairs[:, 0] < n_points_a
-    return np.ascontiguousarray(np.concatenate((node_pairs[is_pt], node_pairs[~is_pt])))
+    order = np.argsort(node_pairs[:, 0] >= n_points_a, kind="stable")
+    return np.ascontiguousarray(node_pairs[order])
 
 
 def closed_form_pose_pairs(fa: Features, fb: Features, node_pairs: np.ndarray) -> Pose2 | None:

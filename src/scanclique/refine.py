@@ -29,6 +29,7 @@ __all__ = [
     "free_space_conflicts",
     "nearest",
     "free_ranges",
+    "search_index",
     "icp_point_to_line",
     "IcpResult",
 ]
@@ -47,6 +48,8 @@ class ReferenceCloud:
         points within 0.3 m; zero where fewer than 3 are that near).
     bearings : ndarray, shape (M,)
         ``atan2(y, x)`` of each point, ascending.
+    index : tuple
+        The search index of ``bearings`` (:func:`scanclique._match_kernels.make_index`).
     tree : scipy.spatial.cKDTree or None
         Built only for clouds of more than :data:`BRUTE_FORCE_MAX` points; smaller ones
         are searched by bearing window (exact, compiled; see
@@ -56,6 +59,7 @@ class ReferenceCloud:
     points: np.ndarray
     normals: np.ndarray
     bearings: np.ndarray
+    index: tuple
     tree: cKDTree | None
 
     @property
@@ -78,10 +82,11 @@ def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> Refe
         order = np.argsort(bear, kind="stable")
         p, bear = np.ascontiguousarray(p[order]), bear[order]
     normals = np.zeros_like(p)
+    index = search_index(bear)
     if len(p) <= BRUTE_FORCE_MAX:
         if len(p) >= 3:
-            K.cloud_normals(bear, p, int(k), float(radius), normals)
-        return ReferenceCloud(p, normals, bear, None)
+            K.cloud_normals(index, p, int(k), float(radius), normals)
+        return ReferenceCloud(p, normals, bear, index, None)
     tree = cKDTree(p)
     kk = min(k, len(p))
     d, idx = tree.query(p, k=kk)
@@ -94,7 +99,13 @@ def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> Refe
     _, vec = np.linalg.eigh(cov)
     normals = vec[:, :, 0]
     normals[cnt < 3] = 0.0
-    return ReferenceCloud(p, normals, bear, tree)
+    return ReferenceCloud(p, normals, bear, index, tree)
+
+
+def search_index(values: np.ndarray) -> tuple:
+    """A compiled search index over ascending ``values`` (bearings, beam angles): two
+    bins per value, each holding where its values start."""
+    return K.make_index(np.array(values, dtype=float), 2.0)
 
 
 def _moved(pose: Pose2 | None):
@@ -111,7 +122,7 @@ def nearest(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance
     if ref.windowed:
         idx = np.empty(len(pts), dtype=np.int64)
         d2 = np.empty(len(pts))
-        K.nearest_many(ref.bearings, ref.points, pts, *_moved(pose), max_distance, idx, d2)
+        K.nearest_many(ref.index, ref.points, pts, *_moved(pose), max_distance, idx, d2)
         found = idx >= 0
         return idx, np.where(found, np.sqrt(d2), np.inf)
     d, idx = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=max_distance)
@@ -128,9 +139,7 @@ def agreement(
     if len(pts) == 0 or len(ref.points) == 0:
         return 0.0
     if ref.windowed:
-        count = K.agreement_count(
-            ref.bearings, ref.points, pts, *_moved(pose), float(inlier_distance)
-        )
+        count = K.agreement_count(ref.index, ref.points, pts, *_moved(pose), float(inlier_distance))
         return count / len(pts)
     d, _ = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=inlier_distance)
     return float(np.mean(np.isfinite(d)))
@@ -164,7 +173,7 @@ def free_space_conflicts(
         return 0.0
     # a point conflicts only when its beam and both neighbours saw past it
     count = K.conflict_count(
-        scan.angles, free_ranges(scan), p, *_moved(pose), float(margin), float(ratio)
+        search_index(scan.angles), free_ranges(scan), p, *_moved(pose), float(margin), float(ratio)
     )
     return count / len(p)
 
@@ -204,7 +213,7 @@ def icp_point_to_line(
     if ref.windowed:
         out = np.empty(3)
         fitness, rmse, it = K.icp(
-            ref.bearings,
+            ref.index,
             ref.points,
             ref.normals,
             pts,
