@@ -35,6 +35,10 @@ _inline = numba.njit(cache=True, nogil=True, inline="always")
 #: Huber scale (m) and weight of the point-to-point term of the ICP (see icp_point_to_line)
 ICP_HUBER = 0.05
 ICP_POINT_WEIGHT = 0.05
+#: the ICP has converged when a step moves less than this (metres, radians), once the
+#: correspondence distance has shrunk to its minimum
+ICP_STEP_T = 5e-4
+ICP_STEP_R = 5e-5
 
 
 # --------------------------------------------------------------------------------------
@@ -627,7 +631,11 @@ def icp(ix, ref, normals, pts, x0, iterations, max_corr, min_corr, out):  # prag
         x[2] = wrap(x[2] - dx[2])
         fitness = ok / n
         rmse = math.sqrt(ssr / ok)
-        if max(abs(dx[0]), abs(dx[1])) < 1e-4 and abs(dx[2]) < 1e-5 and dmax <= min_corr:
+        if (
+            max(abs(dx[0]), abs(dx[1])) < ICP_STEP_T
+            and abs(dx[2]) < ICP_STEP_R
+            and dmax <= min_corr
+        ):
             break
     out[:] = x[:]
     return fitness, rmse, it
@@ -749,28 +757,23 @@ def closed_form_batch(pairs, indptr, npa, npb, Pa, Pb, La, Lb, poses, ok):  # pr
 
 @_njit
 def score_batch(
-    poses,
-    ok,
-    a_ix,
-    a_ref,
-    a_aix,
-    a_free,
-    a_sample,
-    b_ix,
-    b_ref,
-    b_aix,
-    b_free,
-    b_sample,
-    d,
-    conflict_weight,
-    margin,
-    ratio,
-    scores,
-):  # pragma: no cover - compiled
-    """:func:`pose_score` of every pose with ``ok`` set (others get ``-inf``). Cliques
-    that share most of an association give nearly the same pose: a pose within 2 cm and
-    0.2 degrees of one already scored gets that one's score."""
-    for i in range(poses.shape[0]):
+    poses, ok, sizes, size_weight, keep,
+    a_ix, a_ref, a_aix, a_free, a_sample,
+    b_ix, b_ref, b_aix, b_free, b_sample,
+    d, conflict_weight, margin, ratio,
+    scores, exact,
+):  # fmt: skip  # pragma: no cover - compiled
+    """:func:`pose_score` of the poses with ``ok`` set (others get ``-inf``), coarse to
+    fine: every pose is first scored on every other sample point of each scan; the
+    ``keep`` best by rank (score plus ``size_weight`` per clique vertex, ``sizes``) are
+    scored again on the full samples (``exact`` set). Cliques that share most of an
+    association give nearly the same pose: a pose within 2 cm and 0.2 degrees of one
+    already scored gets that one's score."""
+    n = poses.shape[0]
+    a_half = a_sample[::2].copy()
+    b_half = b_sample[::2].copy()
+    for i in range(n):
+        exact[i] = False
         if not ok[i]:
             scores[i] = -math.inf
             continue
@@ -788,24 +791,39 @@ def score_batch(
             scores[i] = scores[same]
             continue
         scores[i] = pose_score(
-            a_ix,
-            a_ref,
-            a_aix,
-            a_free,
-            a_sample,
-            b_ix,
-            b_ref,
-            b_aix,
-            b_free,
-            b_sample,
-            poses[i, 0],
-            poses[i, 1],
-            poses[i, 2],
-            d,
-            conflict_weight,
-            margin,
-            ratio,
-        )
+            a_ix, a_ref, a_aix, a_free, a_half,
+            b_ix, b_ref, b_aix, b_free, b_half,
+            poses[i, 0], poses[i, 1], poses[i, 2], d, conflict_weight, margin, ratio,
+        )  # fmt: skip
+    rank = np.empty(n)
+    for i in range(n):
+        rank[i] = scores[i] + size_weight * sizes[i]
+    order = np.argsort(-rank, kind="mergesort")
+    done = 0
+    for q in range(n):
+        i = order[q]
+        if done >= keep or not ok[i]:
+            break
+        same = -1
+        for j in range(n):
+            if (
+                exact[j]
+                and abs(poses[i, 0] - poses[j, 0]) < 0.02
+                and abs(poses[i, 1] - poses[j, 1]) < 0.02
+                and abs(wrap(poses[i, 2] - poses[j, 2])) < 0.0035
+            ):
+                same = j
+                break
+        if same >= 0:
+            scores[i] = scores[same]
+        else:
+            scores[i] = pose_score(
+                a_ix, a_ref, a_aix, a_free, a_sample,
+                b_ix, b_ref, b_aix, b_free, b_sample,
+                poses[i, 0], poses[i, 1], poses[i, 2], d, conflict_weight, margin, ratio,
+            )  # fmt: skip
+            done += 1
+        exact[i] = True
 
 
 @_njit
@@ -1021,6 +1039,9 @@ def hypothesis_cliques(
     complete = optimal and status_all == 0
     omega = best.shape[0]
     in_max = np.zeros(n, np.bool_)
+    for r in range(found.shape[0]):
+        for v in found[r]:
+            in_max[v] = True
     if limit > 0:
         if found.shape[0] > 0:
             for r in range(found.shape[0]):
@@ -1029,10 +1050,6 @@ def hypothesis_cliques(
         else:
             store = _append(store, count, best)
             count += 1
-    for i in range(count):
-        data, indptr = store
-        for j in range(indptr[i], indptr[i + 1]):
-            in_max[data[j]] = True
     # 2. peeling
     alive = np.ones(n, np.bool_)
     for _ in range(peel):

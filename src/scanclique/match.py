@@ -80,7 +80,9 @@ class Hypothesis:
     """One association hypothesis: a clique of the correspondence graph and its pose.
 
     ``node_pairs`` are (node of A, node of B) in feature-graph order (points, then lines);
-    ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`). ``estimate`` is the
+    ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`; for hypotheses
+    ranked below the best ``QUICK_EXACT * refine.candidates`` it is measured on every
+    other sample point only). ``estimate`` is the
     full weighted estimate with covariance, computed for the best few hypotheses only (the
     others carry the closed-form pose used to rank them); ``refined`` says whether ``pose``
     was refined by ICP on the raw points.
@@ -269,6 +271,9 @@ def pose_score(
 #: ranges by more than CONFLICT_MARGIN + CONFLICT_RATIO * range (metres)
 CONFLICT_MARGIN = 0.2
 CONFLICT_RATIO = 0.02
+#: the quick score of every clique's pose uses every other sample point; this many
+#: times ``refine.candidates`` of the best are scored again on the full samples
+QUICK_EXACT = 3
 #: a clique's pairs whose Mahalanobis residual exceeds this are dropped from its estimate
 OUTLIER_MAHALANOBIS = 3.5
 
@@ -437,18 +442,13 @@ def _quick_hypotheses(
         )
     if pa.cloud.windowed and pb.cloud.windowed:
         scores = np.empty(len(cliques))
+        exact = np.empty(len(cliques), dtype=bool)
         r = cfg.refine
         _K.score_batch(
-            poses,
-            ok,
-            *_scan_args(pa),
-            *_scan_args(pb),
-            r.inlier_distance,
-            r.conflict_weight,
-            CONFLICT_MARGIN,
-            CONFLICT_RATIO,
-            scores,
-        )
+            poses, ok, sizes.astype(float), r.size_weight, QUICK_EXACT * r.candidates,
+            *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
+            r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
+        )  # fmt: skip
     else:
         scores = np.array(
             [

@@ -263,6 +263,10 @@ def _icp_tree(ref, pts, initial, iterations, max_correspondence, min_corresponde
         x[2] = float(wrap_angle(x[2]))
         fitness = float(ok.mean())
         rmse = float(np.sqrt(np.mean(r_line**2)))
-        if np.abs(dx[:2]).max() < 1e-4 and abs(dx[2]) < 1e-5 and dmax <= min_correspondence:
+        if (
+            np.abs(dx[:2]).max() < K.ICP_STEP_T
+            and abs(dx[2]) < K.ICP_STEP_R
+            and dmax <= min_correspondence
+        ):
             break
     return IcpResult(Pose2.from_array(x), fitness, rmse, it)
