@@ -454,6 +454,21 @@ def test_a_million_beam_scan_has_bounded_features():
     assert len(f) < 50 and time.perf_counter() - t0 < 10.0
 
 
+def test_a_million_beam_scan_matches_itself_in_bounded_time():
+    """The whole match of a million-beam scan: the raw-point cloud is thinned to
+    ``CLOUD_MAX_POINTS`` evenly spaced points, so scoring and ICP stay bounded (about 1.5 s
+    here, nearly all of it extracting features from the million beams)."""
+    from scanclique.match import CLOUD_MAX_POINTS, prepare_scan
+
+    r = 5.0 + np.sin(np.linspace(0.0, 50.0, 1_000_000))
+    s = sc.Scan.from_ranges(r, angle_increment=np.pi / 1_000_000, range_max=80.0)
+    t0 = time.perf_counter()
+    m = sc.match_scans(s, s)
+    assert time.perf_counter() - t0 < 20.0
+    assert m.pose is not None and max(m.pose.distance_to(sc.Pose2.identity())) < 0.01
+    assert len(prepare_scan(s).cloud.points) == CLOUD_MAX_POINTS
+
+
 @pytest.fixture(scope="module")
 def dense_3000():
     rng = np.random.default_rng(0)

@@ -36,6 +36,7 @@ from .pose import (
     points_first,
 )
 from .refine import (
+    BRUTE_FORCE_MAX,
     ReferenceCloud,
     agreement,
     free_ranges,
@@ -100,7 +101,8 @@ class Hypothesis:
 class PreparedScan:
     """What the pipeline derives from one scan, reusable across many matches.
 
-    ``points`` are the scan's valid points (sensor frame); ``sample`` at most
+    ``points`` are the scan's valid points (sensor frame); ``cloud`` at most
+    ``CLOUD_MAX_POINTS`` of them, evenly spaced in beam order; ``sample`` at most
     ``refine.sample_points`` of them, evenly spaced in beam order, for scoring and ICP;
     ``free`` the free range along each beam (:func:`scanclique.refine.free_ranges`);
     ``angle_index`` the search index of the beam angles
@@ -228,10 +230,11 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     t1 = time.perf_counter()
     graph = feature_graph(feats, cfg.correspondence, cfg.features)
     pts = scan.points()
-    cloud = reference_cloud(pts)
-    n_s = cfg.refine.sample_points
-    sample = pts if len(pts) <= n_s else pts[np.linspace(0, len(pts) - 1, n_s).round().astype(int)]
-    sample = np.ascontiguousarray(sample)
+    # the raw-point cloud for scoring and ICP: at most CLOUD_MAX_POINTS, evenly spaced in
+    # beam order (a million-beam scan keeps points millimetres apart; the score and the
+    # ICP need no more, and their cost stays bounded)
+    cloud = reference_cloud(_evenly(pts, CLOUD_MAX_POINTS))
+    sample = _evenly(pts, cfg.refine.sample_points)
     t2 = time.perf_counter()
     return PreparedScan(
         scan,
@@ -244,6 +247,17 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
         search_index(scan.angles),
         {"features": t1 - t0, "graph": t2 - t1},
     )
+
+
+#: the raw-point cloud of a prepared scan keeps at most this many points
+CLOUD_MAX_POINTS = BRUTE_FORCE_MAX
+
+
+def _evenly(points: np.ndarray, n: int) -> np.ndarray:
+    """At most ``n`` of ``points``, evenly spaced in their order (all when fewer)."""
+    if len(points) <= n:
+        return np.ascontiguousarray(points)
+    return np.ascontiguousarray(points[np.linspace(0, len(points) - 1, n).round().astype(int)])
 
 
 def pose_score(
