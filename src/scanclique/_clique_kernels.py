@@ -135,85 +135,108 @@ def check_mask(n, W):
 # --------------------------------------------------------------------------------------
 # Input checks
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
-def asymmetry(adj):
-    """First ``(i, j)`` with ``adj[i, j] != adj[j, i]`` or ``i == j`` and ``adj[i, i]``, else
-    ``(-1, -1)``. Compares 32 x 32 tiles against their mirror, so both stay in cache."""
-    n = adj.shape[0]
-    for i in range(n):
-        if adj[i, i]:
-            return i, i
-    T = 32
-    for bi in range(0, n, T):
-        ie = min(bi + T, n)
-        for bj in range(bi, n, T):
-            je = min(bj + T, n)
-            for i in range(bi, ie):
-                for j in range(bj, je):
-                    if adj[i, j] != adj[j, i]:
-                        return i, j
-    return -1, -1
+_GATHER = np.uint64(0x0102040810204080)
+_SHIFT56 = np.uint64(56)
 
 
 @numba.njit(cache=True)
-def check_packed(adj, bits):
-    """:func:`asymmetry` for an adjacency already packed into ``bits``: on sparse graphs by
-    looking up the mirror of each edge (O(m)), on dense ones tile by tile."""
+def pack_checked(adj):
+    """Bitset rows of a boolean adjacency matrix, and its first defect.
+
+    Returns ``(A, u, v)``: ``A[i, w]`` bit ``b`` is ``adj[i, 64 w + b]``; ``(u, v)`` is
+    ``(-1, -1)`` for a symmetric matrix with a False diagonal, ``(i, i)`` for a self loop,
+    else a pair with ``adj[u, v] != adj[v, u]``.
+
+    Eight flags at a time: a NumPy bool is one byte, 0 or 1, so eight of them read as one
+    little-endian word ``y`` have their flags at bits 0, 8, ..., 56. In ``y * M`` with
+    ``M = sum_j 2^(56 - 7 j)`` (``0x0102040810204080``) flag ``k`` times term ``j`` lands on
+    bit ``56 + 8 k - 7 j``: on ``56 + k`` for ``j = k``, below 56 or beyond 63 otherwise,
+    and no two products share a bit (so nothing carries). The top byte is the eight flags.
+    Symmetry is then checked on the bits: every edge ``i < j`` must have its mirror, and
+    the rows must hold twice as many bits as the upper triangle (O(m) in all).
+    """
     n = adj.shape[0]
-    W = bits.shape[1]
-    m = 0
+    W = (n + 63) >> 6
+    A = np.zeros((n, W), np.uint64)
+    flat = adj.reshape(-1).view(np.uint8)
     for i in range(n):
-        m += _popcount(bits[i], W)
-    if 8 * m > n * n:
-        return asymmetry(adj)
+        row = i * n
+        for w in range(W):
+            lo = w * 64
+            hi = min(n, lo + 64)
+            x = _ZERO
+            j = lo
+            while j + 8 <= hi:
+                y = _ZERO
+                p = row + j
+                for k in range(8):
+                    y |= np.uint64(flat[p + k]) << np.uint64(8 * k)
+                x |= ((y * _GATHER) >> _SHIFT56) << np.uint64(j - lo)
+                j += 8
+            while j < hi:
+                x |= np.uint64(flat[row + j]) << np.uint64(j - lo)
+                j += 1
+            A[i, w] = x
+    upper = 0
+    total = 0
     for i in range(n):
         wi = i >> 6
         bi = _ONE << np.uint64(i & 63)
-        if bits[i, wi] & bi:
-            return i, i
+        if A[i, wi] & bi:
+            return A, i, i
         for w in range(W):
-            x = bits[i, w]
+            x = A[i, w]
+            total += int(_ctpop(x))
+            if w < wi:
+                continue
+            if w == wi:
+                x &= ~((bi << _ONE) - _ONE)  # columns j > i only
             while x:
                 b = _cttz(x)
                 x &= x - _ONE
                 j = w * 64 + int(b)
-                if bits[j, wi] & bi == _ZERO:
-                    return i, j
-    return -1, -1
-
-
-@numba.njit(cache=True)
-def pack_small(adj):
-    """Bitset rows of a small boolean adjacency, checked as :func:`asymmetry` does, in one
-    pass (for small graphs the call overhead of NumPy would dominate)."""
-    n = adj.shape[0]
-    bits = np.zeros((n, (n + 63) >> 6), np.uint64)
-    for i in range(n):
-        if adj[i, i]:
-            return bits, i, i
-        for j in range(i + 1, n):
-            x = adj[i, j]
-            if x != adj[j, i]:
-                return bits, i, j
-            if x:
-                _setbit(bits[i], j)
-                _setbit(bits[j], i)
-    return bits, -1, -1
+                upper += 1
+                if A[j, wi] & bi == _ZERO:
+                    return A, i, j
+    if total != 2 * upper:  # an edge below the diagonal without its mirror above
+        for i in range(n):
+            for w in range(W):
+                x = A[i, w]
+                while x:
+                    b = _cttz(x)
+                    x &= x - _ONE
+                    j = w * 64 + int(b)
+                    if (A[j, i >> 6] >> np.uint64(i & 63)) & _ONE == _ZERO:
+                        return A, i, j
+    return A, -1, -1
 
 
 # --------------------------------------------------------------------------------------
 # Initial order, renumbering, initial clique
 # --------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def degeneracy_order(A, n):
-    """Min-degree peeling: ``order`` (densest core first) and each vertex's core number.
+def _swap(vert, pos, p, q):
+    """Exchange the vertices at positions ``p`` and ``q`` of ``vert`` (``pos`` its inverse)."""
+    x = vert[p]
+    y = vert[q]
+    vert[p] = y
+    pos[y] = p
+    vert[q] = x
+    pos[x] = q
 
-    ``order[n - 1]`` is the first vertex peeled (minimum degree), ``order[0]`` the last.
-    Graphs of up to 1024 vertices with density above 1/4 (where the search is hard and
-    the order matters) are peeled exactly, one vertex of minimum remaining degree at a
-    time (the lowest-numbered on ties: the smallest-last order of MCQ/MCS), in O(n^2).
-    Other graphs use Batagelj & Zaversnik's buckets, O(n W + m): the same core numbers,
-    a coarser order.
+
+@numba.njit(cache=True)
+def degeneracy_order(A, n):
+    """Smallest-last order (densest core first) and each vertex's core number.
+
+    Vertices are peeled one at a time, each time one of minimum degree in the graph that
+    remains; ``order[n - 1]`` is the first peeled, ``order[0]`` the last, so that the
+    search meets the densest core first (the initial order of MCQ/MCS), and the core
+    number of a vertex is the largest minimum degree seen up to its removal. Dense graphs
+    of up to 1024 vertices (density above 1/4, where the search is hard) break ties by
+    the lowest label, in O(n^2); other graphs keep the vertices sorted by remaining degree
+    in one array of buckets (Matula & Beck 1983, with the swaps of Batagelj & Zaversnik
+    2003), O(n W + m).
     """
     W = A.shape[1]
     deg = np.empty(n, np.int64)
@@ -225,11 +248,13 @@ def degeneracy_order(A, n):
         m2 += deg[v]
     if n <= 1024 and 4 * m2 > n * n:
         return _peel_exact(A, n, deg)
+    # vert: vertices sorted by remaining degree, bucket e starting at start[e]; the
+    # first i entries are peeled
     start = np.zeros(dmax + 2, np.int64)
     for v in range(n):
         start[deg[v] + 1] += 1
-    for d in range(dmax + 1):
-        start[d + 1] += start[d]
+    for e in range(dmax + 1):
+        start[e + 1] += start[e]
     vert = np.empty(n, np.int64)
     pos = np.empty(n, np.int64)
     fill = start.copy()
@@ -239,11 +264,18 @@ def degeneracy_order(A, n):
         fill[deg[v]] += 1
     order = np.empty(n, np.int64)
     core = np.empty(n, np.int64)
+    k = 0
     for i in range(n):
-        # invariant: vert[i:] are the remaining vertices sorted by deg, their degree in
-        # the remaining graph; start[d] is where degree d begins within vert[i:]
+        # invariant: vert[i:] hold the remaining vertices in non-decreasing remaining
+        # degree; bucket deg[vert[i]] begins at i, every higher bucket e at start[e]
+        # (after the two assignments below: buckets d - 1 and d begin at i + 1)
         v = vert[i]
-        core[v] = deg[v]
+        d = deg[v]
+        start[d] = i + 1
+        if d > 0:
+            start[d - 1] = i + 1  # empty: a vertex falling below d opens it
+        k = max(k, d)
+        core[v] = k
         order[n - 1 - i] = v
         for w in range(W):
             x = A[v, w]
@@ -251,20 +283,18 @@ def degeneracy_order(A, n):
                 b = _cttz(x)
                 x &= x - _ONE
                 u = w * 64 + int(b)
-                if deg[u] <= deg[v]:  # peeled already, or on the same level
+                pu = pos[u]
+                if pu <= i:  # peeled already
                     continue
-                # move u to the front of its degree bucket, then shrink the bucket
-                du = deg[u]
-                pw = start[du]
-                y = vert[pw]
-                if y != u:
-                    pu = pos[u]
-                    vert[pu] = y
-                    pos[y] = pu
-                    vert[pw] = u
-                    pos[u] = pw
-                start[du] = pw + 1
-                deg[u] = du - 1
+                # swap u to the front of bucket e and move the bucket's start past it:
+                # u ends bucket e - 1; then swap it to the front of that bucket, so that
+                # among equal degrees the vertex that lost a neighbour last is peeled first
+                e = deg[u]
+                pw = start[e]
+                _swap(vert, pos, pu, pw)
+                start[e] = pw + 1
+                _swap(vert, pos, pw, start[e - 1])
+                deg[u] = e - 1
     return order, core
 
 
@@ -319,17 +349,22 @@ def relabel(A, n, order):
 
 
 @numba.njit(cache=True)
-def greedy_clique(B, n, P, t0, time_limit):
-    """Best of the greedy cliques grown from every vertex (while time lasts).
+def greedy_clique(B, n, P, t0, time_limit, core):
+    """Best of the greedy cliques grown from each vertex (while time lasts).
 
     From ``s``: candidates ``N(s)``, then repeatedly add the lowest-numbered candidate (in
     the degeneracy numbering: the one deepest in the core) and intersect. O(n w W).
+    ``core[s]`` is the core number of ``s`` (non-increasing in the degeneracy numbering):
+    a clique through ``s`` has at most ``core[s] + 1`` vertices, so the starts end once
+    that cannot beat the best.
     """
     W = B.shape[1]
     best = np.empty(n, np.int64)
     bsize = 0
     cur = np.empty(n, np.int64)
     for s in range(n):
+        if core[s] + 1 <= bsize:
+            break
         if (s & 1023) == 1023 and _now() - t0 > time_limit:
             break
         for w in range(W):
@@ -939,12 +974,30 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
 
 
 @numba.njit(cache=True)
+def solve_dense(adj, floor, time_limit, t0, opts, out):
+    """:func:`pack_checked` then :func:`solve` in mode 0, in one call: the lean path of
+    ``max_clique`` for boolean matrices (no array crosses back into Python; the clique is
+    written to ``out[:size]``). Returns ``(size, nodes, status, u, v)``; ``status`` is -1
+    and ``(u, v)`` the defect when the matrix is not a valid adjacency."""
+    n = adj.shape[0]
+    A, u, v = pack_checked(adj)
+    if u >= 0:
+        return 0, 0, -1, u, v
+    best, nodes, status, _, _ = solve(A, n, floor, 0, 0, time_limit, t0, opts)
+    for i in range(best.shape[0]):
+        out[i] = best[i]
+    return best.shape[0], nodes, status, -1, -1
+
+
+@numba.njit(cache=True)
 def _maximum(B, n, order, core, floor, time_limit, t0, opts, maxsat, mask, U):
     """Mode 0 of :func:`solve`: ``(clique, nodes, status)`` in the renumbered labels."""
-    init = greedy_clique(B, n, U, t0, time_limit)
+    core_new = np.empty(n, np.int64)  # core numbers in the degeneracy numbering
     kmax = 0
     for i in range(n):
+        core_new[i] = core[order[i]]
         kmax = max(kmax, core[i])
+    init = greedy_clique(B, n, U, t0, time_limit, core_new)
     if init.shape[0] > kmax and init.shape[0] > floor:
         # a clique of size k + 1 needs a k-core: the degeneracy bound is met already
         return init, 1, 0

@@ -61,14 +61,31 @@ def _frozen_vertices(v) -> np.ndarray:
     if type(v) is np.ndarray and v.dtype == np.int64 and v.ndim == 1 and not v.flags.writeable:
         return v  # frozen already (the kernels return sorted vertices)
     a = np.sort(np.asarray(v, dtype=np.int64).reshape(-1))  # a fresh, sorted copy
-    a.flags.writeable = False
+    a.setflags(write=False)
     return a
 
 
 def _sealed(v: np.ndarray) -> np.ndarray:
     """A fresh sorted int64 array from a kernel, made read-only."""
-    v.flags.writeable = False
+    v.setflags(write=False)
     return v
+
+
+_new = object.__new__
+_set = object.__setattr__
+
+
+def _result(vertices, optimal, nodes, elapsed, weight=None) -> CliqueResult:
+    """A :class:`CliqueResult` from trusted parts (sorted, read-only int64 vertices),
+    without the generated ``__init__``: on graphs of a few dozen vertices building the
+    record would otherwise cost as much as the search."""
+    r = _new(CliqueResult)
+    _set(r, "vertices", vertices)
+    _set(r, "optimal", optimal)
+    _set(r, "nodes", nodes)
+    _set(r, "elapsed", elapsed)
+    _set(r, "weight", weight)
+    return r
 
 
 _K = None
@@ -217,25 +234,28 @@ def _check_adjacency(adj: np.ndarray) -> np.ndarray:
 def _bits_checked(adj: np.ndarray) -> np.ndarray:
     """Bitset rows of a boolean adjacency matrix, after checking it (square, symmetric,
     no self loop)."""
+    adj = _square(adj)
+    bits, u, v = _kernels().pack_checked(adj)
+    if u >= 0:
+        _defect(adj, u, v)
+    return bits
+
+
+def _square(adj: np.ndarray) -> np.ndarray:
+    """``adj`` C-contiguous, after checking that it is square."""
     if adj.ndim != 2 or adj.shape[0] != adj.shape[1]:
         raise GraphError(f"adjacency matrix must be square, got shape {adj.shape}")
-    K = _kernels()
-    adj = np.ascontiguousarray(adj)
-    if adj.shape[0] <= 64:
-        if not adj.flags.writeable:  # numba compiles read-only arrays separately
-            adj = adj.copy()
-        bits, u, v = K.pack_small(adj)
-    else:
-        bits = bitsets_from_adjacency(adj)
-        u, v = K.check_packed(adj, bits)
-    if u == v and u >= 0:
+    return adj if adj.flags.c_contiguous else np.ascontiguousarray(adj)
+
+
+def _defect(adj: np.ndarray, u: int, v: int):
+    """Raise the GraphError for the defect ``(u, v)`` that :func:`pack_checked` found."""
+    if u == v:
         raise GraphError(f"adjacency matrix has a self loop at vertex {u}")
-    if u >= 0:
-        raise GraphError(
-            f"adjacency matrix is not symmetric: ({u}, {v}) is {bool(adj[u, v])}, "
-            f"({v}, {u}) is {bool(adj[v, u])}"
-        )
-    return bits
+    raise GraphError(
+        f"adjacency matrix is not symmetric: ({u}, {v}) is {bool(adj[u, v])}, "
+        f"({v}, {u}) is {bool(adj[v, u])}"
+    )
 
 
 def _bits_of(graph) -> np.ndarray:
@@ -405,7 +425,31 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
     """
     t0 = time.perf_counter()
     tl = _limit(time_limit)
+    if weights is None and type(graph) is np.ndarray and graph.dtype == np.bool_:
+        return _max_clique_dense(graph, t0, tl, lower_bound)
     return _max_clique(_bits_of(graph), t0, tl, lower_bound, weights)
+
+
+def _max_clique_dense(adj, t0, tl, lower_bound) -> CliqueResult:
+    """:func:`max_clique` of a boolean matrix: one kernel call checks, packs and solves."""
+    adj = _square(adj)
+    n = adj.shape[0]
+    floor = 0 if lower_bound is None else max(int(lower_bound) - 1, 0)
+    if n == 0:
+        return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0)
+    K = _kernels()
+    out = np.empty(n, np.int64)
+    size, nodes, status, u, v = K.solve_dense(adj, floor, tl, t0, K.OPT_DEFAULT, out)
+    if status < 0:
+        _defect(adj, u, v)
+    optimal = status == 0 and size > floor
+    if size == 0 and n > 0:  # a single vertex is always a clique
+        out[0] = 0
+        size = 1
+        optimal = status == 0 and floor == 0
+    verts = out[:size]
+    verts.setflags(write=False)
+    return _result(verts, optimal, nodes, time.perf_counter() - t0)
 
 
 def _max_clique(A, t0, tl, lower_bound, weights) -> CliqueResult:
