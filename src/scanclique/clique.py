@@ -577,12 +577,15 @@ def top_cliques(graph, k, *, time_limit=None) -> tuple[np.ndarray, ...]:
 # --------------------------------------------------------------------------------------
 # Reference
 # --------------------------------------------------------------------------------------
-def bron_kerbosch(graph) -> Iterator[np.ndarray]:
+def bron_kerbosch(graph, *, min_size: int = 0) -> Iterator[np.ndarray]:
     """Every maximal clique, by Bron–Kerbosch with Tomita's pivot: the slow reference.
 
     Parameters
     ----------
     graph : bool (n, n) ndarray, edge list, networkx graph or DIMACS path
+    min_size : int
+        Only the maximal cliques of at least this many vertices; branches whose clique
+        and candidates together fall short are not explored (``|R| + |P| < min_size``).
 
     Yields
     ------
@@ -609,6 +612,8 @@ def bron_kerbosch(graph) -> Iterator[np.ndarray]:
     >>> import networkx as nx
     >>> sorted(c.tolist() for c in bron_kerbosch(nx.path_graph(3)))
     [[0, 1], [1, 2]]
+    >>> [c.tolist() for c in bron_kerbosch(nx.lollipop_graph(4, 2), min_size=3)]
+    [[0, 1, 2, 3]]
     """
     adj = as_adjacency(graph)
     n = adj.shape[0]
@@ -623,11 +628,12 @@ def bron_kerbosch(graph) -> Iterator[np.ndarray]:
     while True:
         # invariant: every vertex of P and X is adjacent to all of R; the cliques still to
         # report are those R ∪ S, S ⊆ P, that no vertex of X extends
-        if not P and not X:
-            yield np.array(sorted(R), dtype=np.int64)
-        if P:
-            u = max(_bits(P | X), key=lambda x: (P & N[x]).bit_count())
-            stack.append([R, P, X, P & ~N[u]])
+        if len(R) + P.bit_count() >= min_size:
+            if not P and not X:
+                yield np.array(sorted(R), dtype=np.int64)
+            if P:
+                u = max(_bits(P | X), key=lambda x: (P & N[x]).bit_count())
+                stack.append([R, P, X, P & ~N[u]])
         while stack:
             frame = stack[-1]
             R, P, X, todo = frame
