@@ -12,6 +12,12 @@ query's (the distance from the query to the ray at angle ``dphi`` is ``r sin(dph
 only that window of the sorted points is searched: exact, and a few points per query on a
 laser scan. A query nearer than ``d`` to the sensor searches everything.
 
+Caching: every kernel is compiled once and cached in ``__pycache__`` (``cache=True``).
+:func:`hypothesis_cliques` calls :func:`scanclique._clique_kernels.solve`; numba keys a
+cache by its own source file only, so after editing ``_clique_kernels.py`` in a working
+tree, delete ``__pycache__/_match_kernels.*`` (an installed release replaces both files
+and the cache with them).
+
 Poses are ``(x, y, theta)`` mapping B's frame into A's: ``p_a = R(theta) p_b + (x, y)``.
 Feature arrays follow :class:`scanclique.features.Features`: points ``(Np, 2)`` with
 covariances ``(Np, 2, 2)``, lines ``(Nl, 2)`` as ``(rho, alpha)`` with covariances; node
