@@ -640,12 +640,15 @@ def try_vertex(v, B, W, need, CL, P, S):
                     uvert[nunits] = w * 64 + int(_cttz(x))
                     break
             nunits += 1
-    # Re-NUMBER: keeps every class, so it is tried before anything is consumed
+    # Re-NUMBER: keeps every class, so it is tried before anything is consumed. The class
+    # that takes u must not be in SU, the conflicts of this candidate colour not yet
+    # retired: their proofs assumed the classes as they were, and u (unlike v, which is
+    # not adjacent to the candidates of its colour) could complete a clique there
     for qi in range(nunits):
         k = queue[qi]
         u = uvert[qi]
         for l in range(need):
-            if l == k or not active[l]:
+            if l == k or not active[l] or (SU[l >> 6] >> np.uint64(l & 63)) & _ONE:
                 continue
             ok = True
             for w in range(W):
