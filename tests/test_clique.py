@@ -1,9 +1,12 @@
 """Tests of scanclique.clique: the branch and bound must agree with Bron–Kerbosch.
 
-The property tests run a moderate number of examples by default; the acceptance run uses
-2000 (the issue's bar)::
-
-    SCANCLIQUE_HYPOTHESIS_EXAMPLES=2000 .venv/bin/pytest tests/test_clique.py -k property
+The property tests draw random graphs of up to 60 vertices at every density (2000 for the
+maximum cliques). The reference is :func:`bron_kerbosch` with ``min_size`` set to the size
+the solver claims: it then lists every maximal clique at least that large, which must be
+exactly the solver's maximum cliques (a larger clique, or none of that size, would show).
+``SCANCLIQUE_HYPOTHESIS_EXAMPLES`` changes the number of examples. The DIMACS graphs whose
+search takes seconds run with ``SCANCLIQUE_SLOW_TESTS=1`` (``benchmarks/clique.py``
+checks the clique number of all 27 on every run).
 """
 
 from __future__ import annotations
@@ -33,13 +36,14 @@ from scanclique.errors import GraphError, ScanCliqueError
 
 nx = pytest.importorskip("networkx")
 
-EXAMPLES = int(os.environ.get("SCANCLIQUE_HYPOTHESIS_EXAMPLES", "60"))
-PROPERTY = settings(
-    max_examples=EXAMPLES,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow],
-    derandomize=EXAMPLES <= 150,
-)
+EXAMPLES = int(os.environ.get("SCANCLIQUE_HYPOTHESIS_EXAMPLES", "2000"))
+SLOW = os.environ.get("SCANCLIQUE_SLOW_TESTS", "") not in ("", "0")
+
+
+def property_settings(examples: int):
+    return settings(
+        max_examples=examples, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    )
 
 
 def random_graph(n: int, p: float, seed: int) -> np.ndarray:
@@ -60,9 +64,24 @@ def maximum_cliques_reference(adj):
     return omega, sorted(c for c in cl if len(c) == omega)
 
 
-graphs = st.tuples(st.integers(0, 60), st.floats(0.0, 1.0), st.integers(0, 2**32 - 1)).map(
-    lambda t: random_graph(*t)
-)
+SEEDS = st.integers(0, 2**32 - 1)
+
+
+def graphs_up_to(n_max: int, n_max_dense: int):
+    """Random graphs at every density; above density 0.8 at most ``n_max_dense`` vertices
+    (there the pure-Python reference takes a tenth of a second per graph at 60)."""
+    return (
+        st.floats(0.0, 1.0)
+        .flatmap(
+            lambda p: st.tuples(
+                st.integers(0, n_max if p <= 0.8 else n_max_dense), st.just(p), SEEDS
+            )
+        )
+        .map(lambda t: random_graph(*t))
+    )
+
+
+graphs = graphs_up_to(60, 40)
 
 
 # -- known graphs --------------------------------------------------------------------------
@@ -171,30 +190,39 @@ def test_bitsets_from_adjacency():
 
 
 # -- agreement with the reference ----------------------------------------------------------
-@PROPERTY
+@property_settings(EXAMPLES)
 @given(graphs)
 def test_property_max_clique_vs_bron_kerbosch(adj):
-    omega, maximum = maximum_cliques_reference(adj)
     r = max_clique(adj)
-    assert r.optimal and r.size == omega and is_clique(adj, r.vertices)
+    assert r.optimal and is_clique(adj, r.vertices)
     a = all_maximum_cliques(adj, limit=10**6)
-    assert a.omega == omega and a.complete and a.optimal
-    assert [c.tolist() for c in a.cliques] == maximum
+    assert (a.omega, a.complete, a.optimal) == (r.size, True, True)
+    # every maximal clique of at least r.size vertices: all of size r.size (so omega is not
+    # larger) and at least one (so it is not smaller); they are the maximum cliques
+    ref = sorted(c.tolist() for c in bron_kerbosch(adj, min_size=r.size))
+    assert all(len(c) == r.size for c in ref) and len(ref) >= min(adj.shape[0], 1)
+    assert [c.tolist() for c in a.cliques] == ref
 
 
-@PROPERTY
-@given(graphs, st.integers(1, 5))
-def test_property_top_cliques(adj, k):
-    cl = sorted((c.tolist() for c in bron_kerbosch(adj)), key=lambda c: (-len(c), c))
-    got = top_cliques(adj, k)
-    assert [len(c) for c in got] == [len(c) for c in cl[:k]]
-    maximal = {tuple(c) for c in cl}
-    assert all(tuple(c.tolist()) in maximal for c in got)
-    assert len({tuple(c.tolist()) for c in got}) == len(got)
+@property_settings(max(EXAMPLES // 4, 20))
+@given(graphs, st.integers(1, 6))
+def test_property_top_cliques_vs_maximal_cliques(adj, k):
+    got = [c.tolist() for c in top_cliques(adj, k)]
+    assert len({tuple(c) for c in got}) == len(got) <= k
+    assert [len(c) for c in got] == sorted((len(c) for c in got), reverse=True)
+    # all maximal cliques at least as large as the smallest returned (all of them when
+    # fewer than k came back): the k largest of these must match in size
+    smallest = len(got[-1]) if len(got) == k else 0
+    ref = sorted(
+        (c.tolist() for c in bron_kerbosch(adj, min_size=smallest)), key=lambda c: (-len(c), c)
+    )
+    maximal = {tuple(c) for c in ref}
+    assert all(tuple(c) in maximal for c in got)
+    assert [len(c) for c in got] == [len(c) for c in ref[:k]]
 
 
-@settings(max_examples=max(EXAMPLES // 3, 20), deadline=None, derandomize=EXAMPLES <= 150)
-@given(graphs, st.integers(0, 2**32 - 1), st.booleans())
+@property_settings(max(EXAMPLES // 10, 20))
+@given(graphs_up_to(40, 30), SEEDS, st.booleans())
 def test_property_weighted_vs_networkx(adj, seed, integer):
     n = adj.shape[0]
     rng = np.random.default_rng(seed)
@@ -209,6 +237,24 @@ def test_property_weighted_vs_networkx(adj, seed, integer):
     assert r.optimal and is_clique(adj, r.vertices)
     assert r.weight == pytest.approx(ref, rel=1e-9, abs=1e-9)
     assert r.weight == pytest.approx(float(np.sum(w[r.vertices])))
+
+
+@property_settings(max(EXAMPLES // 8, 20))
+@given(st.tuples(st.integers(40, 100), st.floats(0.6, 0.97), SEEDS).map(lambda t: random_graph(*t)))
+def test_property_maxsat_filter_is_exact(adj):
+    # dense graphs beyond the reference's reach: the search with the MaxSAT-style filter
+    # (from the first node, or after local search as by default) must find the clique
+    # number and every maximum clique that the plain colouring bound finds
+    from scanclique import _clique_kernels as K
+
+    A = bitsets_from_adjacency(adj)
+    n = adj.shape[0]
+    runs = [K.solve(A, n, 0, 2, 10**6, np.inf, time.perf_counter(), opts) for opts in (0, 1, 3)]
+    omegas = {r[0].shape[0] for r in runs}
+    assert len(omegas) == 1 and all(r[2] == 0 and r[4] == 0 for r in runs)
+    found = [sorted(map(tuple, r[3].tolist())) for r in runs]
+    assert found[0] == found[1] == found[2] and len(found[0]) >= 1
+    assert all(is_clique(adj, c) for c in found[0])
 
 
 def test_weights_all_equal_is_max_clique():
@@ -245,15 +291,14 @@ def test_time_limit_is_honoured():
     assert len(top_cliques(adj, 3, time_limit=0.1)) == 3
 
 
-@pytest.mark.slow
 def test_time_limit_on_a_graph_that_cannot_be_finished():
     adj = random_graph(1000, 0.9, 6)  # the issue's case: far beyond any exact search
-    max_clique(random_graph(70, 0.5, 0))
+    max_clique(random_graph(70, 0.5, 0))  # kernels loaded (or compiled) outside the clock
     t = time.perf_counter()
-    r = max_clique(adj, time_limit=0.5)
+    r = max_clique(adj, time_limit=1.0)
     wall = time.perf_counter() - t
     assert not r.optimal and is_clique(adj, r.vertices) and r.size >= 50
-    assert 0.5 <= r.elapsed <= wall <= 0.55 + 0.02  # within 10 % (+ result assembly)
+    assert 1.0 <= r.elapsed <= wall <= 1.1  # within 10 %, result assembly included
 
 
 # -- CLI helper ----------------------------------------------------------------------------
@@ -268,24 +313,79 @@ def test_solve_file(tmp_path):
     assert out["cliques"] == [[1, 2, 3, 4]] and out["complete"]
 
 
+# -- command line --------------------------------------------------------------------------
+def test_cli_clique(tmp_path):
+    from typer.testing import CliRunner
+
+    from scanclique import cli
+    from scanclique.io.dimacs import write_dimacs
+
+    path = tmp_path / "g.clq"
+    write_dimacs(path, nx.to_numpy_array(nx.turan_graph(9, 3), dtype=bool))
+    runner = CliRunner()
+    res = runner.invoke(cli.app, ["clique", str(path), "--all", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert (out["omega"], out["optimal"], len(out["cliques"]), out["complete"]) == (
+        3,
+        True,
+        27,
+        True,
+    )
+    res = runner.invoke(cli.app, ["clique", str(path), "--time-limit", "5"])
+    assert res.exit_code == 0 and "optimal" in res.output
+    res = runner.invoke(cli.app, ["clique", str(tmp_path / "missing.clq")])
+    assert res.exit_code != 0
+
+
 # -- real data -----------------------------------------------------------------------------
 def _dimacs_dir() -> Path:
     root = Path(__file__).resolve().parents[1]
     return Path(os.environ.get("SCANCLIQUE_DATA", root.parent / "shared" / "data")) / "dimacs"
 
 
-@pytest.mark.realdata
-@pytest.mark.parametrize(
-    "name", ["johnson8-4-4", "hamming8-4", "MANN_a9", "san200_0.9_1", "c-fat200-5", "keller4"]
-)
-def test_dimacs_omega(name):
-    d = _dimacs_dir()
-    if not (d / "omega.txt").exists():
-        pytest.skip(f"DIMACS data not found in {d} (set SCANCLIQUE_DATA)")
-    omega = {
+def _omega_table() -> dict[str, int]:
+    table = _dimacs_dir() / "omega.txt"
+    if not table.exists():
+        return {}
+    return {
         ln.split()[0]: int(ln.split()[2])
-        for ln in (d / "omega.txt").read_text().splitlines()
+        for ln in table.read_text().splitlines()
         if ln.strip() and not ln.startswith("#")
     }
-    r = max_clique(d / f"{name}.clq")
-    assert r.optimal and r.size == omega[name]
+
+
+OMEGA = _omega_table()
+SLOW_DIMACS = {"sanr200_0.9"}  # about 3 s; every other graph well under 0.5 s
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(
+            name,
+            marks=[
+                pytest.mark.slow,
+                pytest.mark.skipif(not SLOW, reason="seconds; set SCANCLIQUE_SLOW_TESTS=1"),
+            ],
+        )
+        if name in SLOW_DIMACS
+        else name
+        for name in sorted(OMEGA)
+    ]
+    or ["no-data"],
+)
+def test_dimacs_omega(name):
+    if not OMEGA:
+        pytest.skip(f"DIMACS data not found: {_dimacs_dir()}/omega.txt (set SCANCLIQUE_DATA)")
+    r = max_clique(_dimacs_dir() / f"{name}.clq")
+    assert r.optimal and r.size == OMEGA[name] and r.vertices.shape[0] == OMEGA[name]
+    adj = as_adjacency(_dimacs_dir() / f"{name}.clq")
+    assert is_clique(adj, r.vertices)
+
+
+def test_dimacs_table_has_all_27():
+    if not OMEGA:
+        pytest.skip(f"DIMACS data not found: {_dimacs_dir()}/omega.txt (set SCANCLIQUE_DATA)")
+    assert len(OMEGA) == 27
