@@ -2,32 +2,52 @@
 
 One command::
 
-    .venv/bin/python benchmarks/clique.py                      # everything, 60 s per solve
+    .venv/bin/python benchmarks/clique.py                  # everything (hours: peers time out)
     .venv/bin/python benchmarks/clique.py --graphs brock200_1 sanr200_0.9 --time-limit 20
-    .venv/bin/python benchmarks/clique.py --no-dimacs --pairs 40   # scan pairs only
+    .venv/bin/python benchmarks/clique.py --no-dimacs --pairs 5 --large 4 --time-limit 10
 
-Graphs: the 27 DIMACS instances of ``$SCANCLIQUE_DATA/dimacs`` (default ``../shared/data``
-beside the repository; the clique number is checked against ``omega.txt``), and
-correspondence graphs of real scan pairs built by the pipeline (when
-``scanclique.correspondence`` is available).
+Graphs
+    * the 27 DIMACS instances of ``$SCANCLIQUE_DATA/dimacs`` (default ``../shared/data``
+      beside the repository); every solver's clique number is checked against
+      ``omega.txt``;
+    * correspondence graphs of real scan pairs of the shared logs (intel, csail, freiburg),
+      built by the pipeline (``scanclique.match.prepare_scan``, then
+      ``scanclique.correspondence.correspondence_graph``) on the pair sets of
+      ``benchmarks/pairs.py`` (consecutive, skip3, revisit):
+
+      - *pipeline*: the default ``MatchConfig``, ``--pairs`` pairs per log and set;
+      - *large*: permissive feature extraction (more, smaller features) and tolerances
+        ``--loose`` times the defaults, on pairs where both scans have at least 60 features,
+        ``--large`` pairs spread over csail and freiburg (intel scans rarely have 60).
+
+      These have no published clique number: the solvers that finish must agree.
 
 Method. Each solver gets the graph in its own native form, built before the clock starts
-(ours: the boolean adjacency matrix, which is what the pipeline hands over). Every solve
-runs in a forked child process, so that a solver which overruns the limit can be stopped:
-a timeout counts as the limit (60 s). The time is the CPU time of the solve call in the
-child (the solvers are single-threaded; CPU time is steadier than wall time on a shared
-machine); solves under 0.2 s are repeated and the median taken. Our compiled kernels are
-loaded before the fork, and their one-off cost (cache load, compilation) is reported
-separately. Ratios are ours / peer: below 1 we are faster.
+(ours: the boolean adjacency matrix, which is what the pipeline hands over; igraph: an
+``igraph.Graph``; networkx: an ``nx.Graph``; cliquematch: ``Graph.from_edgelist``). Every
+(solver, graph) runs in a forked child process, so that a solver which overruns the limit
+can be stopped; a timeout counts as the limit (60 s). The time is the CPU time of the solve
+call (all solvers are single-threaded; CPU time is steadier than wall time on a shared
+machine); a solve shorter than 0.2 s is repeated back to back for 0.2 s and the mean taken.
+Our compiled kernels are loaded before the fork; their one-off cost (compilation into an
+empty cache, and loading from the cache) is measured separately, in fresh processes. A
+final check runs our solver with a time limit on a graph it cannot finish (1000 vertices,
+density 0.9) and reports the overshoot. Ratios are ours / peer: below 1 we are faster.
+
+Output: the report on stdout and in ``benchmarks/results/clique-<date>.md``, all numbers
+with the machine, versions and load average in ``clique-<date>.json``.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
+import importlib.metadata
+import json
 import math
 import multiprocessing as mp
 import os
-import statistics
+import platform
 import subprocess
 import sys
 import tempfile
@@ -39,11 +59,17 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
+sys.path.insert(0, str(REPO / "benchmarks"))
 
-from scanclique.clique import max_clique  # noqa: E402
+from scanclique.clique import all_maximum_cliques, max_clique, top_cliques  # noqa: E402
 from scanclique.io.dimacs import read_dimacs  # noqa: E402
 
 PEERS = ("igraph", "networkx", "cliquematch")
+LOGS = ("intel", "csail", "freiburg")
+LARGE_LOGS = ("csail", "freiburg")
+MIN_FEATURES = 60  # per scan, for the large correspondence graphs
+LARGE_CAP = 60  # pairs per log and pair set searched for large graphs
+MIN_TIME = 0.2  # seconds of back-to-back repeats for a fast solve
 
 
 def data_dir() -> Path:
@@ -53,9 +79,10 @@ def data_dir() -> Path:
 @dataclass
 class Graph:
     name: str
+    group: str  # "dimacs", "pipeline" or "large"
     adj: np.ndarray
     edges: np.ndarray  # (m, 2) 0-based, u < v
-    omega: int | None  # known clique number, if any
+    omega: int | None  # published clique number, if any
 
     @property
     def n(self) -> int:
@@ -67,8 +94,13 @@ class Graph:
         return 0.0 if n < 2 else 2.0 * len(self.edges) / (n * (n - 1))
 
 
+def _graph(name: str, group: str, adj: np.ndarray, omega=None) -> Graph:
+    iu, ju = np.nonzero(np.triu(adj, 1))
+    return Graph(name, group, adj, np.stack([iu, ju], 1).astype(np.int64), omega)
+
+
 # --------------------------------------------------------------------------------------
-# Solvers: build (untimed) and solve (timed); each returns the clique number found
+# Solvers: build (untimed) and solve (timed); each solve returns the clique number found
 # --------------------------------------------------------------------------------------
 def _build(solver: str, g: Graph):
     if solver == "ours":
@@ -105,55 +137,70 @@ def _solve(solver: str, G, time_limit: float) -> tuple[int, int | None]:
         return int(w), None
     if solver == "cliquematch":
         G.reset_search()
-        return len(G.get_max_clique()), None  # defaults: exact (heuristic, then DFS)
+        return len(G.get_max_clique()), None  # defaults: exact (heuristic, then search)
     raise ValueError(solver)
 
 
-def _child(conn, solver: str, g: Graph, time_limit: float, min_time: float) -> None:
+_WARM = None
+
+
+def _warm_graph() -> Graph:
+    """A small graph each child solves once, untimed, before the measured solve (lazy
+    imports and first-call set-up of every solver stay out of the clock)."""
+    global _WARM
+    if _WARM is None:
+        rng = np.random.default_rng(1)
+        a = np.triu(rng.random((40, 40)) < 0.5, 1)
+        _WARM = _graph("warm", "warm", a | a.T)
+    return _WARM
+
+
+def _child(conn, solver: str, g: Graph, time_limit: float) -> None:
     try:
+        w = _warm_graph()
+        _solve(solver, _build(solver, w), time_limit)
         G = _build(solver, g)
-        times = []
-        omega = nodes = None
+        reps = 0
+        c0 = time.process_time()
         while True:
-            c0 = time.process_time()
             omega, nodes = _solve(solver, G, time_limit)
-            times.append(time.process_time() - c0)
-            if sum(times) >= min_time or len(times) >= 200:
+            reps += 1
+            spent = time.process_time() - c0
+            if spent >= MIN_TIME or omega == -1:
                 break
-        conn.send(("ok", omega, statistics.median(times), nodes, len(times)))
+        conn.send(("ok", omega, spent / reps, nodes, reps))
     except Exception as e:  # reported in the table, never fatal
         conn.send(("error", f"{type(e).__name__}: {e}", None, None, 0))
     finally:
         conn.close()
 
 
-def run_one(solver: str, g: Graph, time_limit: float, min_time: float = 0.2):
-    """Solve in a forked child; returns dict(status, omega, seconds, nodes)."""
+def run_one(solver: str, g: Graph, time_limit: float) -> dict:
+    """Solve in a forked child: ``{status: ok | timeout | error, omega, seconds, ...}``."""
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_child, args=(send, solver, g, time_limit, min_time))
+    p = ctx.Process(target=_child, args=(send, solver, g, time_limit))
     p.start()
     send.close()
-    # the child may repeat a fast solve; allow for its building time too
-    if recv.poll(time_limit + 5.0):
-        status, omega, sec, nodes, reps = recv.recv()
+    # wall-clock guard: CPU time is what is measured, but another job may share the core
+    if not recv.poll(1.5 * time_limit + 10.0):
+        p.kill()
         p.join()
-        if status == "error":
-            return {"status": "error", "message": omega, "seconds": time_limit}
-        if omega == -1:  # ours hit its own limit
-            return {"status": "timeout", "seconds": time_limit, "nodes": nodes}
-        return {"status": "ok", "omega": omega, "seconds": sec, "nodes": nodes, "reps": reps}
-    p.kill()
+        return {"status": "timeout", "seconds": time_limit}
+    status, omega, sec, nodes, reps = recv.recv()
     p.join()
-    return {"status": "timeout", "seconds": time_limit}
+    if status == "error":
+        return {"status": "error", "message": omega, "seconds": time_limit}
+    if omega == -1 or sec > time_limit:  # ours stopped at its limit, or a peer overran it
+        return {"status": "timeout", "seconds": time_limit, "nodes": nodes}
+    return {"status": "ok", "omega": omega, "seconds": sec, "nodes": nodes, "reps": reps}
 
 
 def available_peers(wanted) -> tuple[list[str], list[str]]:
     have, notes = [], []
     for peer in wanted:
-        mod = {"igraph": "igraph", "networkx": "networkx", "cliquematch": "cliquematch"}[peer]
         try:
-            __import__(mod)
+            __import__(peer)
             have.append(peer)
         except ImportError:
             pip = {"igraph": "python-igraph"}.get(peer, peer)
@@ -179,74 +226,231 @@ def dimacs_graphs(names=None) -> tuple[list[Graph], str | None]:
         if names and name not in names:
             continue
         dg = read_dimacs(d / f"{name}.clq")
-        out.append(Graph(name, dg.adjacency(), dg.edges, omega[name]))
+        out.append(Graph(name, "dimacs", dg.adjacency(), dg.edges.astype(np.int64), omega[name]))
     return out, None
 
 
-# ---- HOOK: correspondence graphs of real scan pairs -----------------------------------
-# Built by the pipeline itself (scanclique.correspondence.correspondence_graph over the
-# feature graphs of two scans). Skipped with a message when that module, the log or the
-# pipeline's helpers are missing.
-def correspondence_graphs(n_pairs: int, log_name: str = "intel") -> tuple[list[Graph], str | None]:
+def large_config(loose: float):
+    """Permissive features (no crowd filter, single-beam clusters, shorter lines) and
+    every correspondence tolerance times ``loose``."""
+    from scanclique.config import CorrespondenceConfig, FeatureConfig, MatchConfig
+
+    c = CorrespondenceConfig()
+    return MatchConfig(
+        features=FeatureConfig(
+            crowd_radius=0.0, min_cluster_beams=1, line_min_length=0.2, line_min_points=4
+        ),
+        correspondence=CorrespondenceConfig(
+            point_point=c.point_point * loose,
+            point_line=c.point_line * loose,
+            line_line=c.line_line * loose,
+        ),
+    )
+
+
+def correspondence_graphs(
+    pairs_per_set: int, n_large: int, loose: float
+) -> tuple[list[Graph], list[str]]:
+    """The pipeline and large correspondence graphs (see the module docstring)."""
     try:
+        import pairs as pair_sets
+
+        from scanclique.config import MatchConfig
         from scanclique.correspondence import correspondence_graph
         from scanclique.datasets import load_log
         from scanclique.match import prepare_scan
     except ImportError as e:
-        return [], f"correspondence graphs: pipeline not available ({e}); section skipped"
-    try:
-        scans = load_log(log_name)
-    except Exception as e:  # DataNotFoundError, ParseError
-        return [], f"correspondence graphs: cannot load the {log_name} log ({e}); section skipped"
-    rng = np.random.default_rng(0)
-    out = []
-    half = max(n_pairs // 2, 1)
-    # consecutive pairs, spread over the log, and pairs five scans apart
-    firsts = np.linspace(0, len(scans) - 6, half).astype(int)
-    pairs = [(int(i), int(i) + 1) for i in firsts] + [(int(i), int(i) + 5) for i in firsts]
-    rng.shuffle(pairs)
-    prepared = {}
-    for i, j in sorted(pairs[:n_pairs]):
-        for k in (i, j):
-            if k not in prepared:
-                prepared[k] = prepare_scan(scans[k])
-        cg = correspondence_graph(prepared[i].graph, prepared[j].graph)
-        adj = np.ascontiguousarray(cg.adjacency)
-        iu, ju = np.nonzero(np.triu(adj, 1))
-        out.append(Graph(f"{log_name}:{i}-{j}", adj, np.stack([iu, ju], 1), None))
-    return out, None
+        return [], [f"correspondence graphs: pipeline not available ({e}); skipped"]
+    out: list[Graph] = []
+    notes: list[str] = []
+    configs = []
+    if pairs_per_set > 0:
+        configs.append(("pipeline", MatchConfig(), LOGS, pairs_per_set))
+    if n_large > 0:
+        configs.append(("large", large_config(loose), LARGE_LOGS, LARGE_CAP))
+    for group, cfg, logs, cap in configs:
+        found: list[Graph] = []
+        for log_name in logs:
+            try:
+                scans = load_log(log_name)
+            except Exception as e:  # DataNotFoundError, ParseError
+                notes.append(f"{group}: cannot load the {log_name} log ({e}); skipped")
+                continue
+            prepared: dict = {}
+
+            def prep(k, scans=scans, prepared=prepared, cfg=cfg):
+                if k not in prepared:
+                    prepared[k] = prepare_scan(scans[k], cfg)
+                return prepared[k]
+
+            for set_name, pairs in pair_sets.pair_sets(scans, cap=cap).items():
+                for i, j in pairs:
+                    pa, pb = prep(i), prep(j)
+                    if group == "large" and min(pa.graph.n_nodes, pb.graph.n_nodes) < MIN_FEATURES:
+                        continue
+                    cg = correspondence_graph(pa.graph, pb.graph, cfg.correspondence)
+                    found.append(_graph(f"{log_name}:{set_name}:{i}-{j}", group, cg.adjacency))
+        if group == "large":
+            found = pair_sets.evenly(found, n_large)
+        out += found
+    return out, notes
 
 
 # --------------------------------------------------------------------------------------
-# First-call cost
+# First-call cost and the time-limit check
 # --------------------------------------------------------------------------------------
-_FIRST = (
-    "import time; t = time.perf_counter();"
-    "import numpy as np; from scanclique.clique import max_clique, top_cliques;"
-    "max_clique(np.zeros((2, 2), bool)); max_clique(np.zeros((2, 2), bool), weights=[1, 1]);"
-    "top_cliques(np.zeros((2, 2), bool), 1); print(time.perf_counter() - t)"
-)
+_FIRST = """
+import json, time
+t = time.perf_counter()
+import numpy as np
+from scanclique.clique import all_maximum_cliques, max_clique, top_cliques
+t_import = time.perf_counter() - t
+a = np.zeros((70, 70), bool); a[0, 1] = a[1, 0] = True
+t = time.perf_counter(); max_clique(a); t_first = time.perf_counter() - t
+t = time.perf_counter()
+all_maximum_cliques(a); max_clique(a, weights=np.ones(70)); top_cliques(a, 2)
+t_rest = time.perf_counter() - t
+print(json.dumps({"import": t_import, "max_clique": t_first, "other_entry_points": t_rest}))
+"""
 
 
-def first_call_cost(compile_too: bool) -> list[str]:
+def first_call_cost(compile_too: bool) -> dict:
+    """Seconds of a fresh process: importing the module, the first ``max_clique`` call and
+    the first calls of the other entry points; with the kernels cached on disk (the normal
+    case) and, when asked, with an empty cache (numba compiles them)."""
     env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    lines = []
-    r = subprocess.run([sys.executable, "-c", _FIRST], env=env, capture_output=True, text=True)
-    if r.returncode == 0:
-        lines.append(f"first call, kernels cached: {float(r.stdout):.2f} s (import + cache load)")
-    if compile_too:
+    out = {}
+    runs = [("cached", None)] + ([("empty_cache", "tmp")] if compile_too else [])
+    for label, cache in runs:
         with tempfile.TemporaryDirectory() as tmp:
-            env["NUMBA_CACHE_DIR"] = tmp
+            if cache:
+                env["NUMBA_CACHE_DIR"] = tmp
             r = subprocess.run(
                 [sys.executable, "-c", _FIRST], env=env, capture_output=True, text=True
             )
         if r.returncode == 0:
-            lines.append(f"first call, empty cache:    {float(r.stdout):.2f} s (numba compilation)")
-    return lines
+            out[label] = json.loads(r.stdout.strip().splitlines()[-1])
+        else:
+            out[label] = {"error": r.stderr.strip().splitlines()[-1:]}
+    return out
+
+
+def random_graph(n: int, p: float, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    a = np.triu(rng.random((n, n)) < p, 1)
+    return a | a.T
+
+
+def time_limit_check(limits=(0.1, 1.0, 10.0), n: int = 1000, p: float = 0.9) -> list[dict]:
+    """Our solver on a graph it cannot finish: wall time of the call against the limit,
+    and whether the returned vertices form a clique."""
+    out = []
+    for k, limit in enumerate(limits):
+        adj = random_graph(n, p, 100 + k)
+        t = time.perf_counter()
+        r = max_clique(adj, time_limit=limit)
+        wall = time.perf_counter() - t
+        v = r.vertices
+        valid = bool((adj[np.ix_(v, v)] | np.eye(len(v), dtype=bool)).all())
+        out.append(
+            {
+                "n": n,
+                "density": p,
+                "limit": limit,
+                "wall": wall,
+                "elapsed": r.elapsed,
+                "overshoot": wall / limit - 1.0,
+                "size": r.size,
+                "optimal": r.optimal,
+                "valid": valid,
+                "nodes": r.nodes,
+            }
+        )
+    return out
 
 
 # --------------------------------------------------------------------------------------
-# Table
+# Runs and summaries
+# --------------------------------------------------------------------------------------
+def _gmean(xs) -> float:
+    xs = [x for x in xs if x > 0 and math.isfinite(x)]
+    return math.exp(sum(math.log(x) for x in xs) / len(xs)) if xs else float("nan")
+
+
+def run_graphs(graphs: list[Graph], peers: list[str], limit: float) -> list[dict]:
+    rows = []
+    for k, g in enumerate(graphs):
+        res = {"ours": run_one("ours", g, limit)}
+        for p in peers:
+            res[p] = run_one(p, g, limit)
+        row = {
+            "graph": g.name,
+            "group": g.group,
+            "n": g.n,
+            "m": len(g.edges),
+            "density": g.density,
+            "omega_known": g.omega,
+            "results": res,
+        }
+        row["problems"] = _problems(g, res)
+        rows.append(row)
+        print(f"[{k + 1}/{len(graphs)}] " + _line(row, peers, limit), file=sys.stderr, flush=True)
+    return rows
+
+
+def _problems(g: Graph, res: dict) -> list[str]:
+    found = {s: r["omega"] for s, r in res.items() if r["status"] == "ok"}
+    out = [f"{s} failed: {r['message']}" for s, r in res.items() if r["status"] == "error"]
+    ref = g.omega if g.omega is not None else found.get("ours")
+    for s, w in found.items():
+        if ref is not None and w != ref:
+            what = "omega.txt" if g.omega is not None else "ours"
+            out.append(f"{s} found {w}, {what} says {ref}")
+    return out
+
+
+def _line(row, peers, limit) -> str:
+    r = row["results"]
+    cells = [row["graph"], str(row["n"]), _fmt_t(r["ours"], limit)]
+    cells += [f"{p} {_fmt_t(r[p], limit)}" for p in peers]
+    return "  ".join(cells)
+
+
+def summarise(rows: list[dict], peers: list[str]) -> dict:
+    ratios = {p: [] for p in peers}
+    best = []
+    faster = {p: 0 for p in peers}
+    solved_1 = solved_10 = solved = 0
+    for row in rows:
+        r = row["results"]
+        t = r["ours"]["seconds"]
+        ok = r["ours"]["status"] == "ok"
+        solved += ok
+        solved_1 += ok and t <= 1.0
+        solved_10 += ok and t <= 10.0
+        usable = [p for p in peers if r[p]["status"] != "error"]
+        for p in usable:
+            q = t / r[p]["seconds"]
+            ratios[p].append(q)
+            faster[p] += q < 1.0
+        if usable:
+            best.append(t / min(r[p]["seconds"] for p in usable))
+        row["ours_over_best"] = best[-1] if usable else None
+    return {
+        "graphs": len(rows),
+        "solved": solved,
+        "solved_within_1s": solved_1,
+        "solved_within_10s": solved_10,
+        "gmean_ours_over_peer": {p: _gmean(ratios[p]) for p in peers},
+        "gmean_ours_over_best": _gmean(best),
+        "max_ours_over_best": max(best) if best else None,
+        "faster_than": {p: [faster[p], len(ratios[p])] for p in peers},
+        "problems": [f"{row['graph']}: {m}" for row in rows for m in row["problems"]],
+    }
+
+
+# --------------------------------------------------------------------------------------
+# Report
 # --------------------------------------------------------------------------------------
 def _fmt_t(res, limit) -> str:
     if res["status"] == "timeout":
@@ -257,92 +461,101 @@ def _fmt_t(res, limit) -> str:
     return f"{s:.2e}" if s < 0.01 else f"{s:.3f}"
 
 
-def _gmean(xs) -> float:
-    xs = [x for x in xs if x > 0 and math.isfinite(x)]
-    return math.exp(sum(math.log(x) for x in xs) / len(xs)) if xs else float("nan")
+def _fmt_q(q) -> str:
+    return "-" if q is None or not math.isfinite(q) else f"{q:.3g}"
 
 
-def section(title: str, graphs: list[Graph], peers: list[str], limit: float) -> list[str]:
-    rows, notes = [], []
-    ratios = {p: [] for p in peers}
-    best_ratios = []
-    faster = {p: 0 for p in peers}
-    ours_times = []
-    for g in graphs:
-        res = {"ours": run_one("ours", g, limit)}
-        for p in peers:
-            res[p] = run_one(p, g, limit)
-        t_ours = res["ours"]["seconds"]
-        ours_times.append(t_ours)
-        flags = []
-        for s, r in res.items():
-            if r["status"] == "error":
-                notes.append(f"{g.name}: {s} failed: {r['message']}")
-            elif r["status"] == "ok" and g.omega is not None and r["omega"] != g.omega:
-                flags.append(f"{s} found {r['omega']} != omega {g.omega}")
-        ok_peers = [p for p in peers if res[p]["status"] != "error"]
-        cells = [g.name, str(g.n), f"{g.density:.2f}"]
-        om = res["ours"].get("omega", "?") if res["ours"]["status"] == "ok" else "?"
-        cells += [str(om), _fmt_t(res["ours"], limit), str(res["ours"].get("nodes", ""))]
-        for p in peers:
-            cells.append(_fmt_t(res[p], limit))
-            if p in ok_peers:
-                q = t_ours / res[p]["seconds"]
-                ratios[p].append(q)
-                faster[p] += t_ours < res[p]["seconds"]
-                cells.append(f"{q:.3g}")
-            else:
-                cells.append("-")
-        if ok_peers:
-            best = min(res[p]["seconds"] for p in ok_peers)
-            best_ratios.append(t_ours / best)
-            cells.append(f"{t_ours / best:.3g}")
-        else:
-            cells.append("-")
-        if flags:
-            notes.append(f"{g.name}: " + "; ".join(flags))
-        rows.append(cells)
-        print("  " + "  ".join(cells), file=sys.stderr, flush=True)
+def table(rows: list[dict], peers: list[str], limit: float) -> str:
     head = ["graph", "n", "dens", "omega", "ours s", "nodes"]
     for p in peers:
         head += [f"{p} s", "ratio"]
     head.append("ours/best")
-    summary = ["geo. mean"] + [""] * 5
-    for p in peers:
-        summary += ["", f"{_gmean(ratios[p]):.3g}"]
-    summary.append(f"{_gmean(best_ratios):.3g}")
-    rows.append(summary)
-    out = [title, _table(head, rows)]
-    out.append(
-        f"ours: {sum(t <= 1 for t in ours_times)}/{len(graphs)} within 1 s, "
-        f"{sum(t <= 10 for t in ours_times)}/{len(graphs)} within 10 s; "
-        + ", ".join(f"faster than {p} on {faster[p]}/{len(ratios[p])}" for p in peers)
-    )
-    out += notes
+    body = []
+    for row in rows:
+        r = row["results"]
+        o = r["ours"]
+        om = o["omega"] if o["status"] == "ok" else "?"
+        cells = [row["graph"], str(row["n"]), f"{row['density']:.2f}", str(om)]
+        cells += [_fmt_t(o, limit), str(o.get("nodes", ""))]
+        for p in peers:
+            cells.append(_fmt_t(r[p], limit))
+            q = o["seconds"] / r[p]["seconds"] if r[p]["status"] != "error" else None
+            cells.append(_fmt_q(q))
+        cells.append(_fmt_q(row.get("ours_over_best")))
+        body.append(cells)
+    return _markdown_table(head, body)
+
+
+def _markdown_table(head, rows) -> str:
+    widths = [max(len(str(r[i])) for r in [head] + rows) for i in range(len(head))]
+
+    def line(cells):
+        out = [
+            str(c).ljust(w) if i == 0 else str(c).rjust(w)
+            for i, (c, w) in enumerate(zip(cells, widths, strict=True))
+        ]
+        return "| " + " | ".join(out) + " |"
+
+    sep = "|" + "|".join("-" * (w + 1) + (":" if i else "-") for i, w in enumerate(widths)) + "|"
+    return "\n".join([line(head), sep] + [line(r) for r in rows])
+
+
+def summary_lines(title: str, s: dict, peers: list[str]) -> list[str]:
+    n = s["graphs"]
+    lines = [
+        f"{title}: ours solved {s['solved']}/{n} exactly, {s['solved_within_1s']}/{n} within "
+        f"1 s, {s['solved_within_10s']}/{n} within 10 s",
+        f"{title}: geometric mean ours/best peer {_fmt_q(s['gmean_ours_over_best'])} (worst "
+        f"{_fmt_q(s['max_ours_over_best'])}); ours/peer "
+        + ", ".join(f"{p} {_fmt_q(s['gmean_ours_over_peer'][p])}" for p in peers),
+        f"{title}: faster than "
+        + ", ".join(f"{p} on {a}/{b}" for p, (a, b) in s["faster_than"].items()),
+    ]
+    lines += [f"{title}: PROBLEM {m}" for m in s["problems"]]
+    return lines
+
+
+def _versions() -> dict:
+    out = {"python": platform.python_version()}
+    for pkg in ("numpy", "numba", "python-igraph", "networkx", "cliquematch"):
+        try:
+            out[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            out[pkg] = None
     return out
 
 
-def _table(head, rows) -> str:
-    try:
-        from rich.console import Console
-        from rich.table import Table
+def _git() -> dict:
+    def git(*a):
+        r = subprocess.run(["git", *a], cwd=REPO, capture_output=True, text=True, check=False)
+        return r.stdout.rstrip("\n") if r.returncode == 0 else None
 
-        t = Table(show_lines=False)
-        for h in head:
-            t.add_column(h, justify="left" if h == "graph" else "right")
-        for r in rows:
-            t.add_row(*r)
-        console = Console(width=250, record=True, force_terminal=False)
-        with console.capture() as cap:
-            console.print(t)
-        return cap.get()
-    except ImportError:
-        widths = [max(len(str(r[i])) for r in [head] + rows) for i in range(len(head))]
-        lines = [
-            "  ".join(str(c).rjust(w) for c, w in zip(r, widths, strict=True))
-            for r in [head] + rows
-        ]
-        return "\n".join(lines)
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {
+        "commit": git("rev-parse", "HEAD"),
+        "modified": [] if not status else [ln[3:] for ln in status.splitlines()],
+    }
+
+
+def _machine() -> dict:
+    return {
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "load_average": [round(x, 2) for x in os.getloadavg()],
+    }
+
+
+def _warm_ours() -> None:
+    """Load every kernel specialisation the children will call (read-only and writable
+    matrices), so that no child pays the cache load."""
+    for n in (10, 70, 200):
+        a = random_graph(n, 0.5, 0)
+        max_clique(a)
+        a.setflags(write=False)
+        max_clique(a)
+    all_maximum_cliques(a)
+    top_cliques(a, 2)
 
 
 def main(argv=None) -> int:
@@ -350,37 +563,138 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=60.0, help="seconds per solver and graph")
     ap.add_argument("--graphs", nargs="*", help="DIMACS names to run (default: all 27)")
     ap.add_argument("--peers", nargs="*", default=list(PEERS), choices=PEERS)
-    ap.add_argument("--pairs", type=int, default=20, help="scan pairs for correspondence graphs")
+    ap.add_argument("--pairs", type=int, default=25, help="pipeline pairs per log and pair set")
+    ap.add_argument("--large", type=int, default=30, help="large correspondence graphs")
+    ap.add_argument("--loose", type=float, default=2.0, help="tolerance factor, large graphs")
     ap.add_argument("--no-dimacs", action="store_true")
     ap.add_argument("--no-correspondence", action="store_true")
     ap.add_argument("--no-compile-cost", action="store_true", help="skip the empty-cache run")
+    ap.add_argument("--no-limit-check", action="store_true", help="skip the time-limit check")
+    ap.add_argument("--out-dir", default=str(REPO / "benchmarks" / "results"))
+    ap.add_argument("--no-save", action="store_true", help="print only")
     args = ap.parse_args(argv)
 
+    t_start = time.perf_counter()
+    load_start = [round(x, 2) for x in os.getloadavg()]
     peers, notes = available_peers(args.peers)
-    max_clique(np.zeros((2, 2), dtype=bool))  # kernels loaded before the children fork
-    report = [
-        f"scanclique maximum clique benchmark — limit {args.time_limit:g} s per solve, "
-        f"times are CPU seconds of the solve call (median of repeats under 0.2 s)",
-        f"peers: {', '.join(peers) or 'none'}",
-    ]
-    report += notes
-    report += first_call_cost(not args.no_compile_cost)
+    limit = args.time_limit
+    first = first_call_cost(not args.no_compile_cost)
+    _warm_ours()  # kernels loaded before the children fork
+
+    sections: dict[str, dict] = {}
     if not args.no_dimacs:
         graphs, note = dimacs_graphs(args.graphs)
         if note:
-            report.append(note)
+            notes.append(note)
         else:
-            report += section("DIMACS (second challenge)", graphs, peers, args.time_limit)
-    if not args.no_correspondence and args.pairs > 0:
-        graphs, note = correspondence_graphs(args.pairs)
-        if note:
-            report.append(note)
-        else:
-            report += section(
-                "Correspondence graphs of real scan pairs", graphs, peers, args.time_limit
-            )
-    print("\n".join(report))
+            rows = run_graphs(graphs, peers, limit)
+            sections["dimacs"] = {"rows": rows, "summary": summarise(rows, peers)}
+    if not args.no_correspondence:
+        graphs, more = correspondence_graphs(args.pairs, args.large, args.loose)
+        notes += more
+        rows = run_graphs(graphs, peers, limit)
+        for group in ("pipeline", "large"):
+            part = [r for r in rows if r["group"] == group]
+            if part:
+                sections[group] = {"rows": part, "summary": summarise(part, peers)}
+        if rows:
+            sections["correspondence"] = {"rows": [], "summary": summarise(rows, peers)}
+    checks = [] if args.no_limit_check else time_limit_check()
+
+    date = _dt.date.today().isoformat()
+    doc = {
+        "date": _dt.datetime.now().isoformat(timespec="seconds"),
+        "command": "python benchmarks/clique.py " + " ".join(argv or sys.argv[1:]),
+        "machine": _machine(),
+        "load_average_start": load_start,
+        "versions": _versions(),
+        "git": _git(),
+        "time_limit": limit,
+        "peers": peers,
+        "notes": notes,
+        "first_call": first,
+        "time_limit_check": checks,
+        "sections": sections,
+        "wall_seconds": time.perf_counter() - t_start,
+        "settings": {"pairs_per_set": args.pairs, "large": args.large, "loose": args.loose},
+    }
+    text = report(doc)
+    print(text)
+    if not args.no_save:
+        out = Path(args.out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"clique-{date}.md").write_text(text + "\n")
+        (out / f"clique-{date}.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+        print(f"\nwrote {out / f'clique-{date}.md'} and .json", file=sys.stderr)
     return 0
+
+
+TITLES = {
+    "dimacs": "DIMACS (second challenge, 27 graphs)",
+    "pipeline": "Correspondence graphs, pipeline configuration",
+    "large": "Correspondence graphs, large (>= 60 features per scan, loose tolerances)",
+    "correspondence": "Correspondence graphs, all",
+}
+
+
+def report(doc: dict) -> str:
+    m, v = doc["machine"], doc["versions"]
+    limit, peers = doc["time_limit"], doc["peers"]
+    out = [
+        f"# Maximum clique: scanclique against igraph, networkx and cliquematch — "
+        f"{doc['date'][:10]}",
+        "",
+        f"Machine: {m['platform']}, {m['processor']}, {m['cpus']} CPUs; Python "
+        f"{v['python']}, numpy {v['numpy']}, numba {v['numba']}, python-igraph "
+        f"{v['python-igraph']}, networkx {v['networkx']}, cliquematch {v['cliquematch']}. "
+        f"Load average (1, 5, 15 min) at the start {doc['load_average_start']}, at the end "
+        f"{m['load_average']} (another job shared the machine: absolute times are "
+        f"inflated, every solver ran on each graph in turn). Wall time "
+        f"{doc['wall_seconds']:.0f} s. Code: commit {str(doc['git']['commit'])[:10]}"
+        + (
+            f" with uncommitted changes to {', '.join(doc['git']['modified'])}"
+            if doc["git"]["modified"]
+            else ""
+        )
+        + ".",
+        "",
+        f"Times: CPU seconds of one solve call (mean of back-to-back repeats for solves under "
+        f"{MIN_TIME} s), each solver in its own forked process, graphs built beforehand in "
+        f"each solver's native form; limit {limit:g} s per solver and graph, a timeout "
+        f"counts as {limit:g} s. ratio = ours / peer (< 1: ours faster); ours/best = ours "
+        f"over the fastest peer on that graph.",
+    ]
+    out += [f"- {n}" for n in doc["notes"]]
+    fc = doc["first_call"]
+    out += ["", "## First-call cost (fresh process)", ""]
+    for label, what in (("cached", "kernels cached on disk"), ("empty_cache", "empty cache")):
+        if label in fc and "error" not in fc[label]:
+            d = fc[label]
+            out.append(
+                f"- {what}: import {d['import']:.2f} s, first max_clique "
+                f"{d['max_clique']:.2f} s, first calls of the other entry points "
+                f"{d['other_entry_points']:.2f} s"
+            )
+        elif label in fc:
+            out.append(f"- {what}: failed: {fc[label]['error']}")
+    for key in ("dimacs", "pipeline", "large"):
+        if key in doc["sections"]:
+            sec = doc["sections"][key]
+            out += ["", f"## {TITLES[key]}", "", table(sec["rows"], peers, limit), ""]
+            out += summary_lines(key, sec["summary"], peers)
+    if "correspondence" in doc["sections"]:
+        out += ["", f"## {TITLES['correspondence']}", ""]
+        out += summary_lines("correspondence", doc["sections"]["correspondence"]["summary"], peers)
+    if doc["time_limit_check"]:
+        out += ["", "## Time limit on a graph that cannot be finished", ""]
+        for c in doc["time_limit_check"]:
+            out.append(
+                f"- n={c['n']}, density {c['density']}, limit {c['limit']:g} s: call returned "
+                f"after {c['wall']:.3f} s wall (overshoot {100 * c['overshoot']:+.1f} %), "
+                f"clique of {c['size']} vertices, valid={c['valid']}, optimal={c['optimal']}, "
+                f"{c['nodes']} nodes"
+            )
+    return "\n".join(out)
 
 
 if __name__ == "__main__":
