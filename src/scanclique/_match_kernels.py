@@ -207,68 +207,32 @@ def has_near(ix, pts, x, y, d, rng):  # pragma: no cover - compiled
 
 @_inline
 def has_near_polar(ix, pts, x, y, r, phi, d, rng):  # pragma: no cover - compiled
-    """:func:`has_near` given the range ``r`` and bearing ``phi`` of ``(x, y)``.
-
-    Walks outwards from the bearing of ``(x, y)`` (a hit is usually the next beam), both
-    ways until the bearings leave the window; the general window (:func:`_window`) when
-    the query is near the sensor or the window wraps around +-pi."""
-    d2 = d * d
-    bear = ix[0]
-    n = bear.shape[0]
-    if r > d and n > 0:
-        w = _half_window(d / r)
-        if phi - w >= -math.pi and phi + w <= math.pi:
-            k = lower(ix, phi)
-            lo = k - 1
-            hi = k
-            lo_ok = lo >= 0
-            hi_ok = hi < n
-            while lo_ok or hi_ok:
-                if hi_ok:
-                    if bear[hi] - phi > w:
-                        hi_ok = False
-                    else:
-                        dx = pts[hi, 0] - x
-                        dy = pts[hi, 1] - y
-                        if dx * dx + dy * dy < d2:
-                            return True
-                        hi += 1
-                        hi_ok = hi < n
-                if lo_ok:
-                    if phi - bear[lo] > w:
-                        lo_ok = False
-                    else:
-                        dx = pts[lo, 0] - x
-                        dy = pts[lo, 1] - y
-                        if dx * dx + dy * dy < d2:
-                            return True
-                        lo -= 1
-                        lo_ok = lo >= 0
-            return False
-    _window(ix, x, y, d, rng)
-    for kk in range(3):
-        for j in range(rng[2 * kk], rng[2 * kk + 1]):
-            dx = pts[j, 0] - x
-            dy = pts[j, 1] - y
-            if dx * dx + dy * dy < d2:
-                return True
-    return False
+    """:func:`has_near` given the range ``r`` and bearing ``phi`` of ``(x, y)``."""
+    return _search(ix, pts, x, y, r, phi, d, True, rng)[0] >= 0
 
 
 @_inline
 def nearest_one(ix, pts, x, y, dmax, rng):  # pragma: no cover - compiled
     """``(index, squared distance)`` of the nearest point of ``pts`` strictly within
-    ``dmax`` of ``(x, y)``; ``(-1, dmax**2)`` when there is none.
+    ``dmax`` of ``(x, y)``; ``(-1, dmax**2)`` when there is none."""
+    r = math.sqrt(x * x + y * y)
+    return _search(ix, pts, x, y, r, math.atan2(y, x), dmax, False, rng)
 
-    Walks outwards from the query's bearing, the window narrowing to the best distance
-    found so far; the general window (:func:`_window`) near the sensor or across +-pi."""
+
+@_inline
+def _search(ix, pts, x, y, r, phi, dmax, first, rng):  # pragma: no cover - compiled
+    """``(index, squared distance)`` of a point of ``pts`` strictly within ``dmax`` of
+    ``(x, y)`` (range ``r``, bearing ``phi``): the first one met when ``first``, else the
+    nearest; ``(-1, dmax**2)`` when there is none.
+
+    Walks outwards from the query's bearing (a hit is usually the next beam), both ways
+    until the bearings leave the window, which narrows to the best distance found so far;
+    the general window (:func:`_window`) near the sensor or across +-pi."""
     best = dmax * dmax
     bj = -1
     bear = ix[0]
     n = bear.shape[0]
-    r = math.sqrt(x * x + y * y)
     if r > dmax and n > 0:
-        phi = math.atan2(y, x)
         w = _half_window(dmax / r)
         if phi - w >= -math.pi and phi + w <= math.pi:
             k = lower(ix, phi)
@@ -277,42 +241,43 @@ def nearest_one(ix, pts, x, y, dmax, rng):  # pragma: no cover - compiled
             lo_ok = lo >= 0
             hi_ok = hi < n
             while lo_ok or hi_ok:
-                if hi_ok:
-                    if bear[hi] - phi > w:
-                        hi_ok = False
-                    else:
-                        dx = pts[hi, 0] - x
-                        dy = pts[hi, 1] - y
-                        d2 = dx * dx + dy * dy
-                        if d2 < best:
-                            best = d2
-                            bj = hi
-                            w = _half_window(math.sqrt(d2) / r)
+                for side in range(2):
+                    j = hi if side == 0 else lo
+                    if not (hi_ok if side == 0 else lo_ok):
+                        continue
+                    if abs(bear[j] - phi) > w:
+                        if side == 0:
+                            hi_ok = False
+                        else:
+                            lo_ok = False
+                        continue
+                    dx = pts[j, 0] - x
+                    dy = pts[j, 1] - y
+                    d2 = dx * dx + dy * dy
+                    if d2 < best:
+                        best = d2
+                        bj = j
+                        if first:
+                            return bj, best
+                        w = _half_window(math.sqrt(d2) / r)
+                    if side == 0:
                         hi += 1
                         hi_ok = hi < n
-                if lo_ok:
-                    if phi - bear[lo] > w:
-                        lo_ok = False
                     else:
-                        dx = pts[lo, 0] - x
-                        dy = pts[lo, 1] - y
-                        d2 = dx * dx + dy * dy
-                        if d2 < best:
-                            best = d2
-                            bj = lo
-                            w = _half_window(math.sqrt(d2) / r)
                         lo -= 1
                         lo_ok = lo >= 0
             return bj, best
     _window(ix, x, y, dmax, rng)
-    for k in range(3):
-        for j in range(rng[2 * k], rng[2 * k + 1]):
+    for kk in range(3):
+        for j in range(rng[2 * kk], rng[2 * kk + 1]):
             dx = pts[j, 0] - x
             dy = pts[j, 1] - y
             d2 = dx * dx + dy * dy
             if d2 < best:
                 best = d2
                 bj = j
+                if first:
+                    return bj, best
     return bj, best
 
 
@@ -770,14 +735,14 @@ def score_batch(
     scores, exact,
 ):  # fmt: skip  # pragma: no cover - compiled
     """:func:`pose_score` of the poses with ``ok`` set (others get ``-inf``), coarse to
-    fine: every pose is first scored on every other sample point of each scan; the
+    fine: every pose is first scored on every third sample point of each scan; the
     ``keep`` best by rank (score plus ``size_weight`` per clique vertex, ``sizes``) are
     scored again on the full samples (``exact`` set). Cliques that share most of an
     association give nearly the same pose: a pose within 2 cm and 0.2 degrees of one
     already scored gets that one's score."""
     n = poses.shape[0]
-    a_half = a_sample[::2].copy()
-    b_half = b_sample[::2].copy()
+    a_part = a_sample[::3].copy()
+    b_part = b_sample[::3].copy()
     for i in range(n):
         exact[i] = False
         if not ok[i]:
@@ -797,8 +762,8 @@ def score_batch(
             scores[i] = scores[same]
             continue
         scores[i] = pose_score(
-            a_ix, a_ref, a_aix, a_free, a_half,
-            b_ix, b_ref, b_aix, b_free, b_half,
+            a_ix, a_ref, a_aix, a_free, a_part,
+            b_ix, b_ref, b_aix, b_free, b_part,
             poses[i, 0], poses[i, 1], poses[i, 2], d, conflict_weight, margin, ratio,
         )  # fmt: skip
     rank = np.empty(n)

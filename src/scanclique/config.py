@@ -281,11 +281,11 @@ class RefineConfig:
     """
 
     enabled: bool = True
-    candidates: int = 3
+    candidates: int = 2
     sample_points: int = 120
     size_weight: float = 0.01
     min_score: float = 0.1
-    iterations: int = 15
+    iterations: int = 10
     max_correspondence: float = 0.5
     inlier_distance: float = 0.15
     conflict_weight: float = 2.0

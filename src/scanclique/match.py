@@ -83,7 +83,7 @@ class Hypothesis:
     ``node_pairs`` are (node of A, node of B) in feature-graph order (points, then lines);
     ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`; for hypotheses
     ranked below the best ``QUICK_EXACT * refine.candidates`` it is measured on every
-    other sample point only). ``estimate`` is the
+    third sample point only). ``estimate`` is the
     full weighted estimate with covariance, computed for the best few hypotheses only (the
     others carry the closed-form pose used to rank them); ``refined`` says whether ``pose``
     was refined by ICP on the raw points.
@@ -285,7 +285,7 @@ def pose_score(
 #: ranges by more than CONFLICT_MARGIN + CONFLICT_RATIO * range (metres)
 CONFLICT_MARGIN = 0.2
 CONFLICT_RATIO = 0.02
-#: the quick score of every clique's pose uses every other sample point; this many
+#: the quick score of every clique's pose uses every third sample point; this many
 #: times ``refine.candidates`` of the best are scored again on the full samples
 QUICK_EXACT = 3
 #: a clique's pairs whose Mahalanobis residual exceeds this are dropped from its estimate
