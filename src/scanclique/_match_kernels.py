@@ -984,6 +984,94 @@ def _append(store, count, clique):  # pragma: no cover - compiled
     return (data, indptr)
 
 
+@_inline
+def _colour_word(S, P, verts, cols):  # pragma: no cover - compiled
+    """Greedy colouring of the one-word vertex set ``P`` in label order: writes the
+    vertices in non-decreasing colour to ``verts`` with their colours in ``cols``;
+    returns how many."""
+    one = np.uint64(1)
+    k = 0
+    colour = 0
+    Q = P
+    while Q:
+        colour += 1
+        R = Q
+        while R:
+            v = np.int64(CK._cttz(R))
+            bit = one << np.uint64(v)
+            R &= ~bit & ~S[v]
+            Q &= ~bit
+            verts[k] = v
+            cols[k] = colour
+            k += 1
+    return k
+
+
+@_njit
+def small_max_clique(S, m, t0, time_limit):  # pragma: no cover - compiled
+    """A maximum clique of a graph of at most 64 vertices given as one-word adjacency rows
+    ``S`` (``S[v]`` bit ``u``: edge v-u), by colour-bounded branch and bound (Tomita's
+    MCQ on single-word sets, with an explicit stack). Returns the sorted vertices; the
+    best found when the clock (``time.perf_counter`` seconds since ``t0``) passes
+    ``time_limit``."""
+    if m == 0:
+        return np.empty(0, np.int64)
+    one = np.uint64(1)
+    P = np.zeros(m + 1, np.uint64)
+    verts = np.empty((m + 1, 64), np.int64)
+    cols = np.empty((m + 1, 64), np.int64)
+    pos = np.empty(m + 1, np.int64)
+    C = np.empty(m + 1, np.int64)
+    bestC = np.zeros(m + 1, np.int64)
+    best = 1  # any single vertex
+    for v in range(m):
+        P[0] |= one << np.uint64(v)
+    pos[0] = _colour_word(S, P[0], verts[0], cols[0]) - 1
+    depth = 0
+    nodes = 0
+    while depth >= 0:
+        i = pos[depth]
+        if i < 0 or depth + cols[depth, i] <= best:
+            # this level is done: back to the parent, which drops its branching vertex
+            depth -= 1
+            if depth >= 0:
+                P[depth] &= ~(one << np.uint64(verts[depth, pos[depth]]))
+                pos[depth] -= 1
+            continue
+        v = verts[depth, i]
+        C[depth] = v
+        NP = P[depth] & S[v]
+        if NP == 0:
+            if depth + 1 > best:
+                best = depth + 1
+                bestC[:best] = C[:best]
+            P[depth] &= ~(one << np.uint64(v))
+            pos[depth] = i - 1
+            continue
+        depth += 1
+        P[depth] = NP
+        pos[depth] = _colour_word(S, NP, verts[depth], cols[depth]) - 1
+        nodes += 1
+        if (nodes & 1023) == 0 and CK._now() - t0 >= time_limit:
+            break
+    return np.sort(bestC[:best])
+
+
+@_njit
+def _induced_small(A, verts):  # pragma: no cover - compiled
+    """One-word adjacency rows of the subgraph of ``A`` induced by at most 64 ``verts``."""
+    m = verts.shape[0]
+    S = np.zeros(m, np.uint64)
+    one = np.uint64(1)
+    for i in range(m):
+        row = A[verts[i]]
+        for j in range(m):
+            v = verts[j]
+            if (row[v >> 6] >> np.uint64(v & 63)) & one:
+                S[i] |= one << np.uint64(j)
+    return S
+
+
 @_njit
 def hypothesis_cliques(
     A, n, limit, peel, per_vertex, min_size, time_limit, t0, opts
@@ -1060,6 +1148,8 @@ def hypothesis_cliques(
                     m += 1
             if m == 0:
                 r = np.empty(0, np.int64)
+            elif m <= 64:
+                r = small_max_clique(_induced_small(A, nb), m, t0, time_limit)
             else:
                 sub = _induced(A, nb)
                 r, _, _, _, _ = CK.solve(sub, m, 0, 0, 0, time_limit, t0, opts)

@@ -1,0 +1,136 @@
+"""The compiled matching kernels (``scanclique._match_kernels``) against plain references:
+brute-force neighbour search, the NumPy pose estimates, a KD-tree for the normals and
+Bron–Kerbosch for the small maximum clique."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+
+from scanclique import _match_kernels as K
+from scanclique.clique import bron_kerbosch
+from scanclique.config import MatchConfig
+from scanclique.correspondence import correspondence_graph
+from scanclique.geometry import Pose2
+from scanclique.match import prepare_scan
+from scanclique.pose import (
+    closed_form_pose,
+    closed_form_pose_pairs,
+    estimate_pose_lsq,
+    estimate_pose_lsq_pairs,
+    mapped_features,
+)
+from scanclique.refine import agreement, nearest, reference_cloud
+from scanclique.sim import simulate_pair
+
+
+def _cloud(rng, n, full_turn):
+    """Points around a sensor: some very near it (the window search's fallback), the
+    bearings spanning the +-pi seam when ``full_turn``."""
+    span = math.pi if full_turn else math.pi / 2
+    phi = rng.uniform(-span, span, n)
+    r = np.where(rng.random(n) < 0.1, rng.uniform(0.01, 0.3, n), rng.uniform(0.3, 8.0, n))
+    return np.column_stack((r * np.cos(phi), r * np.sin(phi)))
+
+
+@pytest.mark.parametrize("full_turn", [False, True])
+@pytest.mark.parametrize("seed", range(4))
+def test_window_search_equals_brute_force(seed, full_turn):
+    rng = np.random.default_rng(seed)
+    ref = reference_cloud(_cloud(rng, 400, full_turn))
+    q = _cloud(rng, 300, full_turn)
+    pose = Pose2(rng.normal(0, 0.3), rng.normal(0, 0.3), rng.uniform(-math.pi, math.pi))
+    moved = pose.transform(q)
+    d_all = np.linalg.norm(moved[:, None, :] - ref.points[None, :, :], axis=2)
+    for dmax in (0.05, 0.15, 0.5):
+        idx, d = nearest(ref, q, pose, dmax)
+        best = d_all.min(axis=1)
+        found = best < dmax
+        assert np.array_equal(idx >= 0, found)
+        np.testing.assert_allclose(d[found], best[found], atol=1e-12)
+        assert agreement(ref, q, pose, dmax) == pytest.approx(found.mean())
+
+
+def test_normals_equal_a_kd_tree_pca():
+    p = simulate_pair(np.random.default_rng(2)).scan_a.points()
+    ref = reference_cloud(p)
+    pts = ref.points
+    d, idx = cKDTree(pts).query(pts, k=5)
+    w = (d <= 0.3).astype(float)
+    cnt = w.sum(axis=1)
+    nb = pts[idx]
+    mean = np.einsum("mk,mkd->md", w, nb) / np.maximum(cnt, 1)[:, None]
+    q = (nb - mean[:, None, :]) * w[:, :, None]
+    normals = np.linalg.eigh(np.einsum("mki,mkj->mij", q, q))[1][:, :, 0]
+    normals[cnt < 3] = 0.0
+    same = np.abs(np.sum(normals * ref.normals, axis=1))
+    zero = np.abs(normals).sum(axis=1) == 0
+    agree = np.where(zero, np.abs(ref.normals).sum(axis=1) == 0, same > 1 - 1e-9)
+    assert agree.mean() > 0.995  # the rest: exact ties for the 5th neighbour
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_poses_equal_the_numpy_estimates(seed):
+    cfg = MatchConfig()
+    p = simulate_pair(np.random.default_rng(seed))
+    a, b = prepare_scan(p.scan_a, cfg), prepare_scan(p.scan_b, cfg)
+    cg = correspondence_graph(a.graph, b.graph, cfg.correspondence)
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        k = int(rng.integers(2, min(8, cg.n_nodes) + 1))
+        pairs = cg.pairs[np.sort(rng.choice(cg.n_nodes, k, replace=False))]
+        m = mapped_features(a.features, b.features, pairs)
+        ref, got = closed_form_pose(m), closed_form_pose_pairs(a.features, b.features, pairs)
+        assert (ref is None) == (got is None)
+        if ref is None:
+            continue
+        np.testing.assert_allclose(got.as_array(), ref.as_array(), atol=1e-9)
+        e_ref = estimate_pose_lsq(m)
+        e_got = estimate_pose_lsq_pairs(a.features, b.features, pairs)
+        np.testing.assert_allclose(e_got.pose.as_array(), e_ref.pose.as_array(), atol=1e-9)
+        np.testing.assert_allclose(e_got.residuals, e_ref.residuals, rtol=1e-6, atol=1e-9)
+        assert np.array_equal(np.isinf(e_got.covariance), np.isinf(e_ref.covariance))
+        fin = np.isfinite(e_ref.covariance)
+        np.testing.assert_allclose(
+            e_got.covariance[fin], e_ref.covariance[fin], rtol=1e-6, atol=1e-15
+        )
+
+
+@settings(max_examples=300, deadline=None)
+@given(n=st.integers(1, 40), density=st.floats(0.0, 1.0), seed=st.integers(0, 2**31))
+def test_small_max_clique_is_maximum(n, density, seed):
+    rng = np.random.default_rng(seed)
+    A = np.triu(rng.random((n, n)) < density, 1)
+    A = A | A.T
+    S = np.zeros(n, np.uint64)
+    for i in range(n):
+        for j in np.flatnonzero(A[i]):
+            S[i] |= np.uint64(1) << np.uint64(j)
+    c = K.small_max_clique(S, n, time.perf_counter(), 10.0)
+    assert all(A[u, v] for u, v in itertools.combinations(c.tolist(), 2))
+    assert len(c) == max(len(q) for q in bron_kerbosch(A))
+
+
+def test_small_max_clique_of_64_vertices_honours_the_clock():
+    S = np.full(64, np.uint64(2**64 - 1))
+    for v in range(64):
+        S[v] &= ~(np.uint64(1) << np.uint64(v))
+    assert len(K.small_max_clique(S, 64, time.perf_counter(), 1.0)) == 64  # complete graph
+    rng = np.random.default_rng(0)
+    A = np.triu(rng.random((64, 64)) < 0.9, 1)
+    A = A | A.T
+    S = np.zeros(64, np.uint64)
+    for i in range(64):
+        for j in np.flatnonzero(A[i]):
+            S[i] |= np.uint64(1) << np.uint64(j)
+    t0 = time.perf_counter()
+    c = K.small_max_clique(S, 64, t0, 0.05)
+    assert time.perf_counter() - t0 < 2.0
+    assert all(A[u, v] for u, v in itertools.combinations(c.tolist(), 2))
