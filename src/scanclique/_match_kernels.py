@@ -1088,7 +1088,8 @@ def hypothesis_cliques(
 
     All within ``time_limit`` seconds of ``t0`` (``time.perf_counter`` clock). Returns
     ``(data, indptr, count, omega, optimal, complete)``: clique ``i`` is
-    ``data[indptr[i]:indptr[i + 1]]`` (sorted labels); ``optimal`` when omega was proven,
+    ``data[indptr[i]:indptr[i + 1]]`` (sorted labels), each distinct clique of at least
+    ``min_size`` vertices once, in the order found; ``optimal`` when omega was proven,
     ``complete`` when step 1 listed every maximum clique.
     """
     store = (np.empty(64, np.int64), np.zeros(16, np.int64))
@@ -1160,7 +1161,45 @@ def hypothesis_cliques(
                 store = _append(store, count, np.sort(c))
                 count += 1
     data, indptr = store
-    return data, indptr[: count + 1].copy(), count, omega, optimal, complete
+    data, indptr, count = _distinct_cliques(data, indptr, count, min_size)
+    return data, indptr, count, omega, optimal, complete
+
+
+@_njit
+def _distinct_cliques(data, indptr, count, min_size):  # pragma: no cover - compiled
+    """The cliques of the flat store with at least ``min_size`` vertices, each once (the
+    first occurrence; the vertex lists are sorted), order kept: ``(data, indptr, count)``."""
+    keep = np.zeros(count, np.bool_)
+    for i in range(count):
+        a0, a1 = indptr[i], indptr[i + 1]
+        if a1 - a0 < min_size:
+            continue
+        dup = False
+        for j in range(i):
+            if not keep[j]:
+                continue
+            b0, b1 = indptr[j], indptr[j + 1]
+            if b1 - b0 != a1 - a0:
+                continue
+            same = True
+            for q in range(a1 - a0):
+                if data[a0 + q] != data[b0 + q]:
+                    same = False
+                    break
+            if same:
+                dup = True
+                break
+        keep[i] = not dup
+    out = np.empty(indptr[count], np.int64)
+    optr = np.zeros(count + 1, np.int64)
+    k = 0
+    for i in range(count):
+        if keep[i]:
+            n = indptr[i + 1] - indptr[i]
+            out[optr[k] : optr[k] + n] = data[indptr[i] : indptr[i + 1]]
+            optr[k + 1] = optr[k] + n
+            k += 1
+    return out[: optr[k]], optr[: k + 1].copy(), k
 
 
 # --------------------------------------------------------------------------------------

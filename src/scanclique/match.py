@@ -349,10 +349,11 @@ def estimate_clique_pose(
 
 def _hypothesis_cliques(cg: CorrespondenceGraph, cfg: MatchConfig, t0: float):
     """The cliques that become hypotheses (see :func:`match_prepared`, step 2), one
-    compiled call: ``(cliques, omega, optimal)``."""
+    compiled call: ``(data, indptr, omega, optimal)``, clique ``i`` being the correspondence
+    nodes ``data[indptr[i]:indptr[i + 1]]`` (distinct, at least ``pose.min_pairs``)."""
     cc = cfg.clique
     bits = _clique.bitsets_from_adjacency(cg.adjacency)
-    data, indptr, count, omega, optimal, _ = _K.hypothesis_cliques(
+    data, indptr, _, omega, optimal, _ = _K.hypothesis_cliques(
         bits,
         cg.n_nodes,
         cc.max_hypotheses,
@@ -363,19 +364,7 @@ def _hypothesis_cliques(cg: CorrespondenceGraph, cfg: MatchConfig, t0: float):
         float(t0),
         _CK.OPT_DEFAULT,
     )
-    cliques = [data[indptr[i] : indptr[i + 1]] for i in range(count)]
-    return _unique(cliques), int(omega), bool(optimal)
-
-
-def _unique(cliques: list[np.ndarray]) -> list[np.ndarray]:
-    """Distinct cliques (sorted int64 label arrays), order kept."""
-    seen, out = set(), []
-    for c in cliques:
-        key = c.tobytes()
-        if key not in seen:
-            seen.add(key)
-            out.append(np.asarray(c))
-    return out
+    return data, indptr, int(omega), bool(optimal)
 
 
 def _rank(h: Hypothesis, size_weight: float) -> float:
@@ -422,26 +411,27 @@ def _empty(
 
 
 def _quick_hypotheses(
-    pa: PreparedScan, pb: PreparedScan, cg: CorrespondenceGraph, cliques: list, cfg: MatchConfig
+    pa: PreparedScan, pb: PreparedScan, flat: np.ndarray, indptr: np.ndarray, cfg: MatchConfig
 ) -> list[Hypothesis]:
     """A pose per clique and its raw-scan score, best-ranked first: the closed-form pose
     (or the paper's median estimate with ``pose.method="median"``), scored by
-    :func:`pose_score`, in compiled batches where the clouds allow."""
+    :func:`pose_score`, in compiled batches where the clouds allow. Clique ``i`` is the
+    node pairs ``flat[indptr[i]:indptr[i + 1]]``."""
     fa, fb = pa.features, pb.features
-    if not cliques:
+    n = len(indptr) - 1
+    if n <= 0:
         return []
-    node_pairs = [cg.pairs[c] for c in cliques]
-    sizes = np.array([len(c) for c in cliques])
+    flat = np.ascontiguousarray(flat)
+    sizes = np.diff(indptr)
+    node_pairs = [flat[indptr[i] : indptr[i + 1]] for i in range(n)]
     if cfg.pose.method == "median":
         ests = [estimate_clique_pose(fa, fb, npairs, cfg) for npairs in node_pairs]
         ok = np.array([e is not None for e in ests])
         poses = np.array([e.pose.as_array() if e is not None else np.zeros(3) for e in ests])
     else:
-        ests = [None] * len(cliques)
-        flat = np.ascontiguousarray(np.concatenate(node_pairs))
-        indptr = np.concatenate(([0], np.cumsum(sizes)))
-        poses = np.empty((len(cliques), 3))
-        ok = np.empty(len(cliques), dtype=bool)
+        ests = [None] * n
+        poses = np.empty((n, 3))
+        ok = np.empty(n, dtype=bool)
         _K.closed_form_batch(
             flat,
             indptr,
@@ -455,8 +445,8 @@ def _quick_hypotheses(
             ok,
         )
     if pa.cloud.windowed and pb.cloud.windowed:
-        scores = np.empty(len(cliques))
-        exact = np.empty(len(cliques), dtype=bool)
+        scores = np.empty(n)
+        exact = np.empty(n, dtype=bool)
         r = cfg.refine
         _K.score_batch(
             poses, ok, sizes.astype(float), r.size_weight, QUICK_EXACT * r.candidates,
@@ -472,10 +462,10 @@ def _quick_hypotheses(
         )
     rank = scores + cfg.refine.size_weight * sizes
     out = []
-    for i in np.argsort(-rank, kind="stable"):
+    pl, sl, zl = poses.tolist(), scores.tolist(), sizes.tolist()
+    for i in np.argsort(-rank, kind="stable").tolist():
         if ok[i]:
-            pose = Pose2.from_array(poses[i])
-            out.append(Hypothesis(node_pairs[i], int(sizes[i]), pose, float(scores[i]), ests[i]))
+            out.append(Hypothesis(node_pairs[i], zl[i], Pose2(*pl[i]), sl[i], ests[i]))
     return out
 
 
@@ -597,7 +587,7 @@ def match_prepared(
 
     # 2. maximum cliques (paper §5.3), disjoint alternatives by peeling, vertex-guided
     t = time.perf_counter()
-    cliques, omega, optimal = _hypothesis_cliques(cg, cfg, t)
+    data, indptr, omega, optimal = _hypothesis_cliques(cg, cfg, t)
     seconds["clique"] = time.perf_counter() - t
     if omega < min_pairs:
         return _empty(
@@ -613,8 +603,7 @@ def match_prepared(
 
     # 3. a quick pose per clique (paper §6), scored against the raw scans
     t = time.perf_counter()
-    cliques = [c for c in cliques if len(c) >= min_pairs]
-    hyps = _quick_hypotheses(pa, pb, cg, cliques, cfg)
+    hyps = _quick_hypotheses(pa, pb, cg.pairs[data], indptr, cfg)
     if not hyps:
         seconds["pose"] = time.perf_counter() - t
         return _empty(
