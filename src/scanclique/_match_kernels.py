@@ -408,6 +408,79 @@ def cloud_normals(ix, pts, k, radius, normals):  # pragma: no cover - compiled
         normals[i, 1] = ny
 
 
+@_njit
+def cloud_arrays(points, k, radius, with_normals):  # pragma: no cover - compiled
+    """A reference cloud's arrays from ``(M, 2)`` points: the points sorted by bearing
+    (stable), their bearings, the bearing index (:func:`make_index`) and, when
+    ``with_normals``, the normals (:func:`cloud_normals`; zeros otherwise)."""
+    n = points.shape[0]
+    bear = np.empty(n)
+    for i in range(n):
+        bear[i] = math.atan2(points[i, 1], points[i, 0])
+    ordered = True
+    for i in range(1, n):
+        if bear[i] < bear[i - 1]:
+            ordered = False
+            break
+    p = np.empty((n, 2))
+    if ordered:
+        p[:, :] = points
+    else:
+        order = np.argsort(bear, kind="mergesort")
+        b2 = bear[order]
+        for i in range(n):
+            p[i, 0] = points[order[i], 0]
+            p[i, 1] = points[order[i], 1]
+        bear = b2
+    index = make_index(bear, 2.0)
+    normals = np.zeros((n, 2))
+    if with_normals and n >= 3:
+        cloud_normals(index, p, k, radius, normals)
+    return p, bear, index, normals
+
+
+@_njit
+def _evenly_idx(m, n):  # pragma: no cover - compiled
+    """Indices of at most ``n`` of ``m`` items, evenly spaced (all when ``m <= n``), as
+    ``numpy.linspace(0, m - 1, n).round()``."""
+    if m <= n:
+        return np.arange(m)
+    return np.rint(np.linspace(0.0, m - 1.0, n)).astype(np.int64)
+
+
+@_njit
+def scan_arrays(ranges, angles, valid, n_cloud, n_sample):  # pragma: no cover - compiled
+    """What a prepared scan needs from its beams, in one pass: the valid points (sensor
+    frame, beam order), at most ``n_cloud`` and ``n_sample`` of them evenly spaced, the
+    free range of each beam (the range where valid, 0 otherwise) and the index of the
+    beam angles (:func:`make_index`)."""
+    nb = ranges.shape[0]
+    m = 0
+    for i in range(nb):
+        if valid[i]:
+            m += 1
+    pts = np.empty((m, 2))
+    free = np.zeros(nb)
+    k = 0
+    for i in range(nb):
+        if valid[i]:
+            pts[k, 0] = ranges[i] * math.cos(angles[i])
+            pts[k, 1] = ranges[i] * math.sin(angles[i])
+            free[i] = ranges[i]
+            k += 1
+    ic = _evenly_idx(m, n_cloud)
+    cloud = np.empty((ic.shape[0], 2))
+    for i in range(ic.shape[0]):
+        cloud[i, 0] = pts[ic[i], 0]
+        cloud[i, 1] = pts[ic[i], 1]
+    js = _evenly_idx(m, n_sample)
+    sample = np.empty((js.shape[0], 2))
+    for i in range(js.shape[0]):
+        sample[i, 0] = pts[js[i], 0]
+        sample[i, 1] = pts[js[i], 1]
+    return pts, cloud, sample, free, make_index(angles.copy(), 2.0)
+
+
 # --------------------------------------------------------------------------------------
 # Free space
 # --------------------------------------------------------------------------------------

@@ -39,11 +39,9 @@ from .refine import (
     BRUTE_FORCE_MAX,
     ReferenceCloud,
     agreement,
-    free_ranges,
     free_space_conflicts,
     icp_point_to_line,
     reference_cloud,
-    search_index,
 )
 from .scan import Scan
 
@@ -229,12 +227,13 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     feats = extract_features(scan, cfg.features, cfg.clustering)
     t1 = time.perf_counter()
     graph = feature_graph(feats, cfg.correspondence, cfg.features)
-    pts = scan.points()
     # the raw-point cloud for scoring and ICP: at most CLOUD_MAX_POINTS, evenly spaced in
     # beam order (a million-beam scan keeps points millimetres apart; the score and the
     # ICP need no more, and their cost stays bounded)
-    cloud = reference_cloud(_evenly(pts, CLOUD_MAX_POINTS))
-    sample = _evenly(pts, cfg.refine.sample_points)
+    pts, cloud_pts, sample, free, angle_index = _K.scan_arrays(
+        scan.ranges, scan.angles, scan.valid, CLOUD_MAX_POINTS, cfg.refine.sample_points
+    )
+    cloud = reference_cloud(cloud_pts)
     t2 = time.perf_counter()
     return PreparedScan(
         scan,
@@ -243,21 +242,14 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
         cloud,
         pts,
         sample,
-        free_ranges(scan),
-        search_index(scan.angles),
+        free,
+        angle_index,
         {"features": t1 - t0, "graph": t2 - t1},
     )
 
 
 #: the raw-point cloud of a prepared scan keeps at most this many points
 CLOUD_MAX_POINTS = BRUTE_FORCE_MAX
-
-
-def _evenly(points: np.ndarray, n: int) -> np.ndarray:
-    """At most ``n`` of ``points``, evenly spaced in their order (all when fewer)."""
-    if len(points) <= n:
-        return np.ascontiguousarray(points)
-    return np.ascontiguousarray(points[np.linspace(0, len(points) - 1, n).round().astype(int)])
 
 
 def pose_score(

@@ -77,15 +77,9 @@ def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> Refe
     """Prepare ``(M, 2)`` points (sensor frame, the sensor at the origin) for
     :func:`agreement`, :func:`nearest` and the ICP."""
     p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
-    bear = np.arctan2(p[:, 1], p[:, 0])
-    if len(p) > 1 and np.any(np.diff(bear) < 0):
-        order = np.argsort(bear, kind="stable")
-        p, bear = np.ascontiguousarray(p[order]), bear[order]
-    normals = np.zeros_like(p)
-    index = search_index(bear)
-    if len(p) <= BRUTE_FORCE_MAX:
-        if len(p) >= 3:
-            K.cloud_normals(index, p, int(k), float(radius), normals)
+    small = len(p) <= BRUTE_FORCE_MAX
+    p, bear, index, normals = K.cloud_arrays(p, int(k), float(radius), small)
+    if small:
         return ReferenceCloud(p, normals, bear, index, None)
     tree = cKDTree(p)
     kk = min(k, len(p))
