@@ -108,7 +108,17 @@ def test_odometry_noise_std_and_scaled():
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"min_features": 1}, {"min_features": 3.0}, {"feature_gate": 1.0}, {"max_std_metres": -1}],
+    [
+        {"min_features": 1},
+        {"min_features": 3.0},
+        {"feature_gate": 1.0},
+        {"max_std_metres": -1},
+        {"decisive": 1.0},
+        {"decisive": 0.0},
+        {"decisive": True},
+        {"rival_min_score": math.nan},
+        {"rival_min_score": "0.1"},
+    ],
 )
 def test_validation_config_rejects_bad_values(kwargs):
     with pytest.raises(ConfigError):
@@ -284,7 +294,7 @@ def test_symmetry_is_ambiguous_and_odometry_chooses(symmetric):
     assert m.ambiguous
     v = validate_match(m)
     assert v.verdict == AMBIGUOUS
-    turn = float(re.search(r"m and ([0-9.]+) deg from the chosen", v.reasons[0]).group(1))
+    turn = float(re.search(r"m and ([0-9.]+) deg away", v.reasons[0]).group(1))
     assert abs(turn - 180.0) < 1.0  # the mirror image: half a turn apart
     # odometry near the truth picks the true pose; near the mirror image, the mirror
     v = validate_match(m, ORIGIN, truth)
@@ -314,6 +324,156 @@ def test_odometry_rescues_a_lower_ranked_hypothesis(symmetric):
     assert "odometry chose hypothesis" in v.reasons[0]
     checks = check_hypotheses(flipped, *odometry_prior(ORIGIN, truth))
     assert checks[0].rival and not all(c.rival for c in checks)
+
+
+def _odometry_on_heading(truth: Pose2, d2_truth: float, d2_mirror: float):
+    """Odometry whose heading lies between ``truth`` and its half-turn mirror image such
+    that their squared Mahalanobis distances are about ``d2_truth`` and ``d2_mirror``
+    (position left free: 100 m standard deviation)."""
+    sigma = math.pi / (math.sqrt(d2_truth) + math.sqrt(d2_mirror))
+    noise = OdometryNoise(0.0, 0.0, 0.0, floor_metres=100.0, floor_radians=sigma)
+    odom_b = Pose2(truth.x, truth.y, truth.theta + math.sqrt(d2_truth) * sigma)
+    return odom_b, noise
+
+
+def _posterior_of(v: Validation) -> float:
+    """The posterior of the chosen check among the first tier, from the checks' d2."""
+    tier = [c for c in v.checks if c.rival]
+    d0 = next(c.mahalanobis_sq for c in tier if c.index == v.hypothesis)
+    return 1.0 / sum(math.exp(-0.5 * (c.mahalanobis_sq - d0)) for c in tier)
+
+
+def test_odometry_must_be_decisive_to_resolve_an_ambiguity(symmetric):
+    """Inside the gate is not enough: the mirror image, just outside it, must also be
+    improbable (posterior >= config.decisive)."""
+    m, truth = symmetric
+    # truth at d2 ~ 5 and its mirror at d2 ~ 12 (> gate 11.34): posterior ~ 0.97
+    odom_b, noise = _odometry_on_heading(truth, 5.0, 12.0)
+    v = validate_match(m, ORIGIN, odom_b, noise)
+    mirror = next(c for c in v.checks if c.rival and c.pose.distance_to(truth)[1] > 3.0)
+    assert not mirror.passed and v.checks[0].passed
+    assert v.verdict == AMBIGUOUS and "posterior" in v.reasons[0]
+    assert v.posterior == pytest.approx(1.0 / (1.0 + math.exp(-3.5)), abs=0.01)
+    assert choose_by_odometry(m, *odometry_prior(ORIGIN, odom_b, noise)) is None
+    # a laxer demand accepts the same evidence
+    v = validate_match(m, ORIGIN, odom_b, noise, config=ValidationConfig(decisive=0.9))
+    assert v.verdict == ACCEPTED and is_right(v.pose, truth)
+    # truth at d2 ~ 1, mirror at ~ 13: posterior ~ 0.998, decisive
+    odom_b, noise = _odometry_on_heading(truth, 1.0, 13.0)
+    v = validate_match(m, ORIGIN, odom_b, noise)
+    assert v.verdict == ACCEPTED and v.hypothesis == 0 and is_right(v.pose, truth)
+    assert v.posterior == pytest.approx(_posterior_of(v)) and v.posterior > 0.99
+    assert json.loads(json.dumps(v.to_dict()))["posterior"] == pytest.approx(v.posterior)
+
+
+def _first_simulated(pred, seeds=range(400)):
+    """The first simulated pair (``simulate_pair``, seeds in order) whose match
+    satisfies ``pred(match, truth, validation_without_odometry)``."""
+    for seed in seeds:
+        pair = simulate_pair(np.random.default_rng(seed))
+        m = sc.match_scans(pair.scan_a, pair.scan_b)
+        if m.pose is not None and pred(m, pair.pose_a_b, validate_match(m)):
+            return m, pair.pose_a_b
+    pytest.fail(f"no simulated pair of the kind wanted among seeds {seeds}")
+
+
+def _larger_rivals(m, v):
+    return [k for k in v.rivals if m.hypotheses[k].clique_size > m.hypotheses[0].clique_size]
+
+
+def _far(p: Pose2, q: Pose2) -> bool:
+    t, r = p.distance_to(q)
+    return t > 1.0 or r > math.radians(30)
+
+
+@pytest.fixture(scope="module")
+def larger_wrong():
+    """A match the raw scans got right, not flagged ambiguous by the matcher, with a
+    larger clique at a wrong pose far away."""
+    return _first_simulated(
+        lambda m, truth, v: (
+            not m.ambiguous
+            and v.verdict != TOO_FEW_FEATURES
+            and is_right(m.pose, truth)
+            and any(_far(m.hypotheses[k].pose, truth) for k in _larger_rivals(m, v))
+        )
+    )
+
+
+@pytest.fixture(scope="module")
+def larger_right():
+    """A match the raw scans got wrong, not flagged ambiguous by the matcher, whose larger
+    clique (the paper's choice) is right."""
+    return _first_simulated(
+        lambda m, truth, v: (
+            not m.ambiguous
+            and v.verdict != TOO_FEW_FEATURES
+            and not is_right(m.pose, truth)
+            and any(is_right(m.hypotheses[k].pose, truth) for k in _larger_rivals(m, v))
+        )
+    )
+
+
+def _larger_elsewhere(m) -> list:
+    """Hypotheses with a larger clique than the chosen one, 0.3 m or 5 deg away."""
+    h0 = m.hypotheses[0]
+    return [
+        h
+        for h in m.hypotheses[1:]
+        if h.clique_size > h0.clique_size
+        and (h.pose.distance_to(h0.pose)[0] > 0.3 or h.pose.distance_to(h0.pose)[1] > 0.088)
+    ]
+
+
+@pytest.fixture(scope="module")
+def larger_refuted():
+    """A right match, not flagged ambiguous, whose only larger cliques elsewhere are ones
+    the raw scans refute (score below the matcher's refine.min_score, 0.1)."""
+
+    def pred(m, truth, v):
+        big = _larger_elsewhere(m)
+        return (
+            not m.ambiguous
+            and v.verdict != TOO_FEW_FEATURES
+            and is_right(m.pose, truth)
+            and bool(big)
+            and all(h.score < 0.1 for h in big)
+        )
+
+    return _first_simulated(pred)
+
+
+def test_a_larger_mapping_elsewhere_makes_a_match_ambiguous(larger_wrong):
+    m, truth = larger_wrong
+    v = validate_match(m)
+    big = _larger_rivals(m, v)
+    assert v.verdict == AMBIGUOUS and big and "maps more features" in v.reasons[0]
+    assert v.pose is not None and is_right(v.pose, truth)
+    # odometry near the truth rules the larger mapping out
+    v = validate_match(m, ORIGIN, truth)
+    assert v.verdict == ACCEPTED and v.hypothesis == 0 and v.posterior >= 0.99
+    assert "resolved the ambiguity" in v.reasons[0]
+    assert all(not c.passed for c in v.checks if c.index in big)
+
+
+def test_a_larger_mapping_the_raw_scans_refute_is_no_rival(larger_refuted):
+    m, truth = larger_refuted
+    v = validate_match(m)
+    assert v.verdict == ACCEPTED and v.rivals == () and is_right(v.pose, truth)
+    v = validate_match(m, config=ValidationConfig(rival_min_score=-math.inf))
+    assert v.verdict == AMBIGUOUS and "maps more features" in v.reasons[0]
+    assert all(m.hypotheses[k].score < 0.1 for k in v.rivals)
+
+
+def test_a_larger_mapping_elsewhere_can_be_the_right_one(larger_right):
+    """Without the rule this wrong pose would be accepted; odometry picks the larger
+    clique instead."""
+    m, truth = larger_right
+    v = validate_match(m)
+    assert v.verdict == AMBIGUOUS and not is_right(v.pose, truth)
+    v = validate_match(m, ORIGIN, truth)
+    assert v.verdict == ACCEPTED and v.hypothesis in _larger_rivals(m, validate_match(m))
+    assert is_right(v.pose, truth) and v.posterior >= 0.99
 
 
 def test_validate_match_rejects_bad_arguments(sim):

@@ -16,8 +16,11 @@ of a GPS constellation). This module does all of it, as pure functions over a
   a covariance that grows with the distance travelled and the angle turned
   (:class:`OdometryNoise`).
 * :func:`validate_match` — the verdict on one match (:class:`Validation`): ``accepted``,
-  ``rejected_odometry``, ``ambiguous`` or ``too_few_features``, with its numbers.
-  :func:`choose_by_odometry` picks among the hypotheses of an ambiguous match.
+  ``rejected_odometry``, ``ambiguous`` or ``too_few_features``, with its numbers. A match
+  is contested (*rivals*) by a distinct pose that explains the raw scans nearly as well,
+  or by a larger mapping of features elsewhere; odometry settles a contest only when it
+  is decisive (posterior probability). :func:`choose_by_odometry` picks among the
+  hypotheses of an ambiguous match.
 * :func:`triple_consistency` and :func:`flag_inconsistent` — matches A→B, B→C against
   A→C: a cycle that does not close within its covariance flags the match that breaks
   the most cycles.
@@ -57,7 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtri
 
-from .config import CorrespondenceConfig
+from .config import CorrespondenceConfig, RefineConfig
 from .errors import ConfigError, ScanError
 from .geometry import Pose2, wrap_angle
 from .match import Hypothesis, ScanMatch
@@ -214,6 +217,18 @@ class ValidationConfig:
     contender_score : float
         Hypotheses whose raw-scan score is at least this fraction of the best one's (and
         whose clique has ``min_features``) are the ones odometry may choose among.
+    decisive : float
+        When odometry has to choose (an ambiguous match, or the match's own pose outside
+        the gate), the chosen hypothesis needs at least this posterior probability among
+        the contenders (Gaussian likelihoods of their Mahalanobis distances, equal
+        priors): with one rival, its squared distance must exceed the chosen one's by
+        ``2 ln(p / (1 - p))``, 9.2 at 0.99. Being inside the gate only says a pose is
+        *possible*; choosing needs the others to be improbable.
+    rival_min_score : float
+        A hypothesis that maps more features than the chosen one is its rival only when
+        its raw-scan score is at least this: the matcher's own ``refine.min_score``
+        (0.1), below which it says that no pose explains the raw scans. A larger clique
+        the raw scans refute is no evidence for another pose.
     """
 
     min_features: int = 3
@@ -221,6 +236,8 @@ class ValidationConfig:
     max_std_radians: float = math.radians(1.0)
     feature_gate: float = 0.999
     contender_score: float = 0.5
+    decisive: float = 0.99
+    rival_min_score: float = RefineConfig().min_score
 
     def __post_init__(self) -> None:
         if isinstance(self.min_features, bool) or not (
@@ -230,11 +247,15 @@ class ValidationConfig:
                 f"ValidationConfig.min_features must be an int >= 2, got {self.min_features!r}"
             )
         _check_nonneg(self, "max_std_metres", "max_std_radians", "contender_score")
-        if not (0.0 < self.feature_gate < 1.0):
-            raise ConfigError(
-                f"ValidationConfig.feature_gate must be a probability in (0, 1), "
-                f"got {self.feature_gate!r}"
-            )
+        v = self.rival_min_score
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
+            raise ConfigError(f"ValidationConfig.rival_min_score must be a number, got {v!r}")
+        for name in ("feature_gate", "decisive"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
+                raise ConfigError(
+                    f"ValidationConfig.{name} must be a probability in (0, 1), got {v!r}"
+                )
 
 
 # ---------------------------------------------------------------------------------------
@@ -255,8 +276,8 @@ class HypothesisCheck:
     ``index`` into ``match.hypotheses``; ``pose`` (maps B into A) and ``covariance`` used;
     ``mahalanobis_sq`` the squared Mahalanobis distance from the prior (covariances
     added); ``passed`` whether it is within the gate; ``score`` and ``clique_size`` as in
-    the hypothesis; ``rival`` True for the match's own hypothesis and, when the match is
-    ambiguous, its rivals (tested first), False for the other contenders."""
+    the hypothesis; ``rival`` True for the match's own hypothesis and its rivals (tested
+    first; see :func:`validate_match`), False for the other contenders."""
 
     index: int
     pose: Pose2
@@ -279,8 +300,10 @@ class Validation:
     ----------
     verdict : str
         ``"accepted"``: the pose can be used. ``"rejected_odometry"``: no hypothesis of
-        the match agrees with the odometry. ``"ambiguous"``: distinct hypotheses explain the
-        scans about equally well (symmetry) and nothing chooses among them.
+        the match agrees with the odometry (or the one that does is not decisively
+        better than the others, or is no match by itself). ``"ambiguous"``: distinct
+        hypotheses explain the scans about equally well, or a larger feature mapping
+        points elsewhere than the raw scans (symmetry), and nothing chooses among them.
         ``"too_few_features"``: no pose, too few mapped features, or a constellation
         that does not fix the pose.
     pose : Pose2 or None
@@ -305,6 +328,13 @@ class Validation:
         The hypotheses tested against odometry (empty without odometry).
     reasons : tuple of str
         Why, in words, with the numbers.
+    rivals : tuple of int
+        Indices in ``match.hypotheses`` of the rivals of the match's own hypothesis
+        (:func:`validate_match`, step 2): empty when nothing contests it.
+    posterior : float or None
+        When odometry had to choose (rivals, or the match's own pose outside the gate):
+        the posterior probability of the hypothesis it favoured among the contenders.
+        None when it only vetoed, or without odometry.
     """
 
     verdict: str
@@ -319,6 +349,8 @@ class Validation:
     std: tuple[float, float] | None
     checks: tuple[HypothesisCheck, ...]
     reasons: tuple[str, ...]
+    rivals: tuple[int, ...] = ()
+    posterior: float | None = None
 
     def __post_init__(self) -> None:
         if self.verdict not in VERDICTS:
@@ -327,6 +359,7 @@ class Validation:
         object.__setattr__(self, "prior_covariance", _readonly(self.prior_covariance))
         object.__setattr__(self, "checks", tuple(self.checks))
         object.__setattr__(self, "reasons", tuple(self.reasons))
+        object.__setattr__(self, "rivals", tuple(int(k) for k in self.rivals))
 
     @property
     def accepted(self) -> bool:
@@ -367,6 +400,8 @@ class Validation:
                 for c in self.checks
             ],
             "reasons": list(self.reasons),
+            "rivals": list(self.rivals),
+            "posterior": num(self.posterior),
         }
 
 
@@ -598,37 +633,54 @@ def _hyp_cov(match: ScanMatch, k: int, h: Hypothesis, est: PoseEstimate | None) 
     return np.diag([0.05**2, 0.05**2, math.radians(1.0) ** 2])
 
 
-def _rivals(match: ScanMatch) -> list[int]:
-    """Indices of the hypotheses that make a match ambiguous (the rule of
-    :func:`scanclique.match.match_prepared`): a pose distinct from the best one (0.3 m or
-    5 degrees), a score at least 0.9 of the best and a clique at most one smaller; the
-    best-ranked of each distinct pose."""
+def _near_rival(h: Hypothesis, best: Hypothesis) -> bool:
+    """The ambiguity rule of :func:`scanclique.match.match_prepared`: a raw-scan score at
+    least 0.9 of the best and a clique at most one smaller."""
+    return h.score >= 0.9 * best.score and h.clique_size >= best.clique_size - 1
+
+
+def _rivals(match: ScanMatch, min_score: float = RefineConfig().min_score) -> list[int]:
+    """Indices of the hypotheses that make a match ambiguous: the best-ranked hypothesis
+    of each pose distinct from the chosen one (0.3 m or 5 degrees) that
+
+    * explains the raw scans nearly as well (the rule of
+      :func:`scanclique.match.match_prepared`, counted when ``match.ambiguous``), or
+    * maps more features than the chosen one (a larger clique) and explains the raw
+      scans at least as well as the matcher demands of any pose (score at least
+      ``min_score``): *conflicting evidence*, see :func:`validate_match`.
+    """
     hyps = match.hypotheses
     if not hyps:
         return []
     best = hyps[0]
     out: list[int] = []
     for k, h in enumerate(hyps[1:], start=1):
+        near = match.ambiguous and _near_rival(h, best)
+        larger = h.clique_size > best.clique_size and h.score >= min_score
         if (
-            _distinct(h.pose, best.pose)
-            and h.score >= 0.9 * best.score
-            and h.clique_size >= best.clique_size - 1
+            (near or larger)
+            and _distinct(h.pose, best.pose)
             and all(_distinct(h.pose, hyps[j].pose) for j in out)
         ):
             out.append(k)
     return out
 
 
+def _larger_rivals(match: ScanMatch, rivals: Sequence[int]) -> list[int]:
+    best = match.hypotheses[0]
+    return [k for k in rivals if match.hypotheses[k].clique_size > best.clique_size]
+
+
 def _contenders(match: ScanMatch, cfg: ValidationConfig) -> tuple[list[int], list[int]]:
-    """The hypotheses odometry may choose among, in two tiers: first the match's own and,
-    when it is ambiguous, its rivals; then the best-ranked hypothesis of every other
+    """The hypotheses odometry may choose among, in two tiers: first the match's own and
+    its rivals (:func:`_rivals`); then the best-ranked hypothesis of every other
     distinct pose whose score is at least ``contender_score`` of the best and whose
     clique has ``min_features`` (looked at only when the first tier all disagree with
     odometry)."""
     hyps = match.hypotheses
     if not hyps:
         return [], []
-    first = [0, *(_rivals(match) if match.ambiguous else [])]
+    first = [0, *_rivals(match, cfg.rival_min_score)]
     best = hyps[0]
     second: list[int] = []
     for k, h in enumerate(hyps[1:], start=1):
@@ -651,8 +703,8 @@ def check_hypotheses(
 ) -> tuple[HypothesisCheck, ...]:
     """Test the contending hypotheses of a match against an odometry prior.
 
-    The contenders are the match's chosen hypothesis, its rivals when the match is
-    ambiguous (``rival=True``), then the best-ranked hypothesis of every other distinct
+    The contenders are the match's chosen hypothesis, its rivals (``rival=True``; see
+    :func:`validate_match`, step 2), then the best-ranked hypothesis of every other distinct
     pose (0.3 m or 5 degrees apart) whose score is at least ``config.contender_score`` of
     the best. Each is tested with its feature covariance (:func:`feature_estimate`; the
     match's covariance for hypotheses that carry only a closed-form pose).
@@ -687,29 +739,48 @@ def choose_by_odometry(
 ) -> Hypothesis | None:
     """The one hypothesis of a match that odometry supports, or None.
 
-    The match's own hypothesis and, when the match is ambiguous, its rivals are tested
+    The match's own hypothesis and its rivals (:func:`validate_match`, step 2) are tested
     first (:func:`check_hypotheses`): when those within the gate all give one pose, the
-    best-ranked of them is returned; when distinct poses pass, None (odometry cannot tell
-    the symmetric places apart). When none of them passes, the other contenders are
-    tested the same way. None when nothing passes.
+    best-ranked of them is returned, provided odometry is decisive when there were rivals
+    (posterior at least ``config.decisive``); when distinct poses pass, None (odometry
+    cannot tell the symmetric places apart). When none of them passes, the other
+    contenders are tested the same way, decisiveness required. None when nothing passes
+    or odometry is not decisive.
     """
-    checks = check_hypotheses(match, prior, prior_covariance, gate, config=config)
-    k = _choose(checks)
+    cfg = config or ValidationConfig()
+    checks = check_hypotheses(match, prior, prior_covariance, gate, config=cfg)
+    k, _ = _choose(checks, cfg.decisive)
     return None if k is None else match.hypotheses[checks[k].index]
 
 
-def _choose(checks: Sequence[HypothesisCheck]) -> int | None:
-    """Index into ``checks`` of the chosen one, or None (nothing passed, or distinct poses
-    passed in the tier that decides)."""
+def _posterior(checks: Sequence[HypothesisCheck], k: int, pool: Sequence[int]) -> float:
+    """Probability that ``checks[k]`` is the right one among the (mutually distinct)
+    hypotheses ``pool``, given odometry: Gaussian likelihoods ``exp(-d2 / 2)``, equal
+    priors. The normalising determinants are taken equal (the odometry covariance
+    dominates every sum)."""
+    d0 = checks[k].mahalanobis_sq
+    rest = sum(math.exp(-0.5 * min(checks[j].mahalanobis_sq - d0, 1400.0)) for j in pool if j != k)
+    return 1.0 / (1.0 + rest)
+
+
+def _choose(
+    checks: Sequence[HypothesisCheck], decisive: float = 0.99
+) -> tuple[int | None, float | None]:
+    """Index into ``checks`` of the chosen one and its posterior among the contenders
+    odometry had to choose from (None when it only vetoed: the match's own hypothesis
+    with no rivals). The index is None when nothing passed, or when the most probable of
+    those that passed in the tier that decides has a posterior below ``decisive``."""
     for tier in (True, False):
         passed = [k for k, c in enumerate(checks) if c.rival is tier and c.passed]
         if not passed:
             continue
-        first = checks[passed[0]]
-        if any(_distinct(checks[k].pose, first.pose) for k in passed[1:]):
-            return None
-        return passed[0]
-    return None
+        pool = [j for j, c in enumerate(checks) if c.rival or not tier]
+        if len(pool) == 1:
+            return passed[0], None
+        k = min(passed, key=lambda j: checks[j].mahalanobis_sq)
+        post = _posterior(checks, k, pool)
+        return (k if post >= decisive else None), post
+    return None, None
 
 
 def _features_used(
@@ -748,14 +819,41 @@ def validate_match(
     1. ``too_few_features`` — the match has no pose, or the chosen hypothesis maps fewer
        than ``config.min_features`` features that agree with its pose, or the precision
        its constellation allows (:func:`constellation_std`) is worse than
-       ``config.max_std_metres`` / ``max_std_radians``.
-    2. Without odometry: ``ambiguous`` when ``match.ambiguous`` (a distinct hypothesis
-       explains the raw scans nearly as well), else ``accepted``.
+       ``config.max_std_metres`` / ``max_std_radians``. The defaults, 0.10 m and 1 degree,
+       are half the accuracy a match is wanted to (0.2 m, 2 degrees): the two-sigma
+       region of a well-fixed pose lies within it.
+    2. Rivals (:attr:`Validation.rivals`): hypotheses with a pose distinct from the
+       chosen one (0.3 m or 5 degrees) that
+
+       a. explain the raw scans nearly as well (``match.ambiguous``: a raw-scan score at
+          least 0.9 of the best, a clique at most one smaller), or
+       b. map *more* features than the chosen one. The paper takes the maximum clique as
+          the association; the matcher ranks by raw-scan score and may prefer a smaller
+          clique. Then the two kinds of evidence point at distinct poses, and the
+          raw-scan score cannot confirm the choice it made itself: a third, independent
+          one must decide. A larger mapping elsewhere also says that the place repeats,
+          the symmetry behind every false association (§7).
+
+       Without odometry a match with rivals is ``ambiguous``, else ``accepted``.
     3. With odometry (:func:`odometry_prior`): every contending hypothesis is tested with
-       a chi-square gate on its squared Mahalanobis distance from the prior
-       (:func:`check_hypotheses`). One pose passes: ``accepted`` with that hypothesis
-       (odometry chose it when it is not the match's own). Distinct poses pass:
-       ``ambiguous``. None passes: ``rejected_odometry``.
+       a chi-square gate on its squared Mahalanobis distance ``d2`` from the prior
+       (:func:`check_hypotheses`; with a right match and a right noise model ``d2`` is
+       chi-square with 3 degrees of freedom, so the 99 % gate rejects 1 % of right
+       matches). The match's own hypothesis and its rivals are tested first:
+
+       * the own passes and it has no rival: ``accepted`` (odometry only vetoes the
+         raw-scan ranking);
+       * some pass and there are rivals: odometry has to choose, and does so only when it
+         is *decisive*: the most probable of them has a posterior probability among the
+         own and its rivals (likelihoods ``exp(-d2 / 2)``, equal priors) of at least
+         ``config.decisive`` (0.99); else ``ambiguous``. Passing the gate only says a
+         pose is possible; choosing needs the others to be improbable;
+       * none passes: the other contenders are tested; the most probable one that
+         passes is chosen if decisive among all contenders, else ``ambiguous`` when
+         several pass and ``rejected_odometry`` when one does (or none).
+
+       A hypothesis other than the match's own that odometry chose must itself pass
+       step 1, else ``rejected_odometry``.
 
     Parameters
     ----------
@@ -788,14 +886,29 @@ def validate_match(
     if (odom_a is None) != (odom_b is None):
         raise ScanError("validate_match needs both odometry poses or neither")
     prior = prior_cov = None
-    if odom_a is not None:
+    if odom_a is not None and odom_b is not None:
         prior, prior_cov = odometry_prior(odom_a, odom_b, noise, path=path)
 
-    def result(verdict, k, reasons, mahal=None, checks=(), n=0, std=None, est=None):
+    rivals = tuple(_rivals(match, cfg.rival_min_score)) if match.hypotheses else ()
+
+    def result(verdict, k, reasons, mahal=None, checks=(), n=0, std=None, est=None, post=None):
         pose = None if k is None else match.hypotheses[k].pose
         cov = None if est is None else est.covariance
         return Validation(
-            verdict, pose, cov, k, mahal, float(gate), prior, prior_cov, n, std, checks, reasons
+            verdict,
+            pose,
+            cov,
+            k,
+            mahal,
+            float(gate),
+            prior,
+            prior_cov,
+            n,
+            std,
+            checks,
+            reasons,
+            rivals,
+            post,
         )
 
     # 1. does the constellation fix the pose? (paper §7: its precision, like GPS DOP)
@@ -824,13 +937,13 @@ def validate_match(
             est=est,
         )
 
-    # 2. without odometry: the raw scans' own judgement of symmetry
+    # 2. without odometry: the match's own evidence of symmetry
     if prior is None:
-        if match.ambiguous:
+        if match.ambiguous or rivals:
             return result(
                 AMBIGUOUS,
                 0,
-                (_ambiguity_reason(match),),
+                (_ambiguity_reason(match, rivals),),
                 n=n,
                 std=std,
                 est=est,
@@ -846,7 +959,7 @@ def validate_match(
 
     # 3. with odometry: which of the contending hypotheses does it support?
     checks = check_hypotheses(match, prior, prior_cov, gate, config=cfg)
-    chosen = _choose(checks)
+    chosen, post = _choose(checks, cfg.decisive)
     c0 = checks[0]
     sig0 = math.sqrt(c0.mahalanobis_sq)
     if chosen is None:
@@ -859,22 +972,38 @@ def validate_match(
                 why += f"; nor do the {len(checks) - 1} other contending hypotheses"
             return result(REJECTED_ODOMETRY, 0, (why,), c0.mahalanobis_sq, checks, n, std, est)
         tier = [c for c in passed if c.rival is passed[0].rival]
-        ks = ", ".join(f"{c.index} ({math.sqrt(c.mahalanobis_sq):.1f} sigma)" for c in tier)
-        why = f"distinct hypotheses {ks} all agree with odometry"
-        return result(AMBIGUOUS, 0, (why,), c0.mahalanobis_sq, checks, n, std, est)
+        if len(tier) > 1:
+            ks = ", ".join(f"{c.index} ({math.sqrt(c.mahalanobis_sq):.1f} sigma)" for c in tier)
+            why = (
+                f"distinct hypotheses {ks} all agree with odometry (the most probable has "
+                f"posterior {post:.3f} < {cfg.decisive:g})"
+            )
+            return result(AMBIGUOUS, 0, (why,), c0.mahalanobis_sq, checks, n, std, est, post)
+        # one hypothesis passed, but odometry does not single it out (posterior < decisive)
+        c = tier[0]
+        undecided = (
+            f"hypothesis {c.index} is {math.sqrt(c.mahalanobis_sq):.1f} sigma from odometry "
+            f"but its posterior among the contenders is only {post:.3f} "
+            f"(< {cfg.decisive:g})"
+        )
+        if c.rival:
+            return result(AMBIGUOUS, 0, (undecided,), c0.mahalanobis_sq, checks, n, std, est, post)
+        why0 = f"pose is {sig0:.1f} sigma from odometry (gate {math.sqrt(gate):.1f}); {undecided}"
+        return result(REJECTED_ODOMETRY, 0, (why0,), c0.mahalanobis_sq, checks, n, std, est, post)
     c = checks[chosen]
     if c.index == 0:
         why = f"{n} mapped features; {sig0:.1f} sigma from odometry"
-        rivals = sum(1 for c in checks[1:] if c.rival)
-        if match.ambiguous and rivals:
+        n_rivals = sum(1 for c in checks[1:] if c.rival)
+        if n_rivals:
             why += " (odometry resolved the ambiguity: "
-            why += "its rival disagrees)" if rivals == 1 else f"its {rivals} rivals disagree)"
-        return result(ACCEPTED, 0, (why,), c.mahalanobis_sq, checks, n, std, est)
+            why += "its rival disagrees" if n_rivals == 1 else f"its {n_rivals} rivals disagree"
+            why += f", posterior {post:.3f})"
+        return result(ACCEPTED, 0, (why,), c.mahalanobis_sq, checks, n, std, est, post)
     n_c, std_c, est_c = _features_used(match, c.index, cfg)
     why = (
         f"odometry chose hypothesis {c.index} ({n_c} mapped features, "
-        f"{math.sqrt(c.mahalanobis_sq):.1f} sigma from odometry) over the match's own "
-        f"({sig0:.1f} sigma)"
+        f"{math.sqrt(c.mahalanobis_sq):.1f} sigma from odometry, posterior {post:.3f}) over "
+        f"the match's own ({sig0:.1f} sigma)"
     )
     weak = None
     if n_c < cfg.min_features:
@@ -885,8 +1014,8 @@ def validate_match(
         # the match's own pose disagrees with odometry, and what agrees is not a match
         why0 = f"pose is {sig0:.1f} sigma from odometry (gate {math.sqrt(gate):.1f}); "
         why0 += f"hypothesis {c.index} agrees with odometry but {weak}"
-        return result(REJECTED_ODOMETRY, 0, (why0,), c0.mahalanobis_sq, checks, n, std, est)
-    return result(ACCEPTED, c.index, (why,), c.mahalanobis_sq, checks, n_c, std_c, est_c)
+        return result(REJECTED_ODOMETRY, 0, (why0,), c0.mahalanobis_sq, checks, n, std, est, post)
+    return result(ACCEPTED, c.index, (why,), c.mahalanobis_sq, checks, n_c, std_c, est_c, post)
 
 
 def _fmt_std(std) -> str:
@@ -896,19 +1025,26 @@ def _fmt_std(std) -> str:
     return f"{s_xy:.3f} m, {math.degrees(s_th):.2f} deg (1 sigma)"
 
 
-def _ambiguity_reason(match: ScanMatch) -> str:
+def _ambiguity_reason(match: ScanMatch, rivals: Sequence[int]) -> str:
     best = match.hypotheses[0]
-    rivals = _rivals(match)
     if not rivals:
         return "the match is flagged ambiguous"
-    h = match.hypotheses[rivals[0]]
+    k = rivals[0]
+    h = match.hypotheses[k]
     t, r = h.pose.distance_to(best.pose)
     more = f"; {len(rivals)} distinct rival poses" if len(rivals) > 1 else ""
-    return (
-        f"hypothesis {rivals[0]} ({h.clique_size} features, score {h.score:.2f}) is "
-        f"{t:.2f} m and {math.degrees(r):.1f} deg from the chosen one ({best.clique_size} "
-        f"features, score {best.score:.2f}){more}"
-    )
+    if h.clique_size > best.clique_size:
+        what = (
+            f"hypothesis {k} maps more features ({h.clique_size}, score {h.score:.2f}) than "
+            f"the chosen one ({best.clique_size}, score {best.score:.2f}) at a pose "
+        )
+    else:
+        what = (
+            f"hypothesis {k} ({h.clique_size} features, score {h.score:.2f}) explains the "
+            f"scans nearly as well as the chosen one ({best.clique_size} features, score "
+            f"{best.score:.2f}) at a pose "
+        )
+    return what + f"{t:.2f} m and {math.degrees(r):.1f} deg away{more}"
 
 
 # ---------------------------------------------------------------------------------------
@@ -1186,7 +1322,8 @@ def pair_sets(
     }
     revisit: list[tuple[int, int]] = []
     if n > REVISIT_MIN_GAP:
-        pos = np.array([[s.reference.x, s.reference.y] for s in scans])
+        refs = [s.reference for s in scans if s.reference is not None]
+        pos = np.array([[r.x, r.y] for r in refs])
         cand = [
             (i, j)
             for i, j in sorted(cKDTree(pos).query_pairs(REVISIT_MAX_DISTANCE))
