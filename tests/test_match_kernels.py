@@ -134,3 +134,24 @@ def test_small_max_clique_of_64_vertices_honours_the_clock():
     c = K.small_max_clique(S, 64, t0, 0.05)
     assert time.perf_counter() - t0 < 2.0
     assert all(A[u, v] for u, v in itertools.combinations(c.tolist(), 2))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_consistent_pairs_equal_the_numpy_test(seed):
+    from scanclique.pose import pair_consistent
+
+    cfg = MatchConfig()
+    p = simulate_pair(np.random.default_rng(seed))
+    a, b = prepare_scan(p.scan_a, cfg), prepare_scan(p.scan_b, cfg)
+    cg = correspondence_graph(a.graph, b.graph, cfg.correspondence)
+    pairs = np.ascontiguousarray(cg.pairs[np.argsort(cg.pairs[:, 0] >= a.features.n_points)])
+    cc = cfg.correspondence
+    fa, fb = a.features, b.features
+    ref = pair_consistent(
+        mapped_features(fa, fb, pairs), p.pose_a_b, cc.point_point, cc.line_line, cc.point_line
+    )
+    got = K.consistent(
+        pairs, fa.n_points, fb.n_points, fa.points_xy, fb.points_xy, fa.lines_rho_alpha,
+        fb.lines_rho_alpha, p.pose_a_b.as_array(), cc.point_point, cc.line_line, cc.point_line,
+    )  # fmt: skip
+    assert np.array_equal(got, ref) and ref.any()

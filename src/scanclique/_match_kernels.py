@@ -789,6 +789,29 @@ def closed_form(pairs, npa, npb, Pa, Pb, La, Lb, out):  # pragma: no cover - com
 
 
 @_njit
+def consistent(
+    pairs, npa, npb, Pa, Pb, La, Lb, x, point_tol, angle_tol, offset_tol
+):  # pragma: no cover
+    """Which mapped pairs agree with the pose ``x``; see
+    :func:`scanclique.pose.pair_consistent` (same order as ``pairs``)."""
+    c = math.cos(x[2])
+    s = math.sin(x[2])
+    out = np.empty(pairs.shape[0], np.bool_)
+    for k in range(pairs.shape[0]):
+        a = pairs[k, 0]
+        b = pairs[k, 1]
+        if a < npa:
+            dx = c * Pb[b, 0] - s * Pb[b, 1] + x[0] - Pa[a, 0]
+            dy = s * Pb[b, 0] + c * Pb[b, 1] + x[1] - Pa[a, 1]
+            out[k] = math.sqrt(dx * dx + dy * dy) <= point_tol
+        else:
+            ap = Lb[b - npb, 1] + x[2]
+            off = Lb[b - npb, 0] + math.cos(ap) * x[0] + math.sin(ap) * x[1] - La[a - npa, 0]
+            out[k] = abs(wrap(ap - La[a - npa, 1])) <= angle_tol and abs(off) <= offset_tol
+    return out
+
+
+@_njit
 def closed_form_batch(pairs, indptr, npa, npb, Pa, Pb, La, Lb, poses, ok):  # pragma: no cover
     """:func:`closed_form` of every clique: clique ``i`` is ``pairs[indptr[i]:indptr[i+1]]``."""
     out = np.empty(3)

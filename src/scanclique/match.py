@@ -32,7 +32,6 @@ from .pose import (
     estimate_pose_lsq_pairs,
     estimate_pose_median,
     mapped_features,
-    pair_consistent,
     points_first,
 )
 from .refine import (
@@ -664,9 +663,11 @@ def match_prepared(
     # the mapping reported: the chosen clique's pairs that agree with the final pose
     ordered = points_first(best.node_pairs, fa.n_points)
     cc = cfg.correspondence
-    keep = pair_consistent(
-        mapped_features(fa, fb, ordered), best.pose, cc.point_point, cc.line_line, cc.point_line
-    )
+    keep = _K.consistent(
+        ordered, fa.n_points, fb.n_points, fa.points_xy, fb.points_xy,
+        fa.lines_rho_alpha, fb.lines_rho_alpha, best.pose.as_array(),
+        cc.point_point, cc.line_line, cc.point_line,
+    )  # fmt: skip
     return ScanMatch(
         pose=best.pose,
         covariance=best.estimate.covariance,
