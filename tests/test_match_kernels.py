@@ -155,3 +155,24 @@ def test_consistent_pairs_equal_the_numpy_test(seed):
         fb.lines_rho_alpha, p.pose_a_b.as_array(), cc.point_point, cc.line_line, cc.point_line,
     )  # fmt: skip
     assert np.array_equal(got, ref) and ref.any()
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(1, 150), density=st.floats(0.0, 0.5), seed=st.integers(0, 2**31))
+def test_multi_word_max_clique_is_maximum(n, density, seed):
+    from scanclique.clique import bitsets_from_adjacency, max_clique
+
+    rng = np.random.default_rng(seed)
+    A = np.triu(rng.random((n, n)) < density, 1)
+    A = A | A.T
+    c, complete = K.max_clique_words(bitsets_from_adjacency(A), n, time.perf_counter(), 10.0, 64)
+    assert all(A[u, v] for u, v in itertools.combinations(c.tolist(), 2))
+    assert complete and len(c) == max_clique(A).size
+
+
+def test_multi_word_max_clique_gives_up_beyond_its_depth():
+    A = ~np.eye(70, dtype=bool)  # K70: a clique deeper than 64
+    from scanclique.clique import bitsets_from_adjacency
+
+    c, complete = K.max_clique_words(bitsets_from_adjacency(A), 70, time.perf_counter(), 10.0, 64)
+    assert not complete and len(c) <= 65

@@ -1153,6 +1153,101 @@ def small_max_clique(S, m, t0, time_limit):  # pragma: no cover - compiled
     return np.sort(bestC[:best])
 
 
+@_inline
+def _colour_words(S, P, W, verts, cols, U, Q):  # pragma: no cover - compiled
+    """:func:`_colour_word` for a multi-word vertex set ``P`` (``W`` words; ``U``, ``Q``
+    scratch words)."""
+    one = np.uint64(1)
+    k = 0
+    colour = 0
+    for w in range(W):
+        Q[w] = P[w]
+    left = False
+    for w in range(W):
+        if Q[w]:
+            left = True
+    while left:
+        colour += 1
+        for w in range(W):
+            U[w] = Q[w]
+        for w in range(W):
+            while U[w]:
+                b = np.int64(CK._cttz(U[w]))
+                v = w * 64 + b
+                bit = one << np.uint64(b)
+                Q[w] &= ~bit
+                for x in range(W):
+                    U[x] &= ~S[v, x]
+                U[w] &= ~bit
+                verts[k] = v
+                cols[k] = colour
+                k += 1
+        left = False
+        for w in range(W):
+            if Q[w]:
+                left = True
+    return k
+
+
+@_njit
+def max_clique_words(S, m, t0, time_limit, max_depth):  # pragma: no cover - compiled
+    """:func:`small_max_clique` for any number of vertices: adjacency rows ``S`` of
+    ``W = S.shape[1]`` words. Returns ``(vertices, complete)``; ``complete`` is False
+    when the clock ran out or a clique deeper than ``max_depth`` would be needed (the
+    caller then uses the full solver)."""
+    if m == 0:
+        return np.empty(0, np.int64), True
+    W = S.shape[1]
+    one = np.uint64(1)
+    D = min(m, max_depth) + 1
+    P = np.zeros((D, W), np.uint64)
+    verts = np.empty((D, m), np.int64)
+    cols = np.empty((D, m), np.int64)
+    pos = np.empty(D, np.int64)
+    C = np.empty(D, np.int64)
+    bestC = np.zeros(D, np.int64)
+    U = np.empty(W, np.uint64)
+    Q = np.empty(W, np.uint64)
+    best = 1
+    for v in range(m):
+        P[0, v >> 6] |= one << np.uint64(v & 63)
+    pos[0] = _colour_words(S, P[0], W, verts[0], cols[0], U, Q) - 1
+    depth = 0
+    nodes = 0
+    while depth >= 0:
+        i = pos[depth]
+        if i < 0 or depth + cols[depth, i] <= best:
+            depth -= 1
+            if depth >= 0:
+                u = verts[depth, pos[depth]]
+                P[depth, u >> 6] &= ~(one << np.uint64(u & 63))
+                pos[depth] -= 1
+            continue
+        v = verts[depth, i]
+        C[depth] = v
+        empty = True
+        if depth + 1 < D:
+            for w in range(W):
+                P[depth + 1, w] = P[depth, w] & S[v, w]
+                if P[depth + 1, w]:
+                    empty = False
+        else:
+            return np.sort(bestC[:best]), False
+        if empty:
+            if depth + 1 > best:
+                best = depth + 1
+                bestC[:best] = C[:best]
+            P[depth, v >> 6] &= ~(one << np.uint64(v & 63))
+            pos[depth] = i - 1
+            continue
+        depth += 1
+        pos[depth] = _colour_words(S, P[depth], W, verts[depth], cols[depth], U, Q) - 1
+        nodes += 1
+        if (nodes & 1023) == 0 and CK._now() - t0 >= time_limit:
+            return np.sort(bestC[:best]), False
+    return np.sort(bestC[:best]), True
+
+
 @_njit
 def _induced_small(A, verts):  # pragma: no cover - compiled
     """One-word adjacency rows of the subgraph of ``A`` induced by at most 64 ``verts``."""
@@ -1216,7 +1311,9 @@ def hypothesis_cliques(
         if left.shape[0] < min_size or CK._now() - t0 >= time_limit:
             break
         sub = _induced(A, left)
-        r, _, _, _, _ = CK.solve(sub, left.shape[0], 0, 0, 0, time_limit, t0, opts)
+        r, done = max_clique_words(sub, left.shape[0], t0, time_limit, 64)
+        if not done:
+            r, _, _, _, _ = CK.solve(sub, left.shape[0], 0, 0, 0, time_limit, t0, opts)
         if r.shape[0] < min_size:
             break
         store = _append(store, count, np.sort(left[r]))
