@@ -25,7 +25,6 @@ import datetime as _dt
 import json
 import math
 import os
-import platform
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -38,6 +37,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import pairs as P  # noqa: E402
+from common import chunks, error_summary, machine, pool_map, results_path  # noqa: E402
 
 import scanclique as sc  # noqa: E402
 from scanclique.config import config_to_dict  # noqa: E402
@@ -97,21 +97,12 @@ def _worker(args):
 
 
 def summarise(records: list[dict]) -> dict:
-    if not records:
-        return {"n": 0}
-    t = np.array([r["t_err"] for r in records])
-    a = np.array([r["r_err"] for r in records])
-    ms = np.array([r["ms"] for r in records])
-    stages = {k: float(np.median([r["stages_ms"][k] for r in records])) for k in STAGES}
-    return {
-        "n": len(records),
-        "success": float(np.mean([r["success"] for r in records])),
-        "median_t_err": float(np.median(t)),
-        "median_r_err_deg": float(np.degrees(np.median(a))),
-        "median_ms": float(np.median(ms)),
-        "p95_ms": float(np.percentile(ms, 95)),
-        "stages_median_ms": stages,
-    }
+    s = error_summary(records)
+    if records:
+        s["stages_median_ms"] = {
+            k: float(np.median([r["stages_ms"][k] for r in records])) for k in STAGES
+        }
+    return s
 
 
 def main(argv=None) -> int:
@@ -141,14 +132,8 @@ def main(argv=None) -> int:
             sets = P.pair_sets(scans, cap, args.seed)
             results[name] = {}
             for set_name, plist in sets.items():
-                chunks = [plist[k :: args.jobs * 4] for k in range(args.jobs * 4)]
-                recs = [
-                    r
-                    for part in ex.map(
-                        _worker, [(name, c, args.paper, args.refine) for c in chunks if c]
-                    )
-                    for r in part
-                ]
+                jobs = [(name, c, args.paper, args.refine) for c in chunks(plist, args.jobs)]
+                recs = pool_map(ex, _worker, jobs)
                 recs.sort(key=lambda r: (r["i"], r["j"]))
                 s = summarise(recs)
                 results[name][set_name] = {"summary": s, "pairs": recs}
@@ -181,25 +166,16 @@ def main(argv=None) -> int:
         )
     print(f"wall time {time.perf_counter() - t_start:.0f} s with {args.jobs} processes")
 
-    out = (
-        Path(args.out)
-        if args.out
-        else Path(__file__).resolve().parent
-        / "results"
-        / (
-            f"accuracy-{'paper-' if args.paper else ''}{'' if args.refine else 'norefine-'}"
-            f"{_dt.date.today().isoformat()}.json"
-        )
+    out = results_path(
+        args.out,
+        f"accuracy-{'paper-' if args.paper else ''}{'' if args.refine else 'norefine-'}"
+        f"{_dt.date.today().isoformat()}.json",
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     cfg = make_config(args.paper, args.refine)
     doc = {
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor(),
-            "cpus": os.cpu_count(),
-        },
+        "machine": machine(),
         "scanclique": sc.__version__,
         "cap": cap,
         "config": config_to_dict(cfg),

@@ -67,12 +67,10 @@ import argparse  # noqa: E402
 import contextlib  # noqa: E402
 import datetime as _dt  # noqa: E402
 import importlib  # noqa: E402
-import importlib.metadata  # noqa: E402
 import itertools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import multiprocessing  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
@@ -82,6 +80,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import pairs as P  # noqa: E402
+from common import chunks, error_summary, git_state, machine, pool_map, versions  # noqa: E402
 
 import scanclique as sc  # noqa: E402
 from scanclique import clique as _clique  # noqa: E402
@@ -486,21 +485,13 @@ def log_pairs(name: str, scans, cap, seed) -> dict[str, list]:
 
 
 def summarise(records: list[dict]) -> dict:
+    s = error_summary(records)
     if not records:
-        return {"n": 0}
+        return s
     t = np.array([r["t_err"] for r in records])
     a = np.array([r["r_err"] for r in records])
-    ms = np.array([r["ms"] for r in records])
     ok = np.isfinite(t)
-    s = {
-        "n": len(records),
-        "success": float(np.mean([r["success"] for r in records])),
-        "median_t_err": float(np.median(t)),
-        "median_r_err_deg": float(np.degrees(np.median(a))),
-        "median_ms": float(np.median(ms)),
-        "p95_ms": float(np.percentile(ms, 95)),
-        "no_pose": int((~ok).sum()),
-    }
+    s["no_pose"] = int((~ok).sum())
     if all(r.get("stages_ms") for r in records):
         s["stages_median_ms"] = {
             k: float(np.median([r["stages_ms"][k] for r in records]))
@@ -520,52 +511,21 @@ def summarise(records: list[dict]) -> dict:
 
 def run_pairs(ex, jobs, name, plist, variants) -> dict[str, list[dict]]:
     """All variants on all pairs of one set, spread over the pool."""
-    n_chunks = min(len(plist), jobs * 4)
-    chunks = [plist[k::n_chunks] for k in range(n_chunks)]
     recs: dict[str, list[dict]] = {v[0]: [] for v in variants}
-    for part in ex.map(_worker, [(name, c, variants) for c in chunks if c]):
-        for r in part:
-            recs[r["method"]].append(r)
+    for r in pool_map(ex, _worker, [(name, c, variants) for c in chunks(plist, jobs)]):
+        recs[r["method"]].append(r)
     for v in recs.values():
         v.sort(key=lambda r: (r["i"], r["j"]))
     return recs
 
 
 def _versions() -> dict:
-    out = {"python": platform.python_version(), "scanclique": sc.__version__}
-    for pkg in ("numpy", "numba", "open3d", "small_gicp", "cliquematch", "matplotlib"):
-        try:
-            out[pkg] = importlib.metadata.version(pkg)
-        except importlib.metadata.PackageNotFoundError:
-            out[pkg] = None
-    return out
-
-
-def _git() -> dict:
-    """The commit of the checkout and the files that differ from it (results are of the
-    working tree)."""
-    import subprocess
-
-    root = Path(__file__).resolve().parents[1]
-
-    def git(*a):
-        r = subprocess.run(["git", *a], cwd=root, capture_output=True, text=True, check=False)
-        return r.stdout.rstrip("\n") if r.returncode == 0 else None
-
-    status = git("status", "--porcelain", "--untracked-files=no")
-    return {
-        "commit": git("rev-parse", "HEAD"),
-        "modified": [] if not status else [ln[3:] for ln in status.splitlines()],
-    }
+    packages = ("numpy", "numba", "open3d", "small_gicp", "cliquematch", "matplotlib")
+    return versions(packages, scanclique=sc.__version__)
 
 
 def _machine() -> dict:
-    return {
-        "platform": platform.platform(),
-        "processor": platform.processor() or platform.machine(),
-        "cpus": os.cpu_count(),
-        "load_average": [round(x, 2) for x in os.getloadavg()],
-    }
+    return machine(detailed=True)
 
 
 # --------------------------------------------------------------------------------------
@@ -802,7 +762,7 @@ def main(argv=None) -> int:
         "machine": machine,
         "load_average_start": load_start,
         "versions": versions,
-        "git": _git(),
+        "git": git_state(),
         "jobs": args.jobs,
         "wall_seconds": wall,
         "cap": cap,

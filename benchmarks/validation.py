@@ -51,7 +51,7 @@ import datetime as _dt
 import json
 import math
 import os
-import platform
+import sys
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
@@ -62,6 +62,9 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import chunks, machine, pool_map, results_path  # noqa: E402
 
 import scanclique as sc  # noqa: E402
 from scanclique.config import FeatureConfig, config_to_dict  # noqa: E402
@@ -339,19 +342,14 @@ def main(argv=None) -> int:
     t_start = time.perf_counter()
     doc: dict = {
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor(),
-            "cpus": os.cpu_count(),
-        },
+        "machine": machine(),
         "scanclique": sc.__version__,
         "config": config_to_dict(sc.MatchConfig()),
         "noise_models": {lv: vars_of(noise_model(lv)) for lv in LEVELS},
     }
     with ProcessPoolExecutor(max_workers=args.jobs) as ex:
         if args.nees > 0:
-            chunks = [list(range(k, args.nees, args.jobs * 4)) for k in range(args.jobs * 4)]
-            recs = [r for part in ex.map(_nees_worker, [c for c in chunks if c]) for r in part]
+            recs = pool_map(ex, _nees_worker, chunks(list(range(args.nees)), args.jobs))
             sim_records = [r["record"] for r in recs]
             s = nees_summary(recs)
             doc["nees"] = s
@@ -379,9 +377,8 @@ def main(argv=None) -> int:
                 print(f"skip {name}: {exc}")
                 continue
             for set_name, plist in pair_sets(scans, cap, args.seed).items():
-                chunks = [plist[k :: args.jobs * 4] for k in range(args.jobs * 4)]
-                jobs = [(name, set_name, c) for c in chunks if c]
-                recs = [r for part in ex.map(_log_worker, jobs) for r in part]
+                jobs = [(name, set_name, c) for c in chunks(plist, args.jobs)]
+                recs = pool_map(ex, _log_worker, jobs)
                 records.extend(recs)
                 print(f"matched {name} {set_name}: {len(recs)} pairs", flush=True)
     if records:
@@ -414,13 +411,7 @@ def main(argv=None) -> int:
                 f"more than 2 deg on {rc['match_over_2deg']}"
             )
     print(f"wall time {time.perf_counter() - t_start:.0f} s with {args.jobs} processes")
-    out = (
-        Path(args.out)
-        if args.out
-        else Path(__file__).resolve().parent
-        / "results"
-        / f"validation-{_dt.date.today().isoformat()}.json"
-    )
+    out = results_path(args.out, f"validation-{_dt.date.today().isoformat()}.json")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(_jsonable(doc), indent=1))
     print(f"wrote {out}")

@@ -64,8 +64,8 @@ from .config import CorrespondenceConfig, RefineConfig
 from .errors import ConfigError, ScanError
 from .geometry import Pose2, wrap_angle
 from .match import Hypothesis, ScanMatch
+from .pairsets import pair_sets
 from .pose import PoseEstimate, estimate_pose_lsq, mapped_features, pair_consistent
-from .scan import Scan
 
 __all__ = [
     "ACCEPTED",
@@ -1255,14 +1255,11 @@ def flag_inconsistent(
 
 
 # ---------------------------------------------------------------------------------------
-# Pairs with known truth (for scanclique validate and benchmarks/validation.py)
+# Pairs with known truth (for scanclique validate and benchmarks/validation.py; the pair
+# sets themselves are in scanclique.pairsets)
 # ---------------------------------------------------------------------------------------
 RIGHT_TRANSLATION = 0.20  # metres
 RIGHT_ROTATION = math.radians(2.0)
-REVISIT_MIN_GAP = 50
-REVISIT_MAX_DISTANCE = 2.0
-REVISIT_MIN_OVERLAP = 0.5
-REVISIT_OVERLAP_DISTANCE = 0.2
 
 
 def is_right(pose: Pose2 | None, reference: Pose2) -> bool:
@@ -1272,69 +1269,3 @@ def is_right(pose: Pose2 | None, reference: Pose2) -> bool:
         return False
     t, r = pose.distance_to(reference)
     return t <= RIGHT_TRANSLATION and r <= RIGHT_ROTATION
-
-
-def _overlap(scan_a: Scan, scan_b: Scan, pose_a_b: Pose2) -> float:
-    from scipy.spatial import cKDTree
-
-    pa, pb = scan_a.points(), scan_b.points()
-    if len(pa) == 0 or len(pb) == 0:
-        return 0.0
-    d, _ = cKDTree(pa).query(pose_a_b.transform(pb), distance_upper_bound=REVISIT_OVERLAP_DISTANCE)
-    return float(np.mean(np.isfinite(d)))
-
-
-def _evenly(pairs: list, cap: int | None) -> list:
-    if cap is None or len(pairs) <= cap:
-        return list(pairs)
-    idx = np.linspace(0, len(pairs) - 1, cap).round().astype(int)
-    return [pairs[k] for k in np.unique(idx)]
-
-
-def pair_sets(
-    scans: Sequence[Scan], cap: int | None = None, seed: int = 0
-) -> dict[str, list[tuple[int, int]]]:
-    """The pair sets of the benchmarks for a log with reference poses.
-
-    * ``consecutive``: ``(i, i + 1)``; ``skip3``: ``(i, i + 3)``; at most ``cap`` each,
-      evenly spread over the log;
-    * ``revisit``: scans at least 50 apart in the log whose reference positions are less
-      than 2 m apart and where at least half of B's points lie within 0.2 m of A's under
-      the reference relative pose; at most ``cap``, drawn at random (``seed``) among the
-      candidates.
-
-    The same sets as ``benchmarks/pairs.py``.
-
-    Raises
-    ------
-    ScanError
-        If a scan has no reference pose.
-    """
-    from scipy.spatial import cKDTree
-
-    for k, s in enumerate(scans):
-        if s.reference is None:
-            raise ScanError(f"pair_sets needs reference poses; scan {k} ({s.source}) has none")
-    n = len(scans)
-    out = {
-        "consecutive": _evenly([(i, i + 1) for i in range(n - 1)], cap),
-        "skip3": _evenly([(i, i + 3) for i in range(n - 3)], cap),
-    }
-    revisit: list[tuple[int, int]] = []
-    if n > REVISIT_MIN_GAP:
-        refs = [s.reference for s in scans if s.reference is not None]
-        pos = np.array([[r.x, r.y] for r in refs])
-        cand = [
-            (i, j)
-            for i, j in sorted(cKDTree(pos).query_pairs(REVISIT_MAX_DISTANCE))
-            if j - i >= REVISIT_MIN_GAP
-        ]
-        for k in np.random.default_rng(seed).permutation(len(cand)):
-            i, j = cand[k]
-            ref = scans[i].reference.inverse() @ scans[j].reference
-            if _overlap(scans[i], scans[j], ref) >= REVISIT_MIN_OVERLAP:
-                revisit.append((i, j))
-                if cap is not None and len(revisit) >= cap:
-                    break
-    out["revisit"] = sorted(revisit)
-    return out

@@ -1,0 +1,90 @@
+"""What the benchmarks share besides the pair sets (``pairs.py``): the process-pool
+chunking, the error and time summary of a list of per-pair records, and the machine,
+version and git metadata written with the results."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import platform
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def chunks(items: list, jobs: int) -> list[list]:
+    """``items`` dealt round-robin into four chunks per process, empty chunks dropped."""
+    n = jobs * 4
+    return [c for c in (items[k::n] for k in range(n)) if c]
+
+
+def pool_map(ex, worker, args: list) -> list:
+    """``worker`` over ``args`` in the pool ``ex``; the records of every call, in order."""
+    return [r for part in ex.map(worker, args) for r in part]
+
+
+def error_summary(records: list[dict]) -> dict:
+    """Success rate, median errors and time percentiles of per-pair records (keys
+    ``t_err`` in metres, ``r_err`` in radians, ``success``, ``ms``)."""
+    if not records:
+        return {"n": 0}
+    t = np.array([r["t_err"] for r in records])
+    a = np.array([r["r_err"] for r in records])
+    ms = np.array([r["ms"] for r in records])
+    return {
+        "n": len(records),
+        "success": float(np.mean([r["success"] for r in records])),
+        "median_t_err": float(np.median(t)),
+        "median_r_err_deg": float(np.degrees(np.median(a))),
+        "median_ms": float(np.median(ms)),
+        "p95_ms": float(np.percentile(ms, 95)),
+    }
+
+
+def machine(detailed: bool = False) -> dict:
+    """Platform, processor and CPU count; ``detailed``: the processor falls back to the
+    architecture and the load average is added."""
+    out = {
+        "platform": platform.platform(),
+        "processor": platform.processor(),
+        "cpus": os.cpu_count(),
+    }
+    if detailed:
+        out["processor"] = out["processor"] or platform.machine()
+        out["load_average"] = [round(x, 2) for x in os.getloadavg()]
+    return out
+
+
+def versions(packages: tuple[str, ...], **known: str) -> dict:
+    """Python's version, then ``known``, then each installed package's (None if missing)."""
+    out = {"python": platform.python_version(), **known}
+    for pkg in packages:
+        try:
+            out[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def git_state() -> dict:
+    """The commit of the checkout and the files that differ from it (results are of the
+    working tree)."""
+
+    def git(*a):
+        r = subprocess.run(["git", *a], cwd=REPO, capture_output=True, text=True, check=False)
+        return r.stdout.rstrip("\n") if r.returncode == 0 else None
+
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {
+        "commit": git("rev-parse", "HEAD"),
+        "modified": [] if not status else [ln[3:] for ln in status.splitlines()],
+    }
+
+
+def results_path(out: str | None, name: str) -> Path:
+    """``out`` if given, else ``benchmarks/results/<name>``."""
+    return Path(out) if out else RESULTS / name
