@@ -278,7 +278,7 @@ CONFLICT_MARGIN = 0.2
 CONFLICT_RATIO = 0.02
 #: the quick score of every clique's pose uses every third sample point; this many
 #: times ``refine.candidates`` of the best are scored again on the full samples
-QUICK_EXACT = 2
+QUICK_EXACT = 1
 #: a clique's pairs whose Mahalanobis residual exceeds this are dropped from its estimate
 OUTLIER_MAHALANOBIS = 3.5
 
