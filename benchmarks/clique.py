@@ -589,6 +589,7 @@ def main(argv=None) -> int:
 
     t_start = time.perf_counter()
     load_start = [round(x, 2) for x in os.getloadavg()]
+    git_start = _git()  # the code measured (others may commit while this runs)
     peers, notes = available_peers(args.peers)
     limit = args.time_limit
     first = first_call_cost(not args.no_compile_cost)
@@ -623,7 +624,7 @@ def main(argv=None) -> int:
         "machine": _machine(),
         "load_average_start": load_start,
         "versions": _versions(),
-        "git": _git(),
+        "git": git_start,
         "time_limit": limit,
         "peers": peers,
         "notes": notes,
