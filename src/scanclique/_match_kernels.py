@@ -822,6 +822,21 @@ def closed_form_batch(pairs, indptr, npa, npb, Pa, Pb, La, Lb, poses, ok):  # pr
         poses[i, 2] = out[2]
 
 
+@_inline
+def _same_pose(poses, i, among, upto):  # pragma: no cover - compiled
+    """The first ``j < upto`` with ``among[j]`` whose pose is within 2 cm and 0.2 degrees
+    of pose ``i``; -1 when none."""
+    for j in range(upto):
+        if (
+            among[j]
+            and abs(poses[i, 0] - poses[j, 0]) < 0.02
+            and abs(poses[i, 1] - poses[j, 1]) < 0.02
+            and abs(wrap(poses[i, 2] - poses[j, 2])) < 0.0035
+        ):
+            return j
+    return -1
+
+
 @_njit
 def score_batch(
     poses, ok, sizes, size_weight, keep,
@@ -844,16 +859,7 @@ def score_batch(
         if not ok[i]:
             scores[i] = -math.inf
             continue
-        same = -1
-        for j in range(i):
-            if (
-                ok[j]
-                and abs(poses[i, 0] - poses[j, 0]) < 0.02
-                and abs(poses[i, 1] - poses[j, 1]) < 0.02
-                and abs(wrap(poses[i, 2] - poses[j, 2])) < 0.0035
-            ):
-                same = j
-                break
+        same = _same_pose(poses, i, ok, i)
         if same >= 0:
             scores[i] = scores[same]
             continue
@@ -871,16 +877,7 @@ def score_batch(
         i = order[q]
         if done >= keep or not ok[i]:
             break
-        same = -1
-        for j in range(n):
-            if (
-                exact[j]
-                and abs(poses[i, 0] - poses[j, 0]) < 0.02
-                and abs(poses[i, 1] - poses[j, 1]) < 0.02
-                and abs(wrap(poses[i, 2] - poses[j, 2])) < 0.0035
-            ):
-                same = j
-                break
+        same = _same_pose(poses, i, exact, n)
         if same >= 0:
             scores[i] = scores[same]
         else:
