@@ -55,6 +55,7 @@ def test_paper_config_differences():
         ("pose", "method"),
         ("refine", "enabled"),
         ("refine", "min_score"),
+        ("refine", "search"),
     }
     assert p["clique"]["time_limit"] == d["clique"]["time_limit"]
     assert p["clique"]["max_hypotheses"] == d["clique"]["max_hypotheses"]
@@ -120,6 +121,9 @@ def test_configs_are_frozen():
         (RefineConfig, {"inlier_distance": -0.15}),
         (RefineConfig, {"conflict_weight": -1.0}),
         (RefineConfig, {"iterations": -1}),
+        (RefineConfig, {"search_below": math.nan}),
+        (RefineConfig, {"search_below": math.inf}),
+        (RefineConfig, {"search_margin": -0.1}),
     ],
 )
 def test_invalid_values_raise(cls, kwargs):

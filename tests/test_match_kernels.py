@@ -176,3 +176,50 @@ def test_multi_word_max_clique_gives_up_beyond_its_depth():
 
     c, complete = K.max_clique_words(bitsets_from_adjacency(A), 70, time.perf_counter(), 10.0, 64)
     assert not complete and len(c) <= 65
+
+
+# -- raw-scan search seeds ------------------------------------------------------------------------
+def _rotated(v, th):
+    c, s = np.cos(th), np.sin(th)
+    return v @ np.array([[c, s], [-s, c]])
+
+
+@pytest.mark.parametrize("th", [0.3, -2.0, 3.0])
+def test_rotation_candidates_recover_the_rotation(th):
+    """Normals of B are A's turned by -th (B's frame is A's turned by th): a candidate is
+    th, up to one histogram bin."""
+    rng = np.random.default_rng(1)
+    ang = np.concatenate([np.full(50, 0.2), np.full(30, 1.0), rng.uniform(-np.pi, np.pi, 20)])
+    na = np.stack([np.cos(ang), np.sin(ang)], 1)
+    nb = _rotated(na, -th)
+    out = np.empty(12)
+    n = K.rotation_candidates(na, nb, 180, 6, out)
+    assert n == 12
+    err = np.abs((out[:n] - th + np.pi) % (2 * np.pi) - np.pi)
+    assert err.min() < np.pi / 180 * 1.01
+
+
+def test_rotation_candidates_skip_zero_normals():
+    out = np.empty(4)
+    assert K.rotation_candidates(np.zeros((5, 2)), np.zeros((5, 2)), 180, 2, out) == 0
+
+
+@pytest.mark.parametrize("th", [0.0, 1.2])
+def test_translation_votes_recover_the_translation(th):
+    """B is A's points moved into B's frame by (t, th), plus clutter: the most voted cell
+    is t, and its votes are at least the shared points."""
+    rng = np.random.default_rng(2)
+    A = rng.uniform(-8, 8, (80, 2))
+    t = np.array([1.3, -0.7])
+    B = _rotated(A - t, -th)  # R(th) B + t = A
+    B = np.concatenate([B, rng.uniform(-8, 8, (20, 2))])
+    out = np.empty((3, 3))
+    n = K.translation_votes(A, B, th, 0.25, 3, out)
+    assert n == 3
+    assert np.hypot(*(out[0, :2] - t)) < 0.05
+    assert out[0, 2] >= 80 and out[0, 2] > out[1, 2] >= out[2, 2]
+
+
+def test_translation_votes_of_nothing():
+    out = np.empty((2, 3))
+    assert K.translation_votes(np.zeros((0, 2)), np.ones((3, 2)), 0.0, 0.25, 2, out) == 0

@@ -1487,3 +1487,164 @@ def refine_candidates(
                 b_ix, b_ref, b_aix, b_free, b_sample,
                 out_icp[0], out_icp[1], out_icp[2], d, conflict_weight, margin, ratio,
             )  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------
+# Pose search on the raw scans (for matches whose features explain the scans poorly)
+# --------------------------------------------------------------------------------------
+@_njit
+def _orientation_histogram(normals, bins):  # pragma: no cover - compiled
+    """Histogram of the surface orientations (normal angle modulo pi) of ``normals``
+    (zero rows skipped) in ``bins`` bins over ``[0, pi)``, smoothed by ``[1/2, 1, 1/2]``."""
+    h = np.zeros(bins)
+    for k in range(normals.shape[0]):
+        nx = normals[k, 0]
+        ny = normals[k, 1]
+        if nx == 0.0 and ny == 0.0:
+            continue
+        a = math.atan2(ny, nx) % math.pi
+        h[int(a / math.pi * bins) % bins] += 1.0
+    out = np.empty(bins)
+    for i in range(bins):
+        out[i] = h[i] + 0.5 * (h[(i - 1) % bins] + h[(i + 1) % bins])
+    return out
+
+
+@_njit
+def rotation_candidates(a_normals, b_normals, bins, n_peaks, out):  # pragma: no cover
+    """Rotations of B into A that align the two scans' surface orientations: the
+    ``n_peaks`` highest peaks (at least 5 bins apart) of the circular cross-correlation of
+    their orientation histograms (``bins`` bins over pi), each with its opposite (+pi),
+    since a surface orientation does not say which way it faces. Writes ``out`` (2 *
+    n_peaks) and returns how many were written."""
+    ha = _orientation_histogram(a_normals, bins)
+    hb = _orientation_histogram(b_normals, bins)
+    corr = np.empty(bins)
+    for s in range(bins):
+        acc = 0.0
+        for i in range(bins):
+            acc += ha[i] * hb[(i - s) % bins]
+        corr[s] = acc
+    n = 0
+    for _ in range(n_peaks):
+        best = -1
+        for s in range(bins):
+            if corr[s] > 0.0 and (best < 0 or corr[s] > corr[best]):
+                best = s
+        if best < 0:
+            break
+        th = best * math.pi / bins
+        out[n] = wrap(th)
+        out[n + 1] = wrap(th + math.pi)
+        n += 2
+        for d in range(-5, 6):
+            corr[(best + d) % bins] = -1.0
+    return n
+
+
+#: translation_votes' grid has at most this many cells a side (coarser cells beyond)
+VOTE_GRID_MAX = 256
+
+
+@_njit
+def translation_votes(A, B, th, cell, top, out):  # pragma: no cover - compiled
+    """Translations of B into A under the rotation ``th``, by vote (a Hough transform):
+    every pair of points ``(A[i], B[j])`` votes for ``A[i] - R(th) B[j]`` in square
+    cells of ``cell`` metres (coarser when the votes would span more than
+    ``VOTE_GRID_MAX`` cells a side); the pairs of one surface seen in both scans vote for
+    the same cell. Writes to ``out`` (top, 3) the ``top`` most voted cells that are not
+    neighbours of a better one, as ``(tx, ty, votes)`` with the mean of the votes in the
+    3 x 3 cells around the peak; returns how many were written."""
+    na = A.shape[0]
+    nb = B.shape[0]
+    if na == 0 or nb == 0:
+        return 0
+    c = math.cos(th)
+    s = math.sin(th)
+    Bx = np.empty(nb)
+    By = np.empty(nb)
+    for j in range(nb):
+        Bx[j] = c * B[j, 0] - s * B[j, 1]
+        By[j] = s * B[j, 0] + c * B[j, 1]
+    x0 = A[:, 0].min() - Bx.max()
+    y0 = A[:, 1].min() - By.max()
+    span = max(A[:, 0].max() - Bx.min() - x0, A[:, 1].max() - By.min() - y0)
+    cell = max(cell, span / (VOTE_GRID_MAX - 1))
+    side = int(span / cell) + 1
+    inv = 1.0 / cell
+    grid = np.zeros((side, side), np.int32)
+    ofx = np.empty(na * nb, np.int32)
+    ofy = np.empty(na * nb, np.int32)
+    k = 0
+    for j in range(nb):
+        for i in range(na):
+            gx = min(int((A[i, 0] - Bx[j] - x0) * inv), side - 1)
+            gy = min(int((A[i, 1] - By[j] - y0) * inv), side - 1)
+            grid[gx, gy] += 1
+            ofx[k] = gx
+            ofy[k] = gy
+            k += 1
+    n = 0
+    px = np.empty(top, np.int64)
+    py = np.empty(top, np.int64)
+    for _ in range(top):
+        bx = -1
+        by = -1
+        for q in range(k):
+            gx = ofx[q]
+            gy = ofy[q]
+            if bx >= 0 and grid[gx, gy] <= grid[bx, by]:
+                continue
+            near = False
+            for p in range(n):
+                if abs(gx - px[p]) <= 1 and abs(gy - py[p]) <= 1:
+                    near = True
+            if not near:
+                bx = gx
+                by = gy
+        if bx < 0:
+            break
+        px[n] = bx
+        py[n] = by
+        n += 1
+    for p in range(n):
+        out[p, 0] = 0.0
+        out[p, 1] = 0.0
+        out[p, 2] = 0.0
+    q = 0
+    for j in range(nb):
+        for i in range(na):
+            gx = ofx[q]
+            gy = ofy[q]
+            q += 1
+            for p in range(n):
+                if abs(gx - px[p]) <= 1 and abs(gy - py[p]) <= 1:
+                    out[p, 0] += A[i, 0] - Bx[j]
+                    out[p, 1] += A[i, 1] - By[j]
+                    out[p, 2] += 1.0
+    for p in range(n):
+        out[p, 0] /= out[p, 2]
+        out[p, 1] /= out[p, 2]
+        out[p, 2] = grid[px[p], py[p]]
+    return n
+
+
+@_njit
+def search_seeds(
+    a_normals, b_normals, a_sample, b_sample, bins, n_peaks, cell, top
+):  # pragma: no cover - compiled
+    """Pose seeds of the raw-scan search: for each of :func:`rotation_candidates`, the
+    :func:`translation_votes` of the two samples. Returns ``(m, 3)`` poses."""
+    rot = np.empty(2 * n_peaks)
+    nr = rotation_candidates(a_normals, b_normals, bins, n_peaks, rot)
+    seeds = np.empty((nr * top, 3))
+    t = np.empty((top, 3))
+    m = 0
+    for r in range(nr):
+        k = translation_votes(a_sample, b_sample, rot[r], cell, top, t)
+        for q in range(k):
+            seeds[m, 0] = t[q, 0]
+            seeds[m, 1] = t[q, 1]
+            seeds[m, 2] = rot[r]
+            m += 1
+    return seeds[:m]

@@ -278,6 +278,15 @@ class RefineConfig:
     ``min_score``: when even the best hypothesis scores below this, the match has no pose
     (on the real logs every right match scored at least 0.2, while wrong ones went down
     to below 0).
+
+    ``search``, ``search_below``: beyond the paper, when the best hypothesis scores below
+    ``search_below``, the pose is also searched on the raw scans (rotations that align the two scans' surface
+    orientations, translations voted by all pairs of sample points, ICP; see
+    :func:`scanclique.match.search_pose`). Its pose replaces the clique's when it scores
+    at least ``search_margin`` better and at least ``pose.min_pairs`` mapped features
+    agree with it. It catches what a maximum clique misses: the true association is small
+    (a corridor seen from its other end shares two walls and a door frame) while a larger
+    clique of look-alike features wins. ``search=False`` disables it.
     """
 
     enabled: bool = True
@@ -289,11 +298,18 @@ class RefineConfig:
     max_correspondence: float = 0.5
     inlier_distance: float = 0.15
     conflict_weight: float = 2.0
+    search: bool = True
+    search_below: float = 0.4
+    search_margin: float = 0.1
 
     def __post_init__(self) -> None:
         _check_types(self)
         _positive(self, "max_correspondence", "inlier_distance", "sample_points")
-        _nonneg(self, "conflict_weight", "size_weight")
+        _nonneg(self, "conflict_weight", "size_weight", "search_margin")
+        if not (isinstance(self.search_below, (int, float)) and math.isfinite(self.search_below)):
+            raise ConfigError(
+                f"RefineConfig.search_below must be a finite number, got {self.search_below!r}"
+            )
         if not (isinstance(self.candidates, int) and self.candidates >= 1):
             raise ConfigError(
                 f"RefineConfig.candidates must be an int >= 1, got {self.candidates!r}"
@@ -315,13 +331,14 @@ class MatchConfig:
 
 def paper_config() -> MatchConfig:
     """The paper's exact behaviour: §4 features (no corners, untyped points), §6 tolerances,
-    unsigned invariants, maximum clique only, median pose, no refinement."""
+    unsigned invariants, maximum clique only, median pose, no refinement, no raw-scan
+    search."""
     return MatchConfig(
         features=FeatureConfig(corners=False, typed_edges=False),
         correspondence=CorrespondenceConfig(signed=False, parallel_offset=False),
         clique=CliqueConfig(peel=0, per_vertex=0),
         pose=PoseConfig(method="median"),
-        refine=RefineConfig(enabled=False, min_score=-math.inf),
+        refine=RefineConfig(enabled=False, min_score=-math.inf, search=False),
     )
 
 

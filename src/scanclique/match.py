@@ -52,6 +52,7 @@ __all__ = [
     "prepare_scan",
     "pose_score",
     "estimate_clique_pose",
+    "search_pose",
     "match_prepared",
     "match_scans",
 ]
@@ -60,7 +61,8 @@ log = logging.getLogger(__name__)
 
 #: the stages timed in ``ScanMatch.seconds``: ``pose`` is the quick pose and score of every
 #: clique, ``refine`` the full estimate of the best few, their ICP and rescoring
-STAGES = ("features", "graph", "correspondence", "clique", "pose", "refine")
+#: ``search`` the raw-scan pose search of weak matches (``refine.search``)
+STAGES = ("features", "graph", "correspondence", "clique", "pose", "refine", "search")
 
 
 class FeaturePair(NamedTuple):
@@ -83,7 +85,10 @@ class Hypothesis:
     third sample point only). ``estimate`` is the
     full weighted estimate with covariance, computed for the best few hypotheses only (the
     others carry the closed-form pose used to rank them); ``refined`` says whether ``pose``
-    was refined by ICP on the raw points.
+    was refined by ICP on the raw points. ``origin`` is ``"clique"`` for the hypotheses of
+    the clique search (paper §5.3) and ``"search"`` for the one found by
+    :func:`search_pose`, whose ``node_pairs`` are the largest set of mapped features that
+    agree with its pose.
     """
 
     node_pairs: np.ndarray
@@ -92,6 +97,7 @@ class Hypothesis:
     score: float
     estimate: PoseEstimate | None = None
     refined: bool = False
+    origin: str = "clique"
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -155,7 +161,7 @@ class ScanMatch:
     n_correspondence_nodes, n_correspondence_edges : int
     seconds : dict
         Time per stage (``features``, ``graph``, ``correspondence``, ``clique``, ``pose``,
-        ``refine``) in seconds.
+        ``refine``, ``search``) in seconds.
     """
 
     pose: Pose2 | None
@@ -212,6 +218,7 @@ class ScanMatch:
                     "theta": h.pose.theta,
                     "score": h.score,
                     "clique_size": h.clique_size,
+                    "origin": h.origin,
                 }
                 for h in self.hypotheses
             ],
@@ -541,6 +548,110 @@ def _refine_candidates_slow(
     return full
 
 
+#: the raw-scan search (:func:`search_pose`): orientation histograms of this many bins
+#: over pi, this many peaks of their correlation (each also turned by pi), this many
+#: translation peaks per rotation voted in cells of SEARCH_CELL metres, and ICP from
+#: this many of the best-scoring seeds
+SEARCH_BINS = 180
+SEARCH_PEAKS = 6
+SEARCH_TOP = 3
+SEARCH_CELL = 0.25
+SEARCH_ICP = 4
+
+
+def search_pose(
+    pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None
+) -> tuple[Pose2, float] | None:
+    """The pose of B in A found on the raw scans alone, without features, and its
+    :func:`pose_score`; None when the scans give no seed (no surface normals).
+
+    Beyond the paper; used by :func:`match_prepared` when the features explain the raw
+    scans poorly (``refine.search_below``). The steps:
+
+    1. rotation seeds: the peaks of the circular cross-correlation of the two scans'
+       histograms of surface orientation (the normal angle modulo pi, as in angle-histogram
+       matching), each also turned by pi;
+    2. translation seeds per rotation: every pair of sample points (one of A, one of B)
+       votes for the translation that would bring them together, in square cells
+       (a Hough transform); the best few cells, each the mean of its votes and its
+       neighbours';
+    3. every seed is scored, and the best ``SEARCH_ICP`` are refined by point-to-line ICP
+       and scored again; the best-scoring pose is returned.
+
+    Costs about a millisecond on laser scans (``6 x 2`` rotations, ``120 x 120`` votes
+    each).
+    """
+    cfg = config or MatchConfig()
+    r = cfg.refine
+    seeds = _K.search_seeds(
+        pa.cloud.normals, pb.cloud.normals, pa.sample, pb.sample,
+        SEARCH_BINS, SEARCH_PEAKS, SEARCH_CELL, SEARCH_TOP,
+    )  # fmt: skip
+    if len(seeds) == 0 or len(pb.sample) < 3:
+        return None
+    n = len(seeds)
+    if pa.cloud.windowed and pb.cloud.windowed:
+        scores = np.empty(n)
+        exact = np.empty(n, dtype=bool)
+        _K.score_batch(
+            seeds, np.ones(n, dtype=bool), np.zeros(n), 0.0, 0,
+            *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
+            r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
+        )  # fmt: skip
+    else:
+        scores = np.array([pose_score(pa, pb, Pose2.from_array(x), cfg) for x in seeds])
+    best = None
+    for i in np.argsort(-scores, kind="stable")[:SEARCH_ICP].tolist():
+        icp = icp_point_to_line(
+            pa.cloud,
+            pb.sample,
+            Pose2.from_array(seeds[i]),
+            iterations=r.iterations,
+            max_correspondence=r.max_correspondence,
+            min_correspondence=r.inlier_distance,
+        )
+        score = pose_score(pa, pb, icp.pose, cfg)
+        if best is None or score > best[1]:
+            best = (icp.pose, score)
+    return best
+
+
+def _searched_hypothesis(
+    pa: PreparedScan, pb: PreparedScan, cg: CorrespondenceGraph, cfg: MatchConfig, beat: float
+) -> Hypothesis | None:
+    """The hypothesis of :func:`search_pose` when it scores at least ``refine.search_margin``
+    above ``beat`` (and ``refine.min_score``) and the largest set of mapped features that
+    agree with its pose (a clique of the correspondence graph among the nodes consistent
+    with it) has at least ``pose.min_pairs`` features; else None. Its ``estimate`` is the
+    weighted least-squares estimate of those features, linearised at the searched pose:
+    the covariance says what the features alone fix (a corridor's walls leave the
+    along-corridor direction free, infinite variance)."""
+    found = search_pose(pa, pb, cfg)
+    if found is None:
+        return None
+    pose, score = found
+    if score < beat + cfg.refine.search_margin or score < cfg.refine.min_score:
+        return None
+    fa, fb, cc = pa.features, pb.features, cfg.correspondence
+    agree = _K.consistent(
+        cg.pairs, fa.n_points, fb.n_points, fa.points_xy, fb.points_xy,
+        fa.lines_rho_alpha, fb.lines_rho_alpha, pose.as_array(),
+        cc.point_point, cc.line_line, cc.point_line,
+    )  # fmt: skip
+    nodes = np.flatnonzero(agree)
+    if len(nodes) < cfg.pose.min_pairs:
+        return None
+    sub = np.ascontiguousarray(cg.adjacency[np.ix_(nodes, nodes)])
+    support = _clique.max_clique(sub, time_limit=cfg.clique.time_limit)
+    node_pairs = points_first(cg.pairs[nodes[support.vertices]], fa.n_points)
+    if len(node_pairs) < cfg.pose.min_pairs:
+        return None
+    est = estimate_pose_lsq_pairs(fa, fb, node_pairs, initial=pose, iterations=0)
+    if est is None:
+        return None
+    return Hypothesis(node_pairs, len(node_pairs), pose, score, est, True, "search")
+
+
 def match_prepared(
     pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None
 ) -> ScanMatch:
@@ -554,9 +665,12 @@ def match_prepared(
     3. a pose per clique (§6: weighted least squares or the paper's median);
     4. rank the hypotheses by raw-scan agreement, refine the best few by point-to-line ICP
        on the raw points (``refine.enabled``) and rank again;
-    5. no pose when even the best hypothesis has no raw-scan support
+    5. when even the best scores below ``refine.search_below``, search the pose on the raw
+       scans (:func:`search_pose`); a clearly better pose that at least ``pose.min_pairs``
+       mapped features agree with becomes the best hypothesis (``origin="search"``);
+    6. no pose when even the best hypothesis has no raw-scan support
        (score below ``refine.min_score``);
-    6. flag ambiguity when a distinct runner-up scores nearly as well.
+    7. flag ambiguity when a distinct runner-up scores nearly as well.
     """
     cfg = config or MatchConfig()
     seconds = {k: 0.0 for k in STAGES}
@@ -637,7 +751,16 @@ def match_prepared(
     full.sort(key=lambda h: -_rank(h, cfg.refine.size_weight))
     hyps = full + [h for h in hyps if all(h is not d for d in distinct)]
 
-    # 5. no raw-scan evidence for the best hypothesis: no pose (the hypotheses stay)
+    # 5. a weak best (beyond the paper): search the pose on the raw scans; a clearly
+    #    better pose that enough mapped features agree with goes first
+    if cfg.refine.search and hyps[0].score < cfg.refine.search_below:
+        t = time.perf_counter()
+        found = _searched_hypothesis(pa, pb, cg, cfg, hyps[0].score)
+        if found is not None:
+            hyps.insert(0, found)
+        seconds["search"] = time.perf_counter() - t
+
+    # 6. no raw-scan evidence for the best hypothesis: no pose (the hypotheses stay)
     best = hyps[0]
     if best.score < cfg.refine.min_score:
         return _empty(
@@ -653,7 +776,7 @@ def match_prepared(
             hyps,
         )
 
-    # 6. ambiguity: a distinct runner-up that explains the raw scans nearly as well
+    # 7. ambiguity: a distinct runner-up that explains the raw scans nearly as well
     ambiguous = any(
         h.score >= 0.9 * best.score
         and h.clique_size >= best.clique_size - 1
