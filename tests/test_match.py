@@ -250,21 +250,28 @@ def test_no_pose_when_no_hypothesis_explains_the_raw_scans():
 
 
 # -- the raw-scan pose search (refine.search) ----------------------------------------------------
-@pytest.mark.parametrize("seed", [0, 2, 3, 4])
-def test_search_pose_finds_the_simulated_pose_without_features(seed):
-    """search_pose uses the raw points only; on these simulated indoor pairs its pose is the
-    true one. (On seeds 1 and 5 the raw scans alone prefer the room's 180-degree alias:
-    that is why match_prepared takes a searched pose only when mapped features agree with
-    it and it beats the cliques by a margin; the success-rate test above covers them.)"""
-    from scanclique.match import search_pose
+def test_search_pose_maximises_the_score_on_simulated_pairs():
+    """search_pose uses the raw points only and maximises the raw-scan score: on every
+    simulated pair its pose scores at least as well as the true pose polished by ICP, and
+    on most it is the true pose. The others are rooms whose 180-degree turn explains the
+    raw scans better than the truth does (with moving people and clutter); that is why
+    match_prepared takes a searched pose only when mapped features agree with it and it
+    beats the cliques by a margin (the success-rate test above covers those seeds)."""
+    from scanclique.match import pose_score, search_pose
+    from scanclique.refine import icp_point_to_line
 
-    p = sim_pair(seed)
-    pa, pb = prepare_scan(p.scan_a), prepare_scan(p.scan_b)
-    found = search_pose(pa, pb)
-    assert found is not None
-    pose, score = found
-    t, r = pose.distance_to(p.pose_a_b)
-    assert t < 0.1 and r < math.radians(1.0), (seed, t, math.degrees(r), score)
+    right = 0
+    for seed in range(12):
+        p = sim_pair(seed)
+        pa, pb = prepare_scan(p.scan_a), prepare_scan(p.scan_b)
+        found = search_pose(pa, pb)
+        assert found is not None
+        pose, score = found
+        truth = icp_point_to_line(pa.cloud, pb.sample, p.pose_a_b).pose
+        assert score >= pose_score(pa, pb, truth) - 0.02, seed
+        t, r = pose.distance_to(p.pose_a_b)
+        right += t < 0.1 and r < math.radians(1.0)
+    assert right >= 8, right
 
 
 def test_search_pose_without_normals_gives_none():

@@ -1542,8 +1542,10 @@ def rotation_candidates(a_normals, b_normals, bins, n_peaks, out):  # pragma: no
     return n
 
 
-#: translation_votes' grid has at most this many cells a side (coarser cells beyond)
+#: translation_votes' grid has at most this many cells a side (coarser cells beyond), and
+#: it keeps this many leading cells while voting
 VOTE_GRID_MAX = 256
+VOTE_LEADERS = 16
 
 
 @_njit
@@ -1552,9 +1554,12 @@ def translation_votes(A, B, th, cell, top, out):  # pragma: no cover - compiled
     every pair of points ``(A[i], B[j])`` votes for ``A[i] - R(th) B[j]`` in square
     cells of ``cell`` metres (coarser when the votes would span more than
     ``VOTE_GRID_MAX`` cells a side); the pairs of one surface seen in both scans vote for
-    the same cell. Writes to ``out`` (top, 3) the ``top`` most voted cells that are not
-    neighbours of a better one, as ``(tx, ty, votes)`` with the mean of the votes in the
-    3 x 3 cells around the peak; returns how many were written."""
+    the same cell. Writes to ``out`` (top, 3) up to ``top`` of the most voted cells, each
+    not a neighbour of a better one, as ``(tx, ty, votes)`` with the mean of the votes in
+    the 3 x 3 cells around the peak; returns how many were written.
+
+    The leading cells are tracked while voting (the ``VOTE_LEADERS`` best so far), so the
+    grid is read once per vote."""
     na = A.shape[0]
     nb = B.shape[0]
     if na == 0 or nb == 0:
@@ -1572,60 +1577,72 @@ def translation_votes(A, B, th, cell, top, out):  # pragma: no cover - compiled
     cell = max(cell, span / (VOTE_GRID_MAX - 1))
     side = int(span / cell) + 1
     inv = 1.0 / cell
+    # cell coordinates: gx = int(ax[i] - bx[j]) with both shifted to stay non-negative
+    ax = np.empty(na)
+    ay = np.empty(na)
+    for i in range(na):
+        ax[i] = (A[i, 0] - x0) * inv
+        ay[i] = (A[i, 1] - y0) * inv
+    bx = np.empty(nb)
+    by = np.empty(nb)
+    for j in range(nb):
+        bx[j] = Bx[j] * inv
+        by[j] = By[j] * inv
     grid = np.zeros((side, side), np.int32)
-    ofx = np.empty(na * nb, np.int32)
-    ofy = np.empty(na * nb, np.int32)
-    k = 0
+    L = VOTE_LEADERS
+    lead = np.full(L, -1, np.int64)  # cell index gx * side + gy, best first
+    lead_n = np.zeros(L, np.int64)
     for j in range(nb):
         for i in range(na):
-            gx = min(int((A[i, 0] - Bx[j] - x0) * inv), side - 1)
-            gy = min(int((A[i, 1] - By[j] - y0) * inv), side - 1)
-            grid[gx, gy] += 1
-            ofx[k] = gx
-            ofy[k] = gy
-            k += 1
+            gx = min(int(ax[i] - bx[j]), side - 1)
+            gy = min(int(ay[i] - by[j]), side - 1)
+            v = grid[gx, gy] + 1
+            grid[gx, gy] = v
+            if v > lead_n[L - 1]:
+                g = gx * side + gy
+                k = L - 1
+                for q in range(L):  # the cell's place if it leads already
+                    if lead[q] == g:
+                        k = q
+                        break
+                while k > 0 and lead_n[k - 1] < v:
+                    lead[k] = lead[k - 1]
+                    lead_n[k] = lead_n[k - 1]
+                    k -= 1
+                lead[k] = g
+                lead_n[k] = v
     n = 0
     px = np.empty(top, np.int64)
     py = np.empty(top, np.int64)
-    for _ in range(top):
-        bx = -1
-        by = -1
-        for q in range(k):
-            gx = ofx[q]
-            gy = ofy[q]
-            if bx >= 0 and grid[gx, gy] <= grid[bx, by]:
-                continue
-            near = False
-            for p in range(n):
-                if abs(gx - px[p]) <= 1 and abs(gy - py[p]) <= 1:
-                    near = True
-            if not near:
-                bx = gx
-                by = gy
-        if bx < 0:
+    for q in range(L):
+        if n >= top or lead[q] < 0:
             break
-        px[n] = bx
-        py[n] = by
-        n += 1
-    for p in range(n):
-        out[p, 0] = 0.0
-        out[p, 1] = 0.0
-        out[p, 2] = 0.0
-    q = 0
+        gx = lead[q] // side
+        gy = lead[q] % side
+        near = False
+        for p in range(n):
+            if abs(gx - px[p]) <= 1 and abs(gy - py[p]) <= 1:
+                near = True
+        if not near:
+            px[n] = gx
+            py[n] = gy
+            out[n, 2] = lead_n[q]
+            n += 1
+    sx = np.zeros(top)
+    sy = np.zeros(top)
+    sn = np.zeros(top)
     for j in range(nb):
         for i in range(na):
-            gx = ofx[q]
-            gy = ofy[q]
-            q += 1
+            gx = min(int(ax[i] - bx[j]), side - 1)
+            gy = min(int(ay[i] - by[j]), side - 1)
             for p in range(n):
                 if abs(gx - px[p]) <= 1 and abs(gy - py[p]) <= 1:
-                    out[p, 0] += A[i, 0] - Bx[j]
-                    out[p, 1] += A[i, 1] - By[j]
-                    out[p, 2] += 1.0
+                    sx[p] += A[i, 0] - Bx[j]
+                    sy[p] += A[i, 1] - By[j]
+                    sn[p] += 1.0
     for p in range(n):
-        out[p, 0] /= out[p, 2]
-        out[p, 1] /= out[p, 2]
-        out[p, 2] = grid[px[p], py[p]]
+        out[p, 0] = sx[p] / sn[p]
+        out[p, 1] = sy[p] / sn[p]
     return n
 
 
