@@ -558,6 +558,9 @@ def match_rows(run: MatchRun) -> list[tuple[str, str, str]]:
     add(("ambiguous", "yes" if m.ambiguous else "no", ""))
     add(("optimal", "yes" if m.optimal else "no (time limit)", ""))
     add(("refined (ICP)", "yes" if m.refined else "no", ""))
+    if m.pose is not None and m.hypotheses:
+        found = "raw-scan search" if m.hypotheses[0].origin == "search" else "clique"
+        add(("pose found by", found, ""))
     add(("hypotheses", str(len(m.hypotheses)), ""))
     add(
         (
