@@ -130,6 +130,34 @@ def test_result_is_frozen():
         a.cliques[0][0] = 5
 
 
+def test_dense_result_is_frozen():
+    # a boolean matrix takes the lean path, which builds the record without __init__
+    r = max_clique(random_graph(11, 0.5, 0))
+    assert type(r) is CliqueResult and r.weight is None and isinstance(r.nodes, int)
+    assert r.vertices.dtype == np.int64 and not r.vertices.flags.writeable
+    with pytest.raises(AttributeError):
+        r.optimal = False  # type: ignore[misc]
+    assert repr(r).startswith("CliqueResult(vertices=array([")
+
+
+@pytest.mark.parametrize("lower_bound", [None, 1, 4, 9])
+@pytest.mark.parametrize(("n", "p"), [(1, 0.0), (11, 0.15), (60, 0.15), (70, 0.5), (130, 0.3)])
+def test_dense_path_agrees_with_bitset_path(n, p, lower_bound):
+    # max_clique(bool matrix) has its own kernel entry; an edge list goes through solve()
+    adj = random_graph(n, p, n)
+    ref = max_clique((np.argwhere(np.triu(adj)), n), lower_bound=lower_bound)
+    views = [adj, np.asfortranarray(adj), np.kron(adj, np.ones((2, 2), bool))[::2, ::2]]
+    views.append(adj.copy())
+    views[-1].setflags(write=False)
+    for a in views:
+        r = max_clique(a, lower_bound=lower_bound, time_limit=60)
+        assert (r.vertices.tolist(), r.optimal, r.nodes) == (
+            ref.vertices.tolist(),
+            ref.optimal,
+            ref.nodes,
+        )
+
+
 # -- inputs --------------------------------------------------------------------------------
 def test_input_forms_agree(tmp_path):
     from scanclique.io.dimacs import write_dimacs

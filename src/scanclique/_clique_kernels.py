@@ -145,9 +145,15 @@ def _grow(a, k, cap):
 
 @numba.njit(cache=True)
 def _mapped_sorted(a, k, order):
-    """``sorted(order[a[i]] for i < k)``: back to the caller's labels (insertion sort,
-    cliques are short)."""
+    """``sorted(order[a[i]] for i < k)``: back to the caller's labels."""
     out = np.empty(k, np.int64)
+    _map_sorted_into(a, k, order, out)
+    return out
+
+
+@numba.njit(cache=True)
+def _map_sorted_into(a, k, order, out):
+    """``out[:k] = sorted(order[a[i]] for i < k)`` (insertion sort, cliques are short)."""
     for i in range(k):
         x = order[a[i]]
         j = i
@@ -155,7 +161,6 @@ def _mapped_sorted(a, k, order):
             out[j] = out[j - 1]
             j -= 1
         out[j] = x
-    return out
 
 
 @numba.njit(cache=True)
@@ -1013,18 +1018,28 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
 
 
 @numba.njit(cache=True)
-def solve_dense(adj, floor, time_limit, t0, opts, out):
-    """:func:`pack_checked` then :func:`solve` in mode 0, in one call: the lean path of
-    ``max_clique`` for boolean matrices (no array crosses back into Python; the clique is
-    written to ``out[:size]``). Returns ``(size, nodes, status, u, v)``; ``status`` is -1
-    and ``(u, v)`` the defect when the matrix is not a valid adjacency."""
+def solve_dense(adj, floor, deadline, out):
+    """:func:`pack_checked` then :func:`solve` in mode 0 with the default options, in one
+    call: the lean path of ``max_clique`` for boolean matrices. Few arguments, no array
+    crosses back into Python (the clique is written to ``out[:size]``), and none of the
+    arrays of the other modes is allocated: on the pipeline's graphs the fixed costs are a
+    good part of the call. ``deadline`` is a ``time.perf_counter()`` reading (``inf``:
+    none). Returns ``(size, nodes, status, u, v)``; ``status`` is -1 and ``(u, v)`` the
+    defect when the matrix is not a valid adjacency."""
     n = adj.shape[0]
     A, u, v = pack_checked(adj)
     if u >= 0:
         return 0, 0, -1, u, v
-    best, nodes, status, _, _ = solve(A, n, floor, 0, 0, time_limit, t0, opts)
-    for i in range(best.shape[0]):
-        out[i] = best[i]
+    W = A.shape[1]
+    # as solve(A, n, floor, 0, 0, deadline, 0.0, OPT_DEFAULT)
+    order, core = degeneracy_order(A, n)
+    B = relabel(A, n, order)
+    U = np.empty(W, np.uint64)
+    maxsat = (OPT_DEFAULT & OPT_MAXSAT) != 0
+    best, nodes, status = _maximum(
+        B, n, order, core, floor, deadline, 0.0, OPT_DEFAULT, maxsat, check_mask(n, W), U
+    )
+    _map_sorted_into(best, best.shape[0], order, out)
     return best.shape[0], nodes, status, -1, -1
 
 
