@@ -1589,6 +1589,8 @@ def translation_votes(A, B, th, cell, top, out):  # pragma: no cover - compiled
         bx[j] = Bx[j] * inv
         by[j] = By[j] * inv
     grid = np.zeros((side, side), np.int32)
+    sum_x = np.zeros((side, side))
+    sum_y = np.zeros((side, side))
     L = VOTE_LEADERS
     lead = np.full(L, -1, np.int64)  # cell index gx * side + gy, best first
     lead_n = np.zeros(L, np.int64)
@@ -1598,6 +1600,8 @@ def translation_votes(A, B, th, cell, top, out):  # pragma: no cover - compiled
             gy = min(int(ay[i] - by[j]), side - 1)
             v = grid[gx, gy] + 1
             grid[gx, gy] = v
+            sum_x[gx, gy] += A[i, 0] - Bx[j]
+            sum_y[gx, gy] += A[i, 1] - By[j]
             if v > lead_n[L - 1]:
                 g = gx * side + gy
                 k = L - 1
@@ -1631,15 +1635,12 @@ def translation_votes(A, B, th, cell, top, out):  # pragma: no cover - compiled
     sx = np.zeros(top)
     sy = np.zeros(top)
     sn = np.zeros(top)
-    for j in range(nb):
-        for i in range(na):
-            gx = min(int(ax[i] - bx[j]), side - 1)
-            gy = min(int(ay[i] - by[j]), side - 1)
-            for p in range(n):
-                if abs(gx - px[p]) <= 1 and abs(gy - py[p]) <= 1:
-                    sx[p] += A[i, 0] - Bx[j]
-                    sy[p] += A[i, 1] - By[j]
-                    sn[p] += 1.0
+    for p in range(n):
+        for gx in range(max(px[p] - 1, 0), min(px[p] + 2, side)):
+            for gy in range(max(py[p] - 1, 0), min(py[p] + 2, side)):
+                sx[p] += sum_x[gx, gy]
+                sy[p] += sum_y[gx, gy]
+                sn[p] += grid[gx, gy]
     for p in range(n):
         out[p, 0] = sx[p] / sn[p]
         out[p, 1] = sy[p] / sn[p]
