@@ -6,6 +6,7 @@ One command::
     python benchmarks/accuracy.py --cap 0         # every pair (slow on freiburg)
     python benchmarks/accuracy.py --paper         # the paper's exact configuration
     python benchmarks/accuracy.py --no-refine     # default, without the ICP refinement
+    python benchmarks/accuracy.py --no-search     # default, without the raw-scan pose search
     python benchmarks/accuracy.py --logs intel csail --jobs 2
 
 For each log (intel, csail, freiburg) and pair set (consecutive, skip3, revisit; see
@@ -50,17 +51,19 @@ LOGS = ("intel", "csail", "freiburg")
 _cache: dict = {}
 
 
-def make_config(paper: bool, refine: bool) -> sc.MatchConfig:
+def make_config(paper: bool, refine: bool, search: bool = True) -> sc.MatchConfig:
     cfg = sc.paper_config() if paper else sc.MatchConfig()
     if not refine:
         cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, enabled=False))
+    if not search:
+        cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, search=False))
     return cfg
 
 
 def _worker(args):
     """Match a chunk of pairs of one log; returns one record per pair."""
-    log_name, pair_list, paper, refine = args
-    cfg = make_config(paper, refine)
+    log_name, pair_list, paper, refine, search = args
+    cfg = make_config(paper, refine, search)
     if log_name not in _cache:
         _cache.clear()
         _cache[log_name] = (load_log(log_name), {})
@@ -114,6 +117,9 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--paper", action="store_true", help="the paper's exact configuration")
     ap.add_argument("--no-refine", dest="refine", action="store_false", help="no ICP refinement")
+    ap.add_argument(
+        "--no-search", dest="search", action="store_false", help="no raw-scan pose search"
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="JSON output path")
     args = ap.parse_args(argv)
@@ -132,7 +138,10 @@ def main(argv=None) -> int:
             sets = P.pair_sets(scans, cap, args.seed)
             results[name] = {}
             for set_name, plist in sets.items():
-                jobs = [(name, c, args.paper, args.refine) for c in chunks(plist, args.jobs)]
+                jobs = [
+                    (name, c, args.paper, args.refine, args.search)
+                    for c in chunks(plist, args.jobs)
+                ]
                 recs = pool_map(ex, _worker, jobs)
                 recs.sort(key=lambda r: (r["i"], r["j"]))
                 s = summarise(recs)
@@ -169,10 +178,11 @@ def main(argv=None) -> int:
     out = results_path(
         args.out,
         f"accuracy-{'paper-' if args.paper else ''}{'' if args.refine else 'norefine-'}"
+        f"{'' if args.search else 'nosearch-'}"
         f"{_dt.date.today().isoformat()}.json",
     )
     out.parent.mkdir(parents=True, exist_ok=True)
-    cfg = make_config(args.paper, args.refine)
+    cfg = make_config(args.paper, args.refine, args.search)
     doc = {
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
         "machine": machine(),
