@@ -221,18 +221,24 @@ def test_omega_is_the_maximum_clique_and_the_scans_choose_the_pose():
 REAL_PAIRS = [("intel", 120, 121), ("intel", 300, 301), ("csail", 50, 51)]
 
 
-@pytest.mark.realdata
-@pytest.mark.parametrize(("log", "i", "j"), REAL_PAIRS)
-def test_real_pairs_match_the_reference(log, i, j):
+def real_match(log: str, i: int, j: int, config: MatchConfig | None = None):
+    """Scans i and j of a shared log matched (the test is skipped without the log): the
+    match, the reference pose of j in i, and whether the match is within 0.2 m and 2 deg
+    of it."""
     from scanclique import datasets
 
     require_log(log)
     scans = datasets.load_log(log)
     ref = scans[i].reference.inverse() @ scans[j].reference
-    m = match_scans(scans[i], scans[j])
-    assert m.pose is not None, m.reason
-    t, r = m.pose.distance_to(ref)
-    assert t < 0.2 and r < math.radians(2.0), (t, math.degrees(r))
+    m = match_scans(scans[i], scans[j], config)
+    return m, ref, ok(m, ref, 0.2, math.radians(2.0))
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize(("log", "i", "j"), REAL_PAIRS)
+def test_real_pairs_match_the_reference(log, i, j):
+    m, ref, right = real_match(log, i, j)
+    assert right, (m.reason, None if m.pose is None else m.pose.distance_to(ref))
 
 
 def test_no_pose_when_no_hypothesis_explains_the_raw_scans():
@@ -296,22 +302,13 @@ def test_search_finds_what_the_cliques_miss(log, i, j):
     wrong, which keeps this test honest."""
     import dataclasses
 
-    from scanclique import datasets
-
-    require_log(log)
-    scans = datasets.load_log(log)
-    ref = scans[i].reference.inverse() @ scans[j].reference
-    m = match_scans(scans[i], scans[j])
-    assert m.pose is not None, m.reason
-    t, r = m.pose.distance_to(ref)
-    assert t < 0.2 and r < math.radians(2.0), (t, math.degrees(r))
+    m, ref, right = real_match(log, i, j)
+    assert right, (m.reason, None if m.pose is None else m.pose.distance_to(ref))
     assert m.hypotheses[0].origin == "search" and m.seconds["search"] > 0
     assert len(m.pairs) >= 2  # the mapped features that agree with the searched pose
     assert m.covariance is not None and m.covariance.shape == (3, 3)
     base = MatchConfig()
     off = dataclasses.replace(base, refine=dataclasses.replace(base.refine, search=False))
-    m_off = match_scans(scans[i], scans[j], off)
-    assert m_off.pose is None or not (
-        m_off.pose.distance_to(ref)[0] < 0.2 and m_off.pose.distance_to(ref)[1] < math.radians(2)
-    )
+    m_off, _, right_off = real_match(log, i, j, off)
+    assert not right_off
     assert all(h.origin == "clique" for h in m_off.hypotheses)
