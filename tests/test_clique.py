@@ -4,6 +4,9 @@ The property tests draw random graphs of up to 60 vertices at every density (200
 maximum cliques). The reference is :func:`bron_kerbosch` with ``min_size`` set to the size
 the solver claims: it then lists every maximal clique at least that large, which must be
 exactly the solver's maximum cliques (a larger clique, or none of that size, would show).
+Further property tests aim at each branch of the lean path of ``max_clique`` (one-word
+search up to 64 vertices; above, the core of a greedy clique: empty, in one word, in
+several words, or dense and handed to the full search).
 ``SCANCLIQUE_HYPOTHESIS_EXAMPLES`` changes the number of examples. The DIMACS graphs whose
 search takes seconds run with ``SCANCLIQUE_SLOW_TESTS=1`` (``benchmarks/clique.py``
 checks the clique number of all 27 on every run).
@@ -143,7 +146,8 @@ def test_dense_result_is_frozen():
 @pytest.mark.parametrize("lower_bound", [None, 1, 4, 9])
 @pytest.mark.parametrize(("n", "p"), [(1, 0.0), (11, 0.15), (60, 0.15), (70, 0.5), (130, 0.3)])
 def test_dense_path_agrees_with_bitset_path(n, p, lower_bound):
-    # max_clique(bool matrix) has its own kernel entry; an edge list goes through solve()
+    # max_clique(bool matrix) checks and packs in the kernel (solve_dense); an edge list is
+    # packed in Python and goes to solve_bits: the same search, the same result
     adj = random_graph(n, p, n)
     ref = max_clique((np.argwhere(np.triu(adj)), n), lower_bound=lower_bound)
     views = [adj, np.asfortranarray(adj), np.kron(adj, np.ones((2, 2), bool))[::2, ::2]]
@@ -303,6 +307,195 @@ def test_all_maximum_cliques_limit():
     G = nx.turan_graph(12, 4)  # 3^4 = 81 maximum cliques
     a = all_maximum_cliques(G, limit=10)
     assert len(a.cliques) == 10 and not a.complete and a.optimal and a.omega == 4
+
+
+# -- the lean path: small and sparse graphs ------------------------------------------------
+def planted(n: int, p: float, k: int, seed: int) -> np.ndarray:
+    """A random graph with a clique on ``k`` random vertices."""
+    adj = random_graph(n, p, seed)
+    c = np.random.default_rng(seed + 1).choice(n, size=min(k, n), replace=False)
+    adj[np.ix_(c, c)] = True
+    adj[c, c] = False
+    return adj
+
+
+def blocky(n: int, p: float, b: int, q: float, seed: int) -> np.ndarray:
+    """A random graph of density ``p`` whose first ``b`` vertices have density ``q``."""
+    adj = random_graph(n, p, seed)
+    b = min(b, n)
+    adj[:b, :b] = random_graph(b, q, seed + 7)
+    return adj
+
+
+def lean_path(adj: np.ndarray) -> str:
+    """Which way ``max_clique(adj)`` goes (the steps of ``maximum_peeled``, replayed)."""
+    from scanclique import _clique_kernels as K
+
+    n = adj.shape[0]
+    if n <= 64:
+        return "word"
+    A = bitsets_from_adjacency(adj)
+    deg = adj.sum(1).astype(np.int64)
+    top = np.argsort(-deg, kind="stable")[: K.SPARSE_STARTS].astype(np.int64)
+    scratch = (np.empty(n + 1, np.int64), np.empty(n, np.int64), np.empty(A.shape[1], np.uint64))
+    k = K._greedy_raw(A, deg, top, len(top), *scratch)
+    alive = bitsets_from_adjacency(np.ones((1, n), bool))[0].copy()
+    m = K._peel(A, n, deg, k, alive, np.empty(n, np.int64))
+    core = np.flatnonzero(bitsets_to_bool(alive, n))
+    if m == 0:
+        return "empty core"
+    if m <= 64:
+        return "core in a word"
+    if 4 * deg[core].sum() <= m * m:
+        return "core in words"
+    return "dense core" if m < n else "dense"
+
+
+def bitsets_to_bool(bits: np.ndarray, n: int) -> np.ndarray:
+    one = np.uint64(1)
+    return ((bits[np.arange(n) >> 6] >> (np.arange(n) & 63).astype(np.uint64)) & one).astype(bool)
+
+
+def check_max_clique(adj: np.ndarray, lower_bound: int | None, omega: int | None = None) -> int:
+    """``max_clique`` against Bron–Kerbosch (or against ``omega`` when given), with and
+    without ``lower_bound``, on the boolean matrix and on the edge list (which must
+    agree exactly). Returns the clique number."""
+    n = adj.shape[0]
+    r = max_clique(adj)
+    assert r.optimal and is_clique(adj, r.vertices)
+    assert r.vertices.tolist() == sorted(set(r.vertices.tolist()))
+    if omega is None:
+        # every maximal clique of at least r.size vertices has r.size vertices
+        ref = [c.tolist() for c in bron_kerbosch(adj, min_size=r.size)]
+        assert all(len(c) == r.size for c in ref) and r.vertices.tolist() in ref
+    else:
+        assert r.size == omega
+    omega = r.size
+    if lower_bound is not None:
+        r = max_clique(adj, lower_bound=lower_bound)
+        assert is_clique(adj, r.vertices) and r.size <= omega
+        assert r.optimal == (lower_bound <= omega)
+        if r.optimal:
+            assert r.size == omega
+    e = max_clique((np.argwhere(np.triu(adj)), n), lower_bound=lower_bound)
+    assert (e.vertices.tolist(), e.optimal, e.nodes) == (r.vertices.tolist(), r.optimal, r.nodes)
+    return omega
+
+
+LOWER_BOUNDS = st.none() | st.integers(1, 14)
+
+
+@property_settings(EXAMPLES // 2)
+@given(graphs_up_to(64, 40), LOWER_BOUNDS)
+def test_property_one_word_path_vs_bron_kerbosch(adj, lower_bound):
+    # up to 64 vertices: one-word branch and bound, without greedy clique or peeling
+    if adj.shape[0]:
+        check_max_clique(adj, lower_bound)
+
+
+# more than 64 vertices: sparse graphs with a planted clique, most of them sparse enough
+# for the core of the greedy clique to be empty or to fit in a word, the rest with a
+# larger core searched in multi-word sets
+peeled_graphs = st.one_of(
+    st.tuples(st.integers(65, 160), st.floats(0.0, 0.1), st.integers(0, 8), SEEDS),
+    st.tuples(st.integers(65, 160), st.floats(0.0, 0.25), st.integers(0, 16), SEEDS),
+).map(lambda t: planted(*t))
+
+
+@property_settings(EXAMPLES // 4)
+@given(peeled_graphs, LOWER_BOUNDS)
+def test_property_peeled_path_vs_bron_kerbosch(adj, lower_bound):
+    check_max_clique(adj, lower_bound)
+
+
+@property_settings(max(EXAMPLES // 40, 10))
+@given(
+    st.tuples(st.integers(65, 130), st.floats(0.0, 0.1), st.integers(65, 90), st.floats(0.3, 0.7))
+    .flatmap(lambda t: st.tuples(*map(st.just, t), SEEDS))
+    .map(lambda t: blocky(*t)),
+    LOWER_BOUNDS,
+)
+def test_property_dense_core_vs_full_search(adj, lower_bound):
+    # a dense core of more than 64 vertices goes to the full search, on the core alone:
+    # the clique number must be the full search's on the whole graph
+    from scanclique import _clique_kernels as K
+
+    n = adj.shape[0]
+    best, _, status, _, _ = K.solve(bitsets_from_adjacency(adj), n, 0, 0, 0, np.inf, 0.0, 3)
+    assert status == 0
+    check_max_clique(adj, lower_bound, omega=best.shape[0])
+
+
+@pytest.mark.parametrize(
+    ("adj", "path"),
+    [
+        (random_graph(50, 0.15, 1), "word"),
+        (random_graph(64, 0.9, 1), "word"),  # dense: a node budget, then the full search
+        (planted(150, 0.05, 15, 2), "empty core"),
+        (planted(77, 0.085, 4, 11), "core in a word"),
+        (planted(120, 0.08, 10, 3), "core in words"),
+        (random_graph(300, 0.2, 11), "core in words"),
+        (random_graph(400, 0.2, 11), "core in words"),  # more than 2000 nodes
+        (blocky(150, 0.03, 80, 0.5, 6), "dense core"),
+        (random_graph(100, 0.5, 7), "dense"),
+    ],
+)
+def test_lean_paths(adj, path):
+    assert lean_path(adj) == path
+    from scanclique import _clique_kernels as K
+
+    n = adj.shape[0]
+    best, _, _, _, _ = K.solve(bitsets_from_adjacency(adj), n, 0, 0, 0, np.inf, 0.0, 3)
+    omega = best.shape[0]
+    for lower_bound in (None, omega - 1, omega, omega + 1):
+        check_max_clique(adj, lower_bound, omega=omega)
+    if path == "empty core":  # the peeling proves the greedy clique maximum
+        assert max_clique(adj).nodes == 1
+
+
+def test_lean_path_time_limit():
+    # 618 nodes of the multi-word search, the clock read every 256
+    adj = random_graph(300, 0.2, 11)
+    assert lean_path(adj) == "core in words"
+    max_clique(adj)
+    r = max_clique(adj, time_limit=0.0)
+    assert not r.optimal and is_clique(adj, r.vertices) and r.nodes < max_clique(adj).nodes
+
+
+def test_one_word_search_time_limit():
+    # the one-word search stops at its deadline (max_clique hands a dense graph like this
+    # to the full search after a few hundred nodes, before the clock is read)
+    from scanclique import _clique_kernels as K
+
+    adj = random_graph(64, 0.9, 59)  # 5945 nodes, the clock read every 4096
+    S = bitsets_from_adjacency(adj)[:, 0].copy()
+    found = np.empty(64, np.int64)
+    size, nodes, status = K._bb_word(S, 64, 0, 0.0, found, 1 << 62, np.empty(65, np.uint64))
+    assert status == 1
+    assert size == 0 or is_clique(adj, found[:size])
+    size, nodes, status = K._bb_word(S, 64, 0, np.inf, found, 1 << 62, np.empty(65, np.uint64))
+    assert status == 0 and size == max_clique(adj).size and is_clique(adj, found[:size])
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 11, 63, 64, 65, 100, 128, 130])
+def test_packing(n):
+    # 64 flags at a time where 64 bytes can be read, the last bytes eight or one at a time
+    from scanclique import _clique_kernels as K
+
+    adj = random_graph(n, 0.5, n)
+    A, u, v = K.pack_checked(adj)
+    assert (u, v) == (-1, -1) and np.array_equal(A, bitsets_from_adjacency(adj))
+    for i, j in [(0, n - 1), (n - 1, 0), (n // 2, n - 1), (n - 1, n - 2)]:
+        if i == j or min(i, j) < 0:
+            continue
+        bad = adj.copy()
+        bad[i, j] = not bad[i, j]
+        with pytest.raises(GraphError, match=rf"\({min(i, j)}, {max(i, j)}\)"):
+            max_clique(bad)
+        bad = adj.copy()
+        bad[i, i] = True
+        with pytest.raises(GraphError, match=f"self loop at vertex {i}"):
+            max_clique(bad)
 
 
 # -- time limit ----------------------------------------------------------------------------

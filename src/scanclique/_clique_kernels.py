@@ -5,10 +5,12 @@ says whether ``v`` is adjacent to ``64 * w + b``. Every kernel is ``numba.njit(c
 the first call in a fresh environment compiles them (tens of seconds), later processes load
 the cache from ``__pycache__`` (well under a second).
 
-Inside the search the graph is renumbered in degeneracy order (``B``), so that bit order is
-the order of the greedy colouring (BBMC). Local names follow the papers: ``P`` the candidate
-set, ``C`` the growing clique, ``bar`` the size to beat, ``need = bar - |C|`` how many more
-vertices a child must add to beat it.
+Inside the full search the graph is renumbered in degeneracy order (``B``), so that bit
+order is the order of the greedy colouring (BBMC). Small and sparse graphs first take a
+lean path (:func:`solve_bits`): one-word sets up to 64 vertices; above, a greedy clique and
+the k-core it implies, whose vertices are often few enough for one word. Local names
+follow the papers: ``P`` the candidate set, ``C`` the growing clique, ``bar`` the size to
+beat, ``need = bar - |C|`` how many more vertices a child must add to beat it.
 
 numba pitfall kept in mind throughout: mixing ``uint64`` with ``int64`` promotes to
 ``float64``, so every word operation uses ``uint64`` operands only (``_ONE``, ``_ZERO``).
@@ -33,6 +35,13 @@ OPT_MAXSAT = 1  # filter the branching vertices with MaxSAT-style reasoning
 OPT_LOCAL_SEARCH = 2  # improve the greedy initial clique by tabu local search
 OPT_DEFAULT = OPT_MAXSAT | OPT_LOCAL_SEARCH
 
+#: greedy starts of :func:`maximum_peeled`
+SPARSE_STARTS = 4
+#: node budgets of its searches with the plain colouring bound, past which the full
+#: search takes over: multi-word sets (sparse cores), one-word sets of a dense core
+SPARSE_NODES = 2000
+DENSE_WORD_NODES = 200
+
 
 @intrinsic
 def _cttz(typingctx, x):
@@ -52,6 +61,23 @@ def _ctpop(typingctx, x):
 
     def codegen(context, builder, signature, args):
         return builder.ctpop(args[0])
+
+    return sig, codegen
+
+
+@intrinsic
+def _mask64(typingctx, a, i):
+    """Bit ``k`` set where byte ``a[i + k]`` is not zero, ``k < 64``, for a ``uint8`` array
+    with at least ``i + 64`` bytes: one unaligned vector load, a compare and a movemask
+    (``vpcmpb``/``vpmovmskb`` on x86)."""
+    sig = types.uint64(a, i)
+
+    def codegen(context, builder, signature, args):
+        arr = context.make_array(signature.args[0])(context, builder, args[0])
+        vt = ir.VectorType(ir.IntType(8), 64)
+        ptr = builder.bitcast(builder.gep(arr.data, [args[1]]), vt.as_pointer())
+        nz = builder.icmp_unsigned("!=", builder.load(ptr, align=1), ir.Constant(vt, None))
+        return builder.bitcast(nz, ir.IntType(64))
 
     return sig, codegen
 
@@ -188,7 +214,8 @@ def pack_checked(adj):
     ``(-1, -1)`` for a symmetric matrix with a False diagonal, ``(i, i)`` for a self loop,
     else a pair with ``adj[u, v] != adj[v, u]``.
 
-    Eight flags at a time: a NumPy bool is one byte, 0 or 1, so eight of them read as one
+    Sixty-four flags at a time where 64 bytes can be read (:func:`_mask64`); the last
+    bytes of the matrix eight at a time: a NumPy bool is one byte, 0 or 1, so eight read as one
     little-endian word ``y`` have their flags at bits 0, 8, ..., 56. In ``y * M`` with
     ``M = sum_j 2^(56 - 7 j)`` (``0x0102040810204080``) flag ``k`` times term ``j`` lands on
     bit ``56 + 8 k - 7 j``: on ``56 + k`` for ``j = k``, below 56 or beyond 63 otherwise,
@@ -198,24 +225,31 @@ def pack_checked(adj):
     """
     n = adj.shape[0]
     W = (n + 63) >> 6
-    A = np.zeros((n, W), np.uint64)
+    A = np.empty((n, W), np.uint64)
     flat = adj.reshape(-1).view(np.uint8)
+    end = n * n
     for i in range(n):
-        row = i * n
         for w in range(W):
-            lo = w * 64
-            hi = min(n, lo + 64)
+            p = i * n + w * 64
+            k = min(n - w * 64, 64)  # columns in this word
+            if p + 64 <= end:
+                # 64 flags at once; those past the row (k < 64) are masked off
+                x = _mask64(flat, p)
+                if k < 64:
+                    x &= (_ONE << np.uint64(k)) - _ONE
+                A[i, w] = x
+                continue
+            # the last bytes of the matrix: eight at a time, as described above
             x = _ZERO
-            j = lo
-            while j + 8 <= hi:
+            j = 0
+            while j + 8 <= k:
                 y = _ZERO
-                p = row + j
-                for k in range(8):
-                    y |= np.uint64(flat[p + k]) << np.uint64(8 * k)
-                x |= ((y * _GATHER) >> _SHIFT56) << np.uint64(j - lo)
+                for b in range(8):
+                    y |= np.uint64(flat[p + j + b]) << np.uint64(8 * b)
+                x |= ((y * _GATHER) >> _SHIFT56) << np.uint64(j)
                 j += 8
-            while j < hi:
-                x |= np.uint64(flat[row + j]) << np.uint64(j - lo)
+            while j < k:
+                x |= np.uint64(flat[p + j]) << np.uint64(j)
                 j += 1
             A[i, w] = x
     upper = 0
@@ -1017,21 +1051,540 @@ def solve(A, n, floor, mode, limit, time_limit, t0, opts):
     return _mapped_sorted(best, best.shape[0], order), nodes, status, found_o, status_all
 
 
+# --------------------------------------------------------------------------------------
+# Small and sparse graphs: greedy clique, k-core peel, one-word search
+# --------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def solve_dense(adj, floor, deadline, out):
-    """:func:`pack_checked` then :func:`solve` in mode 0 with the default options, in one
-    call: the lean path of ``max_clique`` for boolean matrices. Few arguments, no array
-    crosses back into Python (the clique is written to ``out[:size]``), and none of the
-    arrays of the other modes is allocated: on the pipeline's graphs the fixed costs are a
-    good part of the call. ``deadline`` is a ``time.perf_counter()`` reading (``inf``:
-    none). Returns ``(size, nodes, status, u, v)``; ``status`` is -1 and ``(u, v)`` the
-    defect when the matrix is not a valid adjacency."""
-    n = adj.shape[0]
-    A, u, v = pack_checked(adj)
-    if u >= 0:
-        return 0, 0, -1, u, v
+def _sorted_into(a, k, out):
+    """``out[:k] = sorted(a[:k])`` (insertion sort, cliques are short)."""
+    for i in range(k):
+        x = a[i]
+        j = i
+        while j > 0 and out[j - 1] > x:
+            out[j] = out[j - 1]
+            j -= 1
+        out[j] = x
+
+
+@numba.njit(cache=True)
+def _sort_by_degree(items, m, deg, dmax, out):
+    """``out[:m]`` = ``items[:m]`` in non-increasing ``deg`` (ties in the given order):
+    a counting sort, O(m + dmax)."""
+    start = np.zeros(dmax + 2, np.int64)
+    for i in range(m):
+        start[dmax - deg[items[i]] + 1] += 1
+    for e in range(dmax + 1):
+        start[e + 1] += start[e]
+    for i in range(m):
+        v = items[i]
+        e = dmax - deg[v]
+        out[start[e]] = v
+        start[e] += 1
+
+
+@numba.njit(cache=True)
+def _greedy_raw(A, deg, order, starts, best, cur, P):
+    """Best of the greedy cliques grown from ``order[:starts]`` (highest degree first).
+
+    From ``s``: candidates ``N(s)``; repeatedly add the candidate of highest degree and
+    intersect, until no candidate is left or the clique cannot beat the best one. A
+    clique through ``s`` has at most ``deg[s] + 1`` vertices, so the starts end once
+    that cannot beat the best. Writes the clique to ``best``, returns its size (``cur``:
+    scratch for a clique, ``P``: for a set).
+    """
     W = A.shape[1]
-    # as solve(A, n, floor, 0, 0, deadline, 0.0, OPT_DEFAULT)
+    bsize = 0
+    for t in range(starts):
+        s = order[t]
+        if deg[s] + 1 <= bsize:
+            break
+        for w in range(W):
+            P[w] = A[s, w]
+        cur[0] = s
+        size = 1
+        while True:
+            # invariant: cur[:size] is a clique, P its common neighbourhood
+            left = 0
+            for w in range(W):
+                left += int(_ctpop(P[w]))
+            if size + left <= bsize:
+                break  # cannot beat the best
+            u = -1
+            du = -1
+            for w in range(W):
+                x = P[w]
+                while x:
+                    b = _cttz(x)
+                    x &= x - _ONE
+                    j = w * 64 + int(b)
+                    if deg[j] > du:
+                        du = deg[j]
+                        u = j
+            if u < 0:
+                break
+            cur[size] = u
+            size += 1
+            for w in range(W):
+                P[w] &= A[u, w]
+        if size > bsize:
+            bsize = size
+            for i in range(size):
+                best[i] = cur[i]
+    return bsize
+
+
+@numba.njit(cache=True)
+def _peel(A, n, deg, k, alive, stack):
+    """The ``k``-core: ``alive`` (all ``n`` bits set on entry) keeps the vertices with at
+    least ``k`` neighbours among the kept ones; ``deg`` becomes their degree there.
+    Returns how many. A clique of ``k + 1`` vertices lies in the ``k``-core. ``stack``:
+    scratch for ``n`` vertices."""
+    W = A.shape[1]
+    top = 0
+    for v in range(n):
+        if deg[v] < k:
+            _clearbit(alive, v)
+            stack[top] = v
+            top += 1
+    left = n - top
+    while top > 0:
+        # invariant: the stacked vertices are out of `alive` but still counted in the
+        # degrees of their kept neighbours
+        top -= 1
+        v = stack[top]
+        for w in range(W):
+            x = A[v, w] & alive[w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                u = w * 64 + int(b)
+                deg[u] -= 1
+                if deg[u] < k:
+                    _clearbit(alive, u)
+                    stack[top] = u
+                    top += 1
+                    left -= 1
+    return left
+
+
+@numba.njit(cache=True)
+def _word_rows(A, verts, m, alive, pos, S):
+    """``S[:m]``: one-word adjacency rows of the subgraph induced by ``verts[:m]``
+    (``m <= 64``, ``alive`` their bitset), renumbered so that new vertex ``i`` is
+    ``verts[i]`` (``pos``: scratch for the inverse, one entry per vertex of ``A``)."""
+    W = A.shape[1]
+    for i in range(m):
+        pos[verts[i]] = i
+    for i in range(m):
+        v = verts[i]
+        r = _ZERO
+        for w in range(W):
+            x = A[v, w] & alive[w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                r |= _ONE << np.uint64(pos[w * 64 + int(b)])
+        S[i] = r
+    return S
+
+
+@numba.njit(cache=True)
+def _colour_word(S, P, kmin, ord_v, ord_c, base):
+    """:func:`colour_classes` for a one-word candidate set, without the class bitsets:
+    the vertices of colour ``>= kmin`` go to ``ord_*[base:]``. Returns how many."""
+    U = P
+    k = 0
+    cnt = 0
+    while U != _ZERO:
+        # invariant: U = vertices of P not yet coloured
+        k += 1
+        Q = U
+        while Q != _ZERO:
+            # invariant: Q = uncoloured vertices not adjacent to any vertex of class k
+            b = _cttz(Q)
+            one = _ONE << b
+            U &= ~one
+            Q &= ~(one | S[b])
+            if k >= kmin:
+                ord_v[base + cnt] = int(b)
+                ord_c[base + cnt] = k
+                cnt += 1
+    return cnt
+
+
+@numba.njit(cache=True)
+def _bb_word(S, m, bar, deadline, best, node_limit, Pst):
+    """:func:`bb_search` in mode 0 on at most 64 vertices (one-word sets, plain colouring
+    bound, no MaxSAT filter): a clique larger than ``bar`` in ``S`` (all ``m`` vertices
+    are candidates), written to ``best``. Returns ``(size, nodes, status)``, size 0 when
+    there is none; status 0 = finished, 1 = out of time (``deadline`` passed), 2 = more
+    than ``node_limit`` nodes needed. ``Pst``: scratch for ``m + 1`` words.
+
+    The rest of the stack lives in one small array (int16: every entry is below
+    ``64 * 65``): the branching lists of the nodes on the current path take at most
+    ``m + (m - 1) + ... + 1`` entries (a child's candidates are its parent's minus at
+    least the branching vertex), so nothing grows during the search.
+    """
+    mask = check_mask(m, 1)
+    D = m + 1
+    cap = D * m // 2
+    st = np.empty(4 * D + 2 * cap, np.int16)
+    pos = st[:D]
+    base = st[D : 2 * D]
+    cnt = st[2 * D : 3 * D]
+    C = st[3 * D : 4 * D]
+    ord_v = st[4 * D : 4 * D + cap]
+    ord_c = st[4 * D + cap :]
+    P0 = ~_ZERO >> np.uint64(64 - m)
+    nodes = 1
+    bsize = 0
+    status = 0
+    c = _colour_word(S, P0, bar + 1, ord_v, ord_c, 0)
+    if c == 0:
+        return 0, nodes, 0
+    Pst[0] = P0
+    base[0] = 0
+    cnt[0] = c
+    pos[0] = c - 1
+    depth = 0
+    while depth >= 0:
+        # invariant: C[:depth] is a clique and Pst[depth] its common neighbours not yet
+        # branched on; ord_*[base + 0 .. base + pos] are the branching candidates left,
+        # and every clique in Pst[depth] avoiding them has at most bar - depth vertices
+        p = int(pos[depth])
+        b0 = int(base[depth])
+        if p < 0 or depth + int(ord_c[b0 + p]) <= bar:
+            depth -= 1
+            continue
+        pos[depth] = p - 1
+        v = int(ord_v[b0 + p])
+        x = Pst[depth] & S[v]
+        Pst[depth] &= ~(_ONE << np.uint64(v))
+        C[depth] = v
+        if x == _ZERO:
+            if depth + 1 > bar:
+                bar = depth + 1
+                bsize = bar
+                for i in range(bsize):
+                    best[i] = C[i]
+            continue
+        kneed = bar - depth - 1
+        size = int(_ctpop(x))
+        if size <= kneed:
+            continue
+        nodes += 1
+        if nodes > node_limit:
+            status = 2
+            break
+        if (nodes & mask) == 0 and _now() > deadline:
+            status = 1
+            break
+        nb = b0 + int(cnt[depth])
+        c = _colour_word(S, x, kneed + 1, ord_v, ord_c, nb)
+        if c == 0:
+            continue
+        depth += 1
+        Pst[depth] = x
+        base[depth] = nb
+        cnt[depth] = c
+        pos[depth] = c - 1
+    return bsize, nodes, status
+
+
+@numba.njit(cache=True)
+def _colour_plain(P, B, W, kmin, U, Q, ord_v, ord_c, base):
+    """:func:`colour_classes` without the class bitsets (no MaxSAT filter follows): the
+    vertices of colour ``>= kmin`` go to ``ord_*[base:]``. Returns how many."""
+    w0 = W
+    for w in range(W):
+        U[w] = P[w]
+        if P[w] != _ZERO and w < w0:
+            w0 = w
+    k = 0
+    cnt = 0
+    while True:
+        # invariant: U = vertices of P not yet coloured, and U[:w0] is empty
+        while w0 < W and U[w0] == _ZERO:
+            w0 += 1
+        if w0 == W:
+            break
+        k += 1
+        for w in range(w0, W):
+            Q[w] = U[w]
+        wq = w0
+        while True:
+            # invariant: Q = uncoloured vertices not adjacent to any vertex of class k
+            while wq < W and Q[wq] == _ZERO:
+                wq += 1
+            if wq == W:
+                break
+            b = _cttz(Q[wq])
+            v = wq * 64 + int(b)
+            one = _ONE << b
+            Q[wq] &= ~one
+            U[wq] &= ~one
+            for w in range(wq, W):
+                Q[w] &= ~B[v, w]
+            if k >= kmin:
+                ord_v[base + cnt] = v
+                ord_c[base + cnt] = k
+                cnt += 1
+    return cnt
+
+
+@numba.njit(cache=True)
+def _bb_words(B, P0, m, depth_max, bar, deadline, best, node_limit):
+    """:func:`_bb_word` on multi-word sets: ``B`` the rows, ``P0`` the ``m`` candidates,
+    and no clique among them has more than ``depth_max`` vertices. Status 2 when more
+    than ``node_limit`` nodes would be needed."""
+    W = B.shape[1]
+    mask = check_mask(B.shape[0], W)
+    cap = 4 * m + 64
+    ord_v = np.empty(cap, np.int64)
+    ord_c = np.empty(cap, np.int64)
+    D = depth_max + 1
+    Pst = np.empty((D, W), np.uint64)
+    pos = np.empty(D, np.int64)
+    base = np.empty(D, np.int64)
+    cnt = np.empty(D, np.int64)
+    C = np.empty(D, np.int64)
+    U = np.empty(W, np.uint64)
+    Q = np.empty(W, np.uint64)
+    for w in range(W):
+        Pst[0, w] = P0[w]
+    nodes = 1
+    bsize = 0
+    status = 0
+    c = _colour_plain(Pst[0], B, W, bar + 1, U, Q, ord_v, ord_c, 0)
+    if c == 0:
+        return 0, nodes, 0
+    base[0] = 0
+    cnt[0] = c
+    pos[0] = c - 1
+    depth = 0
+    while depth >= 0:
+        # invariant: as in _bb_word
+        p = pos[depth]
+        b0 = base[depth]
+        if p < 0 or depth + ord_c[b0 + p] <= bar:
+            depth -= 1
+            continue
+        pos[depth] = p - 1
+        v = ord_v[b0 + p]
+        size = 0
+        for w in range(W):
+            x = Pst[depth, w] & B[v, w]
+            Pst[depth + 1, w] = x
+            size += int(_ctpop(x))
+        _clearbit(Pst[depth], v)
+        C[depth] = v
+        if size == 0:
+            if depth + 1 > bar:
+                bar = depth + 1
+                bsize = bar
+                for i in range(bsize):
+                    best[i] = C[i]
+            continue
+        kneed = bar - depth - 1
+        if size <= kneed:
+            continue
+        nodes += 1
+        if nodes > node_limit:
+            status = 2
+            break
+        if (nodes & mask) == 0 and _now() > deadline:
+            status = 1
+            break
+        nb = b0 + cnt[depth]
+        if nb + size > cap:
+            cap = 2 * (nb + size)
+            ord_v = _grow(ord_v, nb, cap)
+            ord_c = _grow(ord_c, nb, cap)
+        c = _colour_plain(Pst[depth + 1], B, W, kneed + 1, U, Q, ord_v, ord_c, nb)
+        if c == 0:
+            continue
+        depth += 1
+        base[depth] = nb
+        cnt[depth] = c
+        pos[depth] = c - 1
+    return bsize, nodes, status
+
+
+@numba.njit(cache=True)
+def _induced_rows(A, verts, m, alive):
+    """Multi-word rows of the subgraph induced by ``verts[:m]`` (``alive`` their
+    bitset), renumbered so that new vertex ``i`` is ``verts[i]``."""
+    W = A.shape[1]
+    pos = np.empty(A.shape[0], np.int64)
+    for i in range(m):
+        pos[verts[i]] = i
+    B = np.zeros((m, (m + 63) >> 6), np.uint64)
+    for i in range(m):
+        v = verts[i]
+        for w in range(W):
+            x = A[v, w] & alive[w]
+            while x:
+                b = _cttz(x)
+                x &= x - _ONE
+                _setbit(B[i], pos[w * 64 + int(b)])
+    return B
+
+
+@numba.njit(cache=True)
+def maximum_word(A, n, floor, deadline, out, dense_limit):
+    """Mode 0 of :func:`solve` for at most 64 vertices: :func:`_bb_word` on the graph as
+    it is (labels as given, no initial clique: on the pipeline's graphs the search finds
+    one as fast as a greedy would). A graph of density above 1/4 gets at most
+    ``dense_limit`` nodes, then the full search of :func:`solve`. When no clique is larger
+    than ``floor``, a greedy clique is returned. Returns ``(size, nodes, status)`` with
+    the clique in ``out[:size]``, sorted."""
+    SP = np.empty(2 * n + 1, np.uint64)
+    S = SP[:n]
+    found = np.empty(n, np.int64)
+    d2 = 0
+    for v in range(n):
+        S[v] = A[v, 0]
+        d2 += int(_ctpop(S[v]))
+    limit = 1 << 62 if 4 * d2 <= n * n else dense_limit
+    size, nodes, status = _bb_word(S, n, floor, deadline, found, limit, SP[n:])
+    if status == 2:
+        best, used, status = _full_maximum(A, n, floor, deadline)
+        nodes += used
+        size = best.shape[0]
+        for i in range(size):
+            found[i] = best[i]
+    if size == 0:  # from the vertex of highest degree
+        deg = np.empty(n, np.int64)
+        top = np.zeros(1, np.int64)
+        for v in range(n):
+            deg[v] = int(_ctpop(S[v]))
+            if deg[v] > deg[top[0]]:
+                top[0] = v
+        greedy = np.empty(n + 1, np.int64)
+        size = _greedy_raw(A, deg, top, 1, greedy, found, SP[n:])
+        _sorted_into(greedy, size, out)
+    else:
+        _sorted_into(found, size, out)
+    return size, nodes, status
+
+
+@numba.njit(cache=True)
+def maximum_peeled(A, n, floor, deadline, out, starts, node_limit, dense_limit):
+    """Mode 0 of :func:`solve` with elimination first, for the small sparse graphs of the
+    pipeline (the full search's set-up costs more than their search).
+
+    1. a greedy clique of size ``k`` (:func:`_greedy_raw`); the bar is ``max(floor, k)``;
+    2. the ``bar``-core (:func:`_peel`): any larger clique lies in it. Empty: done;
+    3. a core smaller than the graph is renumbered by non-increasing degree in the core
+       (the colouring order; the whole graph keeps its labels), then searched with the
+       plain colouring bound: in one-word sets (:func:`_bb_word`) when it has at most 64
+       vertices (at most ``dense_limit`` nodes if its density is above 1/4); else, if its
+       density is at most 1/4, in multi-word sets (:func:`_bb_words`) for at most
+       ``node_limit`` nodes;
+    4. a dense core, or one that needs more nodes: the full search of :func:`solve`
+       (degeneracy order, local search, MaxSAT-style filter) on the core, with ``bar`` as
+       the floor; on the whole graph with ``floor`` when nothing was peeled, exactly as
+       :func:`solve` would.
+
+    Returns ``(size, nodes, status)`` with the clique in ``out[:size]`` (sorted, the
+    caller's labels), as :func:`solve_dense`; ``nodes`` counts the search nodes of steps 3
+    and 4 (1 when step 2 ends the search).
+    """
+    W = A.shape[1]
+    # scratch, in two allocations: per vertex a degree, a clique entry or two, a stack
+    # entry, an inverse index; words for two sets and for the rows of a core
+    iw = np.empty(5 * n + starts + 1, np.int64)
+    deg = iw[:n]
+    greedy = iw[n : 2 * n + 1]
+    cur = iw[2 * n + 1 : 3 * n + 1]  # also the peeling stack, then the inverse index
+    found = iw[3 * n + 1 : 4 * n + 1]
+    verts = iw[4 * n + 1 : 5 * n + 1]  # found vertex i is verts[i] (or i where `same`)
+    top = iw[5 * n + 1 :]  # the vertices of highest degree, highest first
+    uw = np.empty(2 * W + 129, np.uint64)
+    alive = uw[:W]
+    P = uw[W : 2 * W]
+    S = uw[2 * W : 2 * W + 64]
+    Pst = uw[2 * W + 64 :]
+    ntop = 0
+    for v in range(n):
+        d = int(_ctpop(A[v, 0]))
+        for w in range(1, W):
+            d += int(_ctpop(A[v, w]))
+        deg[v] = d
+        if ntop < starts or d > deg[top[ntop - 1]]:
+            i = min(ntop, starts - 1)
+            while i > 0 and deg[top[i - 1]] < d:
+                top[i] = top[i - 1]
+                i -= 1
+            top[i] = v
+            ntop = min(ntop + 1, starts)
+    k = _greedy_raw(A, deg, top, ntop, greedy, cur, P)
+    bar = max(floor, k)
+    for w in range(W):
+        alive[w] = ~_ZERO
+    if n & 63:
+        alive[W - 1] = (_ONE << np.uint64(n & 63)) - _ONE
+    m = _peel(A, n, deg, bar, alive, cur)
+    if m == 0:
+        _sorted_into(greedy, k, out)
+        return k, 1, 0
+    d2 = 0  # twice the edges of the core
+    dcore = 0  # its largest degree
+    i = 0
+    for w in range(W):
+        x = alive[w]
+        while x:
+            b = _cttz(x)
+            x &= x - _ONE
+            v = w * 64 + int(b)
+            out[i] = v  # the core, in label order
+            i += 1
+            d2 += deg[v]
+            dcore = max(dcore, deg[v])
+    sparse = 4 * d2 <= m * m
+    same = False
+    nodes = 0
+    status = 2
+    if m <= 64:
+        _sort_by_degree(out, m, deg, dcore, verts)
+        _word_rows(A, verts, m, alive, cur, S)
+        limit = 1 << 62 if sparse else dense_limit
+        size, nodes, status = _bb_word(S, m, bar, deadline, found, limit, Pst)
+    else:
+        same = True
+        if sparse:
+            size, nodes, status = _bb_words(
+                A, alive, m, dcore + 1, bar, deadline, found, node_limit
+            )
+    if status == 2:  # step 4
+        if m == n:
+            best, used, status = _full_maximum(A, n, floor, deadline)
+            same = True
+        else:
+            for i in range(m):
+                verts[i] = out[i]
+            B = _induced_rows(A, verts, m, alive)
+            best, used, status = _full_maximum(B, m, bar, deadline)
+            same = False
+        nodes += used
+        size = best.shape[0]
+        for i in range(size):
+            found[i] = best[i]
+    if size < k:  # (a search that finds nothing larger than bar returns 0)
+        size = k
+        _sorted_into(greedy, k, out)
+    elif same:
+        _sorted_into(found, size, out)
+    else:
+        _map_sorted_into(found, size, verts, out)
+    return size, nodes, status
+
+
+@numba.njit(cache=True)
+def _full_maximum(A, n, floor, deadline):
+    """:func:`solve` in mode 0 with the default options: ``(clique, nodes, status)``, the
+    clique in ``A``'s labels (not sorted)."""
+    W = A.shape[1]
     order, core = degeneracy_order(A, n)
     B = relabel(A, n, order)
     U = np.empty(W, np.uint64)
@@ -1039,8 +1592,38 @@ def solve_dense(adj, floor, deadline, out):
     best, nodes, status = _maximum(
         B, n, order, core, floor, deadline, 0.0, OPT_DEFAULT, maxsat, check_mask(n, W), U
     )
-    _map_sorted_into(best, best.shape[0], order, out)
-    return best.shape[0], nodes, status, -1, -1
+    for i in range(best.shape[0]):
+        best[i] = order[best[i]]
+    return best, nodes, status
+
+
+@numba.njit(cache=True)
+def solve_bits(A, n, floor, deadline, out):
+    """A maximum clique of the graph with bitset rows ``A`` (``n >= 1`` vertices), the
+    path of ``max_clique`` without weights: :func:`maximum_word` for at most 64 vertices,
+    else :func:`maximum_peeled`. Cliques of at most ``floor`` vertices are of no interest;
+    ``deadline`` is a ``time.perf_counter()`` reading (``inf``: none). Returns ``(size,
+    nodes, status)`` with the clique in ``out[:size]``, sorted; status 0 = finished, 1 =
+    out of time."""
+    if n <= 64:
+        return maximum_word(A, n, floor, deadline, out, DENSE_WORD_NODES)
+    return maximum_peeled(A, n, floor, deadline, out, SPARSE_STARTS, SPARSE_NODES, DENSE_WORD_NODES)
+
+
+@numba.njit(cache=True)
+def solve_dense(adj, floor, deadline, out):
+    """:func:`pack_checked` then :func:`solve_bits`, in one call: the lean path of
+    ``max_clique`` for boolean matrices. Few arguments and no array crosses back into
+    Python (the clique is written to ``out[:size]``): on the pipeline's graphs the fixed
+    costs are a good part of the call. Returns ``(size, nodes, status, u, v)``;
+    ``status`` is -1 and ``(u, v)`` the defect when the matrix is not a valid
+    adjacency."""
+    n = adj.shape[0]
+    A, u, v = pack_checked(adj)
+    if u >= 0:
+        return 0, 0, -1, u, v
+    size, nodes, status = solve_bits(A, n, floor, deadline, out)
+    return size, nodes, status, -1, -1
 
 
 @numba.njit(cache=True)

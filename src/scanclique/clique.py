@@ -116,7 +116,9 @@ class CliqueResult:
         False when the time limit stopped it first, or when ``lower_bound`` was above the
         clique number.
     nodes : int
-        Search-tree nodes expanded.
+        Search-tree nodes expanded. Without weights: the nodes of the lean search (see
+        :func:`max_clique`), plus those of the full search where it took over; 1 when
+        the k-core proves the greedy clique maximum.
     elapsed : float
         Wall-clock seconds, including input conversion.
     weight : float or None
@@ -386,7 +388,24 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
     Notes
     -----
     Exact branch and bound over bitsets, compiled with numba (BBMC [2]_ after Tomita's
-    MCQ/MCS [1]_ [3]_):
+    MCQ/MCS [1]_ [3]_). Small and sparse graphs, the pipeline's (tens to hundreds of
+    vertices, density below 0.3), take a lean path whose set-up costs no more than their
+    search:
+
+    a. up to 64 vertices: every vertex set is one machine word. At each node ``(C, P)``
+       a greedy colouring of ``P`` in label order; a vertex of colour ``k`` can only
+       lead to a clique of ``|C| + k`` vertices, so only vertices with ``|C| + k`` above
+       the incumbent are branched on (the k-min filter);
+    b. more vertices: a greedy clique of size ``k`` grown from the vertices of highest
+       degree, then the ``k``-core (vertices of degree below ``k`` peeled repeatedly
+       [6]_), which holds any larger clique. An empty core proves the greedy clique
+       maximum; a core of at most 64 vertices is renumbered by degree and searched as in
+       a; a larger core of density at most 1/4 is searched the same way with multi-word
+       sets.
+
+    A denser graph (or core), and a lean search that needs more than a few hundred
+    (dense, up to 64 vertices) or 2000 nodes (larger sparse cores), go to the full
+    search, on the core when the peeling removed anything:
 
     1. vertices renumbered in degeneracy order (densest core first), so that bit order
        is colouring order; core numbers come with it [6]_;
@@ -404,7 +423,8 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
        literal detection, as in MaxCLQ [4]_); a vertex whose propagation fails is not
        branched on, and the classes of the conflict are used up.
 
-    ``lower_bound`` raises the bar of step 3 and 4 from the start. The clock is read
+    ``lower_bound`` raises the bar from the start: of the peeling and the lean search,
+    and of steps 3 and 4. The clock is read
     every few hundred microseconds of work, so ``time_limit`` is met within a few
     milliseconds. Worst case exponential (the problem is NP-hard); a node costs
     O(|P| n / 64) word operations for the colouring, plus the propagation.
@@ -424,7 +444,7 @@ def max_clique(graph, *, time_limit=None, lower_bound=None, weights=None) -> Cli
     .. [6] V. Batagelj, M. Zaversnik, "An O(m) algorithm for cores decomposition of
        networks", arXiv:cs/0310049 (2003).
 
-    With ``weights``: the same scheme with the weighted colouring bound (each colour
+    With ``weights``: the full search with the weighted colouring bound (each colour
     class counts its heaviest vertex, Kumlander 2004), without steps 3 and 5.
 
     Examples
@@ -466,12 +486,12 @@ def _max_clique_dense(adj, t0, tl, lower_bound) -> CliqueResult:
     size, nodes, status, u, v = _solve_dense(adj, floor, t0 + tl, out)
     if status < 0:
         _defect(adj, u, v)
-    if size == 0:  # a single vertex is always a clique
-        out[0] = 0
-        size = 1
-        optimal = status == 0 and floor == 0
-    else:
-        optimal = status == 0 and size > floor
+    return _found(out, size, nodes, status, floor, t0)
+
+
+def _found(out, size, nodes, status, floor, t0) -> CliqueResult:
+    """The :class:`CliqueResult` of a search that wrote ``size`` vertices to ``out``."""
+    optimal = status == 0 and size > floor
     verts = out[:size]
     # write=False, passed by position: numpy's stubs say keyword-only, but the keyword
     # costs a fifth of a microsecond more to parse (numpy 2.4)
@@ -495,13 +515,9 @@ def _max_clique(A, t0, tl, lower_bound, weights) -> CliqueResult:
     floor = 0 if lower_bound is None else max(int(lower_bound) - 1, 0)
     if n == 0:
         return CliqueResult(np.empty(0, np.int64), True, 0, time.perf_counter() - t0)
-    best, nodes, status, _, _ = _run(A, floor, 0, 0, tl, t0)
-    timed_out = status == 1
-    optimal = (not timed_out) and best.shape[0] > floor
-    if best.shape[0] == 0:  # n >= 1: a single vertex is always a clique
-        best = np.zeros(1, np.int64)
-        optimal = optimal or floor == 0
-    return CliqueResult(_sealed(best), bool(optimal), int(nodes), time.perf_counter() - t0)
+    out = np.empty(n, _INT64)
+    size, nodes, status = _kernels().solve_bits(A, n, floor, t0 + tl, out)
+    return _found(out, size, nodes, status, floor, t0)
 
 
 def all_maximum_cliques(graph, *, limit=100, time_limit=None) -> AllCliquesResult:
