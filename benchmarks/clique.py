@@ -43,12 +43,10 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import importlib.metadata
 import json
 import math
 import multiprocessing as mp
 import os
-import platform
 import resource
 import signal
 import subprocess
@@ -63,6 +61,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 sys.path.insert(0, str(REPO / "benchmarks"))
+
+from common import git_state, machine, versions  # noqa: E402
 
 from scanclique.clique import all_maximum_cliques, max_clique, top_cliques  # noqa: E402
 from scanclique.io.dimacs import read_dimacs  # noqa: E402
@@ -528,37 +528,6 @@ def summary_lines(title: str, s: dict, peers: list[str]) -> list[str]:
     return lines
 
 
-def _versions() -> dict:
-    out = {"python": platform.python_version()}
-    for pkg in ("numpy", "numba", "python-igraph", "networkx", "cliquematch"):
-        try:
-            out[pkg] = importlib.metadata.version(pkg)
-        except importlib.metadata.PackageNotFoundError:
-            out[pkg] = None
-    return out
-
-
-def _git() -> dict:
-    def git(*a):
-        r = subprocess.run(["git", *a], cwd=REPO, capture_output=True, text=True, check=False)
-        return r.stdout.rstrip("\n") if r.returncode == 0 else None
-
-    status = git("status", "--porcelain", "--untracked-files=no")
-    return {
-        "commit": git("rev-parse", "HEAD"),
-        "modified": [] if not status else [ln[3:] for ln in status.splitlines()],
-    }
-
-
-def _machine() -> dict:
-    return {
-        "platform": platform.platform(),
-        "processor": platform.processor() or platform.machine(),
-        "cpus": os.cpu_count(),
-        "load_average": [round(x, 2) for x in os.getloadavg()],
-    }
-
-
 def _warm_ours() -> None:
     """Load every kernel specialisation the children will call (read-only and writable
     matrices), so that no child pays the cache load."""
@@ -589,7 +558,7 @@ def main(argv=None) -> int:
 
     t_start = time.perf_counter()
     load_start = [round(x, 2) for x in os.getloadavg()]
-    git_start = _git()  # the code measured (others may commit while this runs)
+    git_start = git_state()  # the code measured (others may commit while this runs)
     peers, notes = available_peers(args.peers)
     limit = args.time_limit
     first = first_call_cost(not args.no_compile_cost)
@@ -621,9 +590,9 @@ def main(argv=None) -> int:
     doc = {
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
         "command": "python benchmarks/clique.py " + " ".join(argv or sys.argv[1:]),
-        "machine": _machine(),
+        "machine": machine(detailed=True),
         "load_average_start": load_start,
-        "versions": _versions(),
+        "versions": versions(("numpy", "numba", "python-igraph", "networkx", "cliquematch")),
         "git": git_start,
         "time_limit": limit,
         "peers": peers,

@@ -14,36 +14,12 @@ reference ``ref_a.inverse() @ ref_b`` (:func:`scanclique.validation.is_right`).
 
 from __future__ import annotations
 
-from scanclique.pairsets import (
-    REVISIT_MAX_DISTANCE,
-    REVISIT_MIN_GAP,
-    REVISIT_MIN_OVERLAP,
-    REVISIT_OVERLAP_DISTANCE,
-    consecutive_pairs,
-    evenly,
-    overlap,
-    pair_sets,
-    reference_pose,
-    revisit_pairs,
-)
+from scanclique import pairsets
+from scanclique.pairsets import *  # noqa: F403 (this module re-exports the library's pair sets)
 from scanclique.validation import RIGHT_ROTATION as SUCCESS_ROTATION
 from scanclique.validation import RIGHT_TRANSLATION as SUCCESS_TRANSLATION
 
-__all__ = [
-    "SUCCESS_TRANSLATION",
-    "SUCCESS_ROTATION",
-    "REVISIT_MIN_GAP",
-    "REVISIT_MAX_DISTANCE",
-    "REVISIT_MIN_OVERLAP",
-    "REVISIT_OVERLAP_DISTANCE",
-    "reference_pose",
-    "overlap",
-    "evenly",
-    "consecutive_pairs",
-    "revisit_pairs",
-    "pair_sets",
-    "is_success",
-]
+__all__ = ["SUCCESS_TRANSLATION", "SUCCESS_ROTATION", *pairsets.__all__, "is_success"]
 
 
 def is_success(t_err: float, r_err: float) -> bool:

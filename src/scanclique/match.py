@@ -312,6 +312,30 @@ def _score(pa: PreparedScan, pb: PreparedScan, x: float, y: float, th: float, cf
     )
 
 
+def _scores(pa, pb, poses, ok, sizes, exact_best, cfg) -> np.ndarray:
+    """:func:`pose_score` of each of ``poses`` (n, 3) with ``ok`` set (``-inf`` for the
+    others), compiled in one batch where the clouds allow: coarse (every third sample
+    point) except for the ``exact_best`` best by rank, score plus ``refine.size_weight``
+    per clique vertex (``sizes``); see :func:`scanclique._match_kernels.score_batch`."""
+    n = len(poses)
+    r = cfg.refine
+    if pa.cloud.windowed and pb.cloud.windowed:
+        scores = np.empty(n)
+        exact = np.empty(n, dtype=bool)
+        _K.score_batch(
+            poses, ok, np.asarray(sizes, dtype=float), r.size_weight, exact_best,
+            *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
+            r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
+        )  # fmt: skip
+        return scores
+    return np.array(
+        [
+            pose_score(pa, pb, Pose2.from_array(x), cfg) if k else -np.inf
+            for x, k in zip(poses, ok, strict=True)
+        ]
+    )
+
+
 def _node_pairs_to_feature_pairs(
     node_pairs: np.ndarray, ga: FeatureGraph, gb: FeatureGraph
 ) -> tuple:
@@ -442,22 +466,7 @@ def _quick_hypotheses(
             poses,
             ok,
         )
-    if pa.cloud.windowed and pb.cloud.windowed:
-        scores = np.empty(n)
-        exact = np.empty(n, dtype=bool)
-        r = cfg.refine
-        _K.score_batch(
-            poses, ok, sizes.astype(float), r.size_weight, QUICK_EXACT * r.candidates,
-            *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
-            r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
-        )  # fmt: skip
-    else:
-        scores = np.array(
-            [
-                pose_score(pa, pb, Pose2.from_array(x), cfg) if k else -np.inf
-                for x, k in zip(poses, ok, strict=True)
-            ]
-        )
+    scores = _scores(pa, pb, poses, ok, sizes, QUICK_EXACT * cfg.refine.candidates, cfg)
     rank = scores + cfg.refine.size_weight * sizes
     out = []
     pl, sl, zl = poses.tolist(), scores.tolist(), sizes.tolist()
@@ -593,16 +602,7 @@ def search_pose(
     if len(seeds) == 0 or len(pb.sample) < 3:
         return None
     n = len(seeds)
-    if pa.cloud.windowed and pb.cloud.windowed:
-        scores = np.empty(n)
-        exact = np.empty(n, dtype=bool)
-        _K.score_batch(
-            seeds, np.ones(n, dtype=bool), np.zeros(n), 0.0, 0,
-            *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
-            r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
-        )  # fmt: skip
-    else:
-        scores = np.array([pose_score(pa, pb, Pose2.from_array(x), cfg) for x in seeds])
+    scores = _scores(pa, pb, seeds, np.ones(n, dtype=bool), np.zeros(n), 0, cfg)
     best = None
     for i in np.argsort(-scores, kind="stable")[:SEARCH_ICP].tolist():
         icp = icp_point_to_line(
