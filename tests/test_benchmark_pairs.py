@@ -1,5 +1,6 @@
 """The benchmark's pair sets and success criterion (benchmarks/pairs.py)."""
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -53,3 +54,26 @@ def test_overlap_is_one_for_a_scan_with_itself():
     s = simulate_scan(world, Pose2(2.0, 2.0, 0.3), rng=rng)
     assert P.overlap(s, s, Pose2.identity()) == 1.0
     assert P.overlap(s, s, Pose2(1.0, 0.0, 0.5)) < 0.5
+
+
+def test_reference_disputed_flags_a_reference_the_raw_scans_refute():
+    import validation as V  # benchmarks/validation.py
+
+    import scanclique as sc
+    from scanclique.match import match_prepared, prepare_scan
+
+    cfg = sc.MatchConfig()
+    pair = sc.sim.simulate_pair(np.random.default_rng(3))
+    pa, pb = prepare_scan(pair.scan_a, cfg), prepare_scan(pair.scan_b, cfg)
+    m = match_prepared(pa, pb, cfg)
+    truth = pair.pose_a_b
+    assert m.pose is not None and m.pose.distance_to(truth)[0] < 0.05
+    # a right match is never disputed
+    assert not V.reference_disputed(pa, pb, m, truth, cfg)
+    # a reference turned by 3 degrees: the scans pull ICP back to the match's pose
+    off = truth @ Pose2(0.0, 0.0, math.radians(3.0))
+    assert V.reference_disputed(pa, pb, m, off, cfg)
+    # a reference that is right while the match is 1 m off: the scans side with the
+    # reference, so the wrong match is not excused
+    wrong = truth @ Pose2(1.0, 0.0, 0.0)
+    assert not V.reference_disputed(pa, pb, dataclasses.replace(m, pose=wrong), truth, cfg)
