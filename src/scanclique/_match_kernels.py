@@ -1077,187 +1077,16 @@ def _append(store, count, clique):  # pragma: no cover - compiled
     return (data, indptr)
 
 
-@_inline
-def _colour_word(S, P, verts, cols):  # pragma: no cover - compiled
-    """Greedy colouring of the one-word vertex set ``P`` in label order: writes the
-    vertices in non-decreasing colour to ``verts`` with their colours in ``cols``;
-    returns how many."""
-    one = np.uint64(1)
-    k = 0
-    colour = 0
-    Q = P
-    while Q:
-        colour += 1
-        R = Q
-        while R:
-            v = np.int64(CK._cttz(R))
-            bit = one << np.uint64(v)
-            R &= ~bit & ~S[v]
-            Q &= ~bit
-            verts[k] = v
-            cols[k] = colour
-            k += 1
-    return k
-
-
 @_njit
-def small_max_clique(S, m, t0, time_limit):  # pragma: no cover - compiled
-    """A maximum clique of a graph of at most 64 vertices given as one-word adjacency rows
-    ``S`` (``S[v]`` bit ``u``: edge v-u), by colour-bounded branch and bound (Tomita's
-    MCQ on single-word sets, with an explicit stack). Returns the sorted vertices; the
-    best found when the clock (``time.perf_counter`` seconds since ``t0``) passes
-    ``time_limit``."""
-    if m == 0:
-        return np.empty(0, np.int64)
-    one = np.uint64(1)
-    P = np.zeros(m + 1, np.uint64)
-    verts = np.empty((m + 1, 64), np.int64)
-    cols = np.empty((m + 1, 64), np.int64)
-    pos = np.empty(m + 1, np.int64)
-    C = np.empty(m + 1, np.int64)
-    bestC = np.zeros(m + 1, np.int64)
-    best = 1  # any single vertex
-    for v in range(m):
-        P[0] |= one << np.uint64(v)
-    pos[0] = _colour_word(S, P[0], verts[0], cols[0]) - 1
-    depth = 0
-    nodes = 0
-    while depth >= 0:
-        i = pos[depth]
-        if i < 0 or depth + cols[depth, i] <= best:
-            # this level is done: back to the parent, which drops its branching vertex
-            depth -= 1
-            if depth >= 0:
-                P[depth] &= ~(one << np.uint64(verts[depth, pos[depth]]))
-                pos[depth] -= 1
-            continue
-        v = verts[depth, i]
-        C[depth] = v
-        NP = P[depth] & S[v]
-        if NP == 0:
-            if depth + 1 > best:
-                best = depth + 1
-                bestC[:best] = C[:best]
-            P[depth] &= ~(one << np.uint64(v))
-            pos[depth] = i - 1
-            continue
-        depth += 1
-        P[depth] = NP
-        pos[depth] = _colour_word(S, NP, verts[depth], cols[depth]) - 1
-        nodes += 1
-        if (nodes & 1023) == 0 and CK._now() - t0 >= time_limit:
-            break
-    return np.sort(bestC[:best])
-
-
-@_inline
-def _colour_words(S, P, W, verts, cols, U, Q):  # pragma: no cover - compiled
-    """:func:`_colour_word` for a multi-word vertex set ``P`` (``W`` words; ``U``, ``Q``
-    scratch words)."""
-    one = np.uint64(1)
-    k = 0
-    colour = 0
-    for w in range(W):
-        Q[w] = P[w]
-    left = False
-    for w in range(W):
-        if Q[w]:
-            left = True
-    while left:
-        colour += 1
-        for w in range(W):
-            U[w] = Q[w]
-        for w in range(W):
-            while U[w]:
-                b = np.int64(CK._cttz(U[w]))
-                v = w * 64 + b
-                bit = one << np.uint64(b)
-                Q[w] &= ~bit
-                for x in range(W):
-                    U[x] &= ~S[v, x]
-                U[w] &= ~bit
-                verts[k] = v
-                cols[k] = colour
-                k += 1
-        left = False
-        for w in range(W):
-            if Q[w]:
-                left = True
-    return k
-
-
-@_njit
-def max_clique_words(S, m, t0, time_limit, max_depth):  # pragma: no cover - compiled
-    """:func:`small_max_clique` for any number of vertices: adjacency rows ``S`` of
-    ``W = S.shape[1]`` words. Returns ``(vertices, complete)``; ``complete`` is False
-    when the clock ran out or a clique deeper than ``max_depth`` would be needed (the
-    caller then uses the full solver)."""
-    if m == 0:
-        return np.empty(0, np.int64), True
-    W = S.shape[1]
-    one = np.uint64(1)
-    D = min(m, max_depth) + 1
-    P = np.zeros((D, W), np.uint64)
-    verts = np.empty((D, m), np.int64)
-    cols = np.empty((D, m), np.int64)
-    pos = np.empty(D, np.int64)
-    C = np.empty(D, np.int64)
-    bestC = np.zeros(D, np.int64)
-    U = np.empty(W, np.uint64)
-    Q = np.empty(W, np.uint64)
-    best = 1
-    for v in range(m):
-        P[0, v >> 6] |= one << np.uint64(v & 63)
-    pos[0] = _colour_words(S, P[0], W, verts[0], cols[0], U, Q) - 1
-    depth = 0
-    nodes = 0
-    while depth >= 0:
-        i = pos[depth]
-        if i < 0 or depth + cols[depth, i] <= best:
-            depth -= 1
-            if depth >= 0:
-                u = verts[depth, pos[depth]]
-                P[depth, u >> 6] &= ~(one << np.uint64(u & 63))
-                pos[depth] -= 1
-            continue
-        v = verts[depth, i]
-        C[depth] = v
-        empty = True
-        if depth + 1 < D:
-            for w in range(W):
-                P[depth + 1, w] = P[depth, w] & S[v, w]
-                if P[depth + 1, w]:
-                    empty = False
-        else:
-            return np.sort(bestC[:best]), False
-        if empty:
-            if depth + 1 > best:
-                best = depth + 1
-                bestC[:best] = C[:best]
-            P[depth, v >> 6] &= ~(one << np.uint64(v & 63))
-            pos[depth] = i - 1
-            continue
-        depth += 1
-        pos[depth] = _colour_words(S, P[depth], W, verts[depth], cols[depth], U, Q) - 1
-        nodes += 1
-        if (nodes & 1023) == 0 and CK._now() - t0 >= time_limit:
-            return np.sort(bestC[:best]), False
-    return np.sort(bestC[:best]), True
-
-
-@_njit
-def _induced_small(A, verts):  # pragma: no cover - compiled
-    """One-word adjacency rows of the subgraph of ``A`` induced by at most 64 ``verts``."""
+def _maximum_of(A, verts, t0, time_limit):  # pragma: no cover - compiled
+    """A maximum clique of the subgraph of ``A`` induced by ``verts`` (at least one), as
+    positions in ``verts``, sorted: the lean path of ``clique.max_clique``
+    (:func:`scanclique._clique_kernels.solve_bits`). The best found when the clock
+    (``time.perf_counter`` seconds since ``t0``) passes ``time_limit``."""
     m = verts.shape[0]
-    S = np.zeros(m, np.uint64)
-    one = np.uint64(1)
-    for i in range(m):
-        row = A[verts[i]]
-        for j in range(m):
-            v = verts[j]
-            if (row[v >> 6] >> np.uint64(v & 63)) & one:
-                S[i] |= one << np.uint64(j)
-    return S
+    out = np.empty(m, np.int64)
+    size, _, _ = CK.solve_bits(_induced(A, verts), m, 0, t0 + time_limit, out)
+    return out[:size]
 
 
 @_njit
@@ -1307,10 +1136,7 @@ def hypothesis_cliques(
         left = np.flatnonzero(alive)
         if left.shape[0] < min_size or CK._now() - t0 >= time_limit:
             break
-        sub = _induced(A, left)
-        r, done = max_clique_words(sub, left.shape[0], t0, time_limit, 64)
-        if not done:
-            r, _, _, _, _ = CK.solve(sub, left.shape[0], 0, 0, 0, time_limit, t0, opts)
+        r = _maximum_of(A, left, t0, time_limit)
         if r.shape[0] < min_size:
             break
         store = _append(store, count, np.sort(left[r]))
@@ -1337,13 +1163,7 @@ def hypothesis_cliques(
                 if (A[v, u >> 6] >> np.uint64(u & 63)) & one:
                     nb[m] = u
                     m += 1
-            if m == 0:
-                r = np.empty(0, np.int64)
-            elif m <= 64:
-                r = small_max_clique(_induced_small(A, nb), m, t0, time_limit)
-            else:
-                sub = _induced(A, nb)
-                r, _, _, _, _ = CK.solve(sub, m, 0, 0, 0, time_limit, t0, opts)
+            r = np.empty(0, np.int64) if m == 0 else _maximum_of(A, nb, t0, time_limit)
             if r.shape[0] + 1 >= min_size:
                 c = np.empty(r.shape[0] + 1, np.int64)
                 c[: r.shape[0]] = nb[r]
