@@ -31,7 +31,14 @@ import numpy as np
 
 from .config import CorrespondenceConfig, FeatureConfig
 from .errors import GraphError
-from .features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
+from .features import (
+    CORNER,
+    EDGE_CCW,
+    EDGE_CW,
+    FOREGROUND_POINT,
+    Features,
+    _kernels,  # the compiled kernels (_feature_kernels), imported lazily
+)
 
 __all__ = ["LINE", "NODE_KIND_NAMES", "PARALLEL_MAX_ANGLE", "FeatureGraph", "feature_graph"]
 
@@ -92,17 +99,6 @@ class FeatureGraph:
 
 _DEFAULT_CORRESPONDENCE = CorrespondenceConfig()
 _DEFAULT_FEATURES = FeatureConfig()
-_K = None
-
-
-def _kernels():
-    """The compiled kernels, imported on first use (importing numba takes a moment)."""
-    global _K
-    if _K is None:
-        from . import _feature_kernels
-
-        _K = _feature_kernels
-    return _K
 
 
 def _line_normals(alpha: np.ndarray) -> np.ndarray:
