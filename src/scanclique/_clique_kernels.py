@@ -1292,47 +1292,6 @@ def _bb_word(S, m, bar, deadline, best, node_limit, Pst):
 
 
 @numba.njit(cache=True)
-def _colour_plain(P, B, W, kmin, U, Q, ord_v, ord_c, base):
-    """:func:`colour_classes` without the class bitsets (no MaxSAT filter follows): the
-    vertices of colour ``>= kmin`` go to ``ord_*[base:]``. Returns how many."""
-    w0 = W
-    for w in range(W):
-        U[w] = P[w]
-        if P[w] != _ZERO and w < w0:
-            w0 = w
-    k = 0
-    cnt = 0
-    while True:
-        # invariant: U = vertices of P not yet coloured, and U[:w0] is empty
-        while w0 < W and U[w0] == _ZERO:
-            w0 += 1
-        if w0 == W:
-            break
-        k += 1
-        for w in range(w0, W):
-            Q[w] = U[w]
-        wq = w0
-        while True:
-            # invariant: Q = uncoloured vertices not adjacent to any vertex of class k
-            while wq < W and Q[wq] == _ZERO:
-                wq += 1
-            if wq == W:
-                break
-            b = _cttz(Q[wq])
-            v = wq * 64 + int(b)
-            one = _ONE << b
-            Q[wq] &= ~one
-            U[wq] &= ~one
-            for w in range(wq, W):
-                Q[w] &= ~B[v, w]
-            if k >= kmin:
-                ord_v[base + cnt] = v
-                ord_c[base + cnt] = k
-                cnt += 1
-    return cnt
-
-
-@numba.njit(cache=True)
 def _bb_words(B, P0, m, depth_max, bar, deadline, best, node_limit):
     """:func:`_bb_word` on multi-word sets: ``B`` the rows, ``P0`` the ``m`` candidates,
     and no clique among them has more than ``depth_max`` vertices. Status 2 when more
@@ -1350,12 +1309,16 @@ def _bb_words(B, P0, m, depth_max, bar, deadline, best, node_limit):
     C = np.empty(D, np.int64)
     U = np.empty(W, np.uint64)
     Q = np.empty(W, np.uint64)
+    # colour_classes' class bitsets and colours, written but not read here (no MaxSAT
+    # filter follows); classes below the bar number fewer than max(bar, depth_max)
+    CL = np.empty((max(bar, depth_max) + 1, W), np.uint64)
+    col = np.empty(B.shape[0], np.int64)
     for w in range(W):
         Pst[0, w] = P0[w]
     nodes = 1
     bsize = 0
     status = 0
-    c = _colour_plain(Pst[0], B, W, bar + 1, U, Q, ord_v, ord_c, 0)
+    c = colour_classes(Pst[0], B, W, bar + 1, U, Q, CL, ord_v, ord_c, 0, col)
     if c == 0:
         return 0, nodes, 0
     base[0] = 0
@@ -1400,7 +1363,7 @@ def _bb_words(B, P0, m, depth_max, bar, deadline, best, node_limit):
             cap = 2 * (nb + size)
             ord_v = _grow(ord_v, nb, cap)
             ord_c = _grow(ord_c, nb, cap)
-        c = _colour_plain(Pst[depth + 1], B, W, kneed + 1, U, Q, ord_v, ord_c, nb)
+        c = colour_classes(Pst[depth + 1], B, W, kneed + 1, U, Q, CL, ord_v, ord_c, nb, col)
         if c == 0:
             continue
         depth += 1

@@ -1043,22 +1043,6 @@ def covariance(info, scale, cov):  # pragma: no cover - compiled
 # Clique hypotheses (paper §5.3 and this library's additions)
 # --------------------------------------------------------------------------------------
 @_njit
-def _induced(A, verts):  # pragma: no cover - compiled
-    """Bitset rows of the subgraph of ``A`` induced by ``verts`` (relabelled 0..m-1)."""
-    m = verts.shape[0]
-    W = max((m + 63) // 64, 1)
-    S = np.zeros((m, W), np.uint64)
-    one = np.uint64(1)
-    for i in range(m):
-        row = A[verts[i]]
-        for j in range(m):
-            v = verts[j]
-            if (row[v >> 6] >> np.uint64(v & 63)) & one:
-                S[i, j >> 6] |= one << np.uint64(j & 63)
-    return S
-
-
-@_njit
 def _append(store, count, clique):  # pragma: no cover - compiled
     """Append ``clique`` to the flat store ``(data, indptr)``; returns the new store."""
     data, indptr = store
@@ -1084,8 +1068,11 @@ def _maximum_of(A, verts, t0, time_limit):  # pragma: no cover - compiled
     (:func:`scanclique._clique_kernels.solve_bits`). The best found when the clock
     (``time.perf_counter`` seconds since ``t0``) passes ``time_limit``."""
     m = verts.shape[0]
+    alive = np.zeros(A.shape[1], np.uint64)
+    for v in verts:
+        CK._setbit(alive, v)
     out = np.empty(m, np.int64)
-    size, _, _ = CK.solve_bits(_induced(A, verts), m, 0, t0 + time_limit, out)
+    size, _, _ = CK.solve_bits(CK._induced_rows(A, verts, m, alive), m, 0, t0 + time_limit, out)
     return out[:size]
 
 

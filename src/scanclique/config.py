@@ -280,8 +280,9 @@ class RefineConfig:
     to below 0).
 
     ``search``, ``search_below``: beyond the paper, when the best hypothesis scores below
-    ``search_below``, the pose is also searched on the raw scans (rotations that align the two scans' surface
-    orientations, translations voted by all pairs of sample points, ICP; see
+    ``search_below``, the pose is also searched on the raw scans (rotations that align
+    the two scans' surface orientations, translations voted by all pairs of sample points,
+    ICP; see
     :func:`scanclique.match.search_pose`). Its pose replaces the clique's when it scores
     at least ``search_margin`` better and at least ``pose.min_pairs`` mapped features
     agree with it. It catches what a maximum clique misses: the true association is small

@@ -65,7 +65,13 @@ from .errors import ConfigError, ScanError
 from .geometry import Pose2, wrap_angle
 from .match import Hypothesis, ScanMatch
 from .pairsets import pair_sets
-from .pose import PoseEstimate, estimate_pose_lsq, mapped_features, pair_consistent
+from .pose import (
+    PoseEstimate,
+    estimate_pose_lsq,
+    mapped_features,
+    pair_consistent,
+    points_first,
+)
 
 __all__ = [
     "ACCEPTED",
@@ -408,18 +414,12 @@ class Validation:
 # ---------------------------------------------------------------------------------------
 # The precision of a constellation (paper §7)
 # ---------------------------------------------------------------------------------------
-def _points_first(node_pairs: np.ndarray, n_points_a: int) -> np.ndarray:
-    node_pairs = np.asarray(node_pairs, dtype=np.int64).reshape(-1, 2)
-    is_pt = node_pairs[:, 0] < n_points_a
-    return np.concatenate((node_pairs[is_pt], node_pairs[~is_pt]))
-
-
 def _hypothesis_estimate(
     match: ScanMatch, h: Hypothesis, gate_probability: float
 ) -> tuple[PoseEstimate | None, int]:
     """Feature estimate about ``h.pose`` and the number of pairs it keeps."""
     fa, fb = match.features_a, match.features_b
-    ordered = _points_first(h.node_pairs, fa.n_points)
+    ordered = points_first(h.node_pairs, fa.n_points)
     if len(ordered) == 0:
         return h.estimate, 0
     m = mapped_features(fa, fb, ordered)
@@ -791,7 +791,7 @@ def _features_used(
     h = match.hypotheses[k]
     est, _ = _hypothesis_estimate(match, h, cfg.feature_gate)
     fa, fb = match.features_a, match.features_b
-    ordered = _points_first(h.node_pairs, fa.n_points)
+    ordered = points_first(h.node_pairs, fa.n_points)
     tol = CorrespondenceConfig()
     n = int(
         pair_consistent(
