@@ -14,15 +14,15 @@ $(BIN)/python:
 	$(BIN)/python -m pip install -q --upgrade pip
 
 $(STAMP_CORE): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install -q -e ".[plot]"
+	$(BIN)/python -m pip install -q -e ".[plot,apps]"
 	touch $@
 
 $(STAMP_TEST): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install -q -e ".[test,plot,dev]"
+	$(BIN)/python -m pip install -q -e ".[test,plot,dev,apps]"
 	touch $@ $(STAMP_CORE)
 
 $(STAMP_BENCH): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install -q -e ".[bench,plot]"
+	$(BIN)/python -m pip install -q -e ".[bench,plot,apps]"
 	touch $@
 
 demo: $(STAMP_CORE)

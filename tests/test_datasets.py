@@ -53,14 +53,19 @@ def no_data(tmp_path, monkeypatch):
 
 
 def test_registry():
-    assert set(DATASETS) == {"intel", "csail", "freiburg"}
-    assert {k: (d.scans, d.beams, d.has_odometry) for k, d in DATASETS.items()} == {
-        "intel": (910, 180, True),
-        "csail": (406, 361, True),
-        "freiburg": (4791, 360, False),
+    assert set(DATASETS) == {"intel", "csail", "freiburg", "intel-raw", "fr079-raw"}
+    assert {
+        k: (d.scans, d.beams, d.has_odometry, d.has_reference) for k, d in DATASETS.items()
+    } == {
+        "intel": (910, 180, True, True),
+        "csail": (406, 361, True, True),
+        "freiburg": (4791, 360, False, True),
+        "intel-raw": (13631, 180, True, False),
+        "fr079-raw": (4934, 360, True, False),
     }
     for key, d in DATASETS.items():
-        assert d.name == key and d.relpath.startswith("carmen/") and d.relpath.endswith(".log.gz")
+        suffix = ".log.gz" if d.has_reference else ".clf.bz2"
+        assert d.name == key and d.relpath.startswith("carmen/") and d.relpath.endswith(suffix)
         assert d.description and ("Radish" in d.source or "Freiburg" in d.source)
     with pytest.raises(TypeError):
         DATASETS["x"] = DATASETS["intel"]
@@ -99,7 +104,7 @@ def test_missing_data_message(no_data):
 
 
 def test_unknown_name():
-    with pytest.raises(DataNotFoundError, match="registered are csail, freiburg, intel"):
+    with pytest.raises(DataNotFoundError, match="registered are csail, fr079-raw, freiburg, intel, intel-raw"):
         dataset_path("victoria")
 
 
@@ -142,8 +147,12 @@ def test_real_registry_matches_files(name):
     d = DATASETS[name]
     assert len(scans) == d.scans
     assert {s.n_beams for s in scans} == {d.beams}
-    same = np.array([s.odometry == s.reference for s in scans])
-    assert bool(same.all()) == (not d.has_odometry)
+    if d.has_reference:
+        same = np.array([s.odometry == s.reference for s in scans])
+        assert bool(same.all()) == (not d.has_odometry)
+    else:  # raw logs: every pose is odometry, and it moves
+        assert all(s.odometry is not None for s in scans)
+        assert scans[0].odometry != scans[-1].odometry
 
 
 @pytest.mark.realdata

@@ -13,12 +13,13 @@ Expected layout under the data directory::
 
     carmen/intel-odometry.log.gz         carmen/csail-odometry.log.gz
     carmen/freiburg-079-corrected.log.gz relations/intel.relations
-    dimacs/*.clq
+    carmen/intel.clf.bz2                 relations/fr079.relations
+    carmen/fr079.clf.bz2                 dimacs/*.clq
 
 Examples
 --------
 >>> sorted(DATASETS)
-['csail', 'freiburg', 'intel']
+['csail', 'fr079-raw', 'freiburg', 'intel', 'intel-raw']
 >>> DATASETS["intel"].beams, DATASETS["intel"].scans, DATASETS["intel"].has_odometry
 (180, 910, True)
 """
@@ -84,6 +85,12 @@ class Dataset:
         What the log is and what its poses and timestamps mean.
     source : str
         Where it is published, in words, so that a user can fetch it.
+    has_reference : bool
+        Whether the log's poses include a corrected reference pose. False for the raw logs
+        of the SLAM benchmark, whose poses are all odometry (``Scan.reference`` then repeats
+        an odometry pose and is no ground truth); their reference is the relations file.
+    relations : str or None
+        Path under the data directory of the Kuemmerle et al. relations for this log.
     """
 
     name: str
@@ -93,6 +100,8 @@ class Dataset:
     has_odometry: bool
     description: str
     source: str
+    has_reference: bool = True
+    relations: str | None = None
 
 
 DATASETS: Mapping[str, Dataset] = MappingProxyType(
@@ -110,6 +119,7 @@ DATASETS: Mapping[str, Dataset] = MappingProxyType(
                 "relations/intel.relations."
             ),
             source=f"{_RADISH}; corrected poses and relations from {_FREIBURG}",
+            relations="relations/intel.relations",
         ),
         "csail": Dataset(
             name="csail",
@@ -137,11 +147,50 @@ DATASETS: Mapping[str, Dataset] = MappingProxyType(
             ),
             source=f"{_FREIBURG}; also in {_RADISH}",
         ),
+        "intel-raw": Dataset(
+            name="intel-raw",
+            relpath="carmen/intel.clf.bz2",
+            scans=13631,
+            beams=180,
+            has_odometry=True,
+            description=(
+                "The raw Intel Research Lab log of the SLAM benchmark of Kuemmerle et al. "
+                "2009 (bzip2 as published): FLASER poses are wheel odometry only, there is no "
+                "reference pose in the log; the reference is relations/intel.relations (2984 "
+                "relations, joining FLASER timestamps exactly)."
+            ),
+            source=f"{_FREIBURG} (SLAM benchmark raw logs)",
+            has_reference=False,
+            relations="relations/intel.relations",
+        ),
+        "fr079-raw": Dataset(
+            name="fr079-raw",
+            relpath="carmen/fr079.clf.bz2",
+            scans=4934,
+            beams=360,
+            has_odometry=True,
+            description=(
+                "The raw Freiburg building 079 log of the SLAM benchmark (bzip2): FLASER x y "
+                "theta is the laser's odometry pose, odom_* the robot's; no reference pose in "
+                "the log; the reference is relations/fr079.relations (1685 relations)."
+            ),
+            source=f"{_FREIBURG} (SLAM benchmark raw logs)",
+            has_reference=False,
+            relations="relations/fr079.relations",
+        ),
     }
 )
 """Registered logs by name."""
 
-ALIASES: Mapping[str, str] = MappingProxyType({"freiburg-079": "freiburg", "intel-lab": "intel"})
+ALIASES: Mapping[str, str] = MappingProxyType(
+    {
+        "freiburg-079": "freiburg",
+        "intel-lab": "intel",
+        "intel.clf": "intel-raw",
+        "fr079": "fr079-raw",
+        "fr079.clf": "fr079-raw",
+    }
+)
 """Other accepted names."""
 
 _RELATIONS = "relations/intel.relations"

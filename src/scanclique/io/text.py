@@ -59,6 +59,7 @@ Examples
 
 from __future__ import annotations
 
+import bz2
 import gzip
 import logging
 import math
@@ -90,6 +91,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 GZIP_MAGIC = b"\x1f\x8b"
+BZIP2_MAGIC = b"BZh"
 
 _PathLike = str | os.PathLike
 
@@ -111,7 +113,7 @@ class TextLines:
     truncated : str or None
         With ``strict=False``: why the (gzip) file could not be read to its end, else None.
     compressed : bool
-        Whether the file was gzip compressed.
+        Whether the file was gzip or bzip2 compressed.
     """
 
     path: str
@@ -185,6 +187,38 @@ def _gunzip(raw: bytes, path: str, strict: bool) -> tuple[bytes, str | None]:
     return b"".join(chunks), None
 
 
+def _bunzip2(raw: bytes, path: str, strict: bool) -> tuple[bytes, str | None]:
+    """Decompress all bzip2 streams of ``raw``; returns (data, why it stopped early or None)."""
+    chunks: list[bytes] = []
+    data = raw
+    while data:
+        d = bz2.BZ2Decompressor()
+        try:
+            chunks.append(d.decompress(data))
+        except OSError as exc:
+            why = f"corrupt bzip2 stream ({exc})"
+            if strict:
+                raise ParseError(path, None, why) from None
+            return b"".join(chunks), why
+        if not d.eof:
+            why = (
+                "truncated bzip2 stream: the compressed data end before the bzip2 end marker "
+                "(incomplete download or copy?)"
+            )
+            if strict:
+                raise ParseError(path, None, why)
+            return b"".join(chunks), why
+        data = d.unused_data
+        if data and not data.startswith(BZIP2_MAGIC):
+            if data.strip(b"\x00"):
+                why = f"{len(data)} bytes of trailing garbage after the bzip2 stream"
+                if strict:
+                    raise ParseError(path, None, why)
+                return b"".join(chunks), why
+            break
+    return b"".join(chunks), None
+
+
 def _bad_bytes_message(line: bytes) -> str:
     if b"\x00" in line:
         col = line.index(b"\x00") + 1
@@ -201,7 +235,7 @@ def _bad_bytes_message(line: bytes) -> str:
 
 
 def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
-    """Load a text file (plain or gzip, detected by magic bytes) as lines.
+    """Load a text file (plain, gzip or bzip2, detected by magic bytes) as lines.
 
     Parameters
     ----------
@@ -227,12 +261,14 @@ def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
     """
     spath = os.fspath(path)
     raw = _read_bytes(path)
-    compressed = raw[:2] == GZIP_MAGIC
     truncated = None
-    if compressed:
+    compressed = raw[:2] == GZIP_MAGIC or raw[:3] == BZIP2_MAGIC
+    if raw[:2] == GZIP_MAGIC:
         raw, truncated = _gunzip(raw, spath, strict)
-        if truncated:
-            logger.warning("%s: %s; reading what was recovered", spath, truncated)
+    elif raw[:3] == BZIP2_MAGIC:
+        raw, truncated = _bunzip2(raw, spath, strict)
+    if truncated:
+        logger.warning("%s: %s; reading what was recovered", spath, truncated)
     lines: list[str | None] = []
     try:
         if b"\x00" in raw:

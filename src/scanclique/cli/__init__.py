@@ -33,14 +33,14 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from . import __version__, datasets
-from .config import MatchConfig, config_to_dict, paper_config
-from .errors import DataNotFoundError, ScanCliqueError, ScanError, ScanIndexError
-from .features import POINT_LABEL_NAMES, Features, extract_features
-from .geometry import Pose2
-from .match import STAGES, ScanMatch, match_prepared, match_scans, prepare_scan
-from .scan import Scan
-from .validation import (
+from .. import __version__, datasets
+from ..config import MatchConfig, config_to_dict, paper_config
+from ..errors import DataNotFoundError, ScanCliqueError, ScanError, ScanIndexError
+from ..features import POINT_LABEL_NAMES, Features, extract_features
+from ..geometry import Pose2
+from ..match import STAGES, ScanMatch, match_prepared, match_scans, prepare_scan
+from ..scan import Scan
+from ..validation import (
     ACCEPTED,
     VERDICTS,
     OdometryNoise,
@@ -176,7 +176,7 @@ def load_config(path: str | os.PathLike | None = None, paper: bool = False) -> M
     base = paper_config() if paper else MatchConfig()
     if path is None:
         return base
-    from .io.config import read_config
+    from ..io.config import read_config
 
     return read_config(path, base=base)
 
@@ -338,7 +338,7 @@ def run_demo(config: MatchConfig | None = None, data: bool = True) -> MatchRun:
             run = run_match(path, *DEMO_INDICES, config=cfg)
             names = tuple(f"intel:{i}" for i in DEMO_INDICES)
             return MatchRun(run.scan_a, run.scan_b, run.match, names, cfg, run.notes, run.reference)
-    from .sim import simulate_pair
+    from ..sim import simulate_pair
 
     pair = simulate_pair(np.random.default_rng(DEMO_SEED))
     m = match_scans(pair.scan_a, pair.scan_b, cfg)
@@ -751,7 +751,7 @@ def _escape(s: str) -> str:
 
 def _plot_module():
     try:
-        from . import plot
+        from .. import plot
     except ImportError as exc:  # pragma: no cover - matplotlib missing
         raise _fail(f"plotting needs matplotlib ({exc}): pip install 'scanclique[plot]'") from None
     try:
@@ -762,7 +762,7 @@ def _plot_module():
 
 
 def _save_config(cfg: MatchConfig, path: Path, comment: str) -> None:
-    from .io.config import write_config
+    from ..io.config import write_config
 
     _guard(lambda: write_config(cfg, path, comment=comment))
     _note(f"configuration written to {path}")
@@ -1031,7 +1031,7 @@ def clique(
     scanclique clique graph.clq --all --json
     ```
     """
-    from .clique import solve_file
+    from ..clique import solve_file
 
     res = _guard(lambda: solve_file(file, all=all_, time_limit=time_limit))
     if json_out:
@@ -1228,7 +1228,7 @@ def config_cmd(
     scanclique match intel 120 125 --config my.toml
     ```
     """
-    from .io.config import dumps_config
+    from ..io.config import dumps_config
 
     cfg = paper_config() if paper else MatchConfig()
     comment = "the paper's configuration (paper_config())" if paper else "defaults (MatchConfig())"
@@ -1236,6 +1236,26 @@ def config_cmd(
         _save_config(cfg, output, comment)
     else:
         typer.echo(dumps_config(cfg, comment), nl=False)
+
+
+# ---------------------------------------------------------------------------------------
+# Application commands: one module of this package each, registered here
+# ---------------------------------------------------------------------------------------
+#: Modules of ``scanclique.cli`` that add commands. Each defines ``register(app)``, which
+#: adds its typer command(s) to ``app``. A command module imports only typer, rich and the
+#: standard library at module level (heavy imports go inside the command), so that
+#: ``scanclique --help`` and ``--version`` stay light.
+COMMAND_MODULES: tuple[str, ...] = ()
+
+
+def _register_commands() -> None:
+    import importlib
+
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"{__name__}.{name}").register(app)
+
+
+_register_commands()
 
 
 def main() -> None:
