@@ -1,0 +1,26 @@
+"""Evaluation of estimated trajectories against independent references.
+
+:mod:`scanclique.eval.relations` implements the relation metric of Kümmerle et al. 2009
+(the SLAM benchmark of the Freiburg raw logs), as Cartographer's
+``compute_relations_metrics`` computes it.
+"""
+
+from .relations import (
+    Relation,
+    RelationErrors,
+    SplitErrors,
+    join_relations,
+    read_relations,
+    relation_errors,
+    relation_metrics,
+)
+
+__all__ = [
+    "Relation",
+    "RelationErrors",
+    "SplitErrors",
+    "join_relations",
+    "read_relations",
+    "relation_errors",
+    "relation_metrics",
+]

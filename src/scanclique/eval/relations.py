@@ -1,0 +1,299 @@
+"""The relation metric of Kümmerle et al. 2009 ("On measuring the accuracy of SLAM
+algorithms", Autonomous Robots 27(4)).
+
+A *relation* is a relative pose ``delta*`` of the robot at time ``t2`` in its frame at time
+``t1``, obtained independently of any SLAM system (scan alignment checked by hand). The
+files of the Freiburg SLAM benchmark hold one per line::
+
+    t1 t2 x y z roll pitch yaw
+
+(metres and radians; ``z``, ``roll`` and ``pitch`` are 0 for the planar logs). For estimated
+poses ``x1``, ``x2`` at ``t1`` and ``t2`` the error of the relation is (as Cartographer's
+``compute_relations_metrics`` computes it)::
+
+    E = (x1^-1 x2) delta*^-1
+
+and the metric is the mean ± standard deviation over all relations of ``|translation(E)|``
+(metres) and ``|angle(E)|`` (degrees), and of their squares (m², deg²). The published
+figures of the benchmark (graph mapping, Cartographer, ...) are the means of the absolute
+errors over all relations of a log.
+
+Examples
+--------
+>>> from scanclique.geometry import Pose2
+>>> rel = [Relation(0.0, 1.0, Pose2(1.0, 0.0, 0.0))]
+>>> poses = {0.0: Pose2(0.0, 0.0, 0.0), 1.0: Pose2(1.1, 0.0, 0.0)}
+>>> m = relation_metrics(rel, poses)
+>>> round(m.all.translation_mean, 6), m.all.n
+(0.1, 1)
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParseError, ScanError
+from ..geometry import Pose2
+
+__all__ = [
+    "Relation",
+    "RelationErrors",
+    "SplitErrors",
+    "SHORT_SECONDS",
+    "read_relations",
+    "join_relations",
+    "relation_errors",
+    "relation_metrics",
+]
+
+#: relations spanning at most this many seconds are "short" (consecutive-ish), the others
+#: "long" (loop closures are what brings those down)
+SHORT_SECONDS = 10.0
+
+#: timestamps are joined after rounding to this many decimals (the files print microseconds)
+TIME_DECIMALS = 6
+
+
+@dataclass(frozen=True, slots=True)
+class Relation:
+    """One relation: ``delta`` is the pose at ``t2`` in the frame at ``t1`` (maps points of
+    the frame at ``t2`` into the frame at ``t1``)."""
+
+    t1: float
+    t2: float
+    delta: Pose2
+
+    @property
+    def span(self) -> float:
+        """``|t2 - t1|`` in seconds."""
+        return abs(self.t2 - self.t1)
+
+
+def read_relations(path: str | os.PathLike) -> list[Relation]:
+    """Read a relations file (``t1 t2 x y z roll pitch yaw`` per line; ``#`` comments and
+    blank lines skipped).
+
+    Raises
+    ------
+    ParseError
+        Naming the file, line and field when a line does not have 8 numbers, or when
+        ``z``, ``roll`` or ``pitch`` is not 0 (not a planar relation), or when the file
+        cannot be read.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParseError(str(path), None, f"cannot read relations file ({exc})") from None
+    names = ("t1", "t2", "x", "y", "z", "roll", "pitch", "yaw")
+    out: list[Relation] = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        fields = s.split()
+        if len(fields) != 8:
+            raise ParseError(
+                str(path), lineno, f"expected 8 numbers (t1 t2 x y z roll pitch yaw), found {len(fields)}"
+            )
+        vals = []
+        for name, f in zip(names, fields, strict=True):
+            try:
+                v = float(f)
+            except ValueError:
+                raise ParseError(str(path), lineno, f"expected a number, found {f!r}", name) from None
+            if not math.isfinite(v):
+                raise ParseError(str(path), lineno, f"expected a finite number, found {f!r}", name)
+            vals.append(v)
+        t1, t2, x, y, z, roll, pitch, yaw = vals
+        for name, v in (("z", z), ("roll", roll), ("pitch", pitch)):
+            if abs(v) > 1e-9:
+                raise ParseError(str(path), lineno, f"expected 0 for a planar relation, found {v}", name)
+        out.append(Relation(t1, t2, Pose2.from_xytheta(x, y, yaw)))
+    return out
+
+
+def _key(t: float) -> float:
+    return round(float(t), TIME_DECIMALS)
+
+
+def join_relations(
+    relations: Sequence[Relation],
+    timestamps: Sequence[float | None],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scan indices of each relation's two timestamps.
+
+    Parameters
+    ----------
+    relations : sequence of Relation
+    timestamps : sequence of float or None
+        One per scan (``Scan.timestamp``); a timestamp seen twice keeps its first scan.
+
+    Returns
+    -------
+    (ndarray of int, ndarray of bool)
+        ``(n, 2)`` indices (``-1`` where a timestamp has no scan) and a mask of the
+        relations whose both timestamps joined exactly (after rounding to microseconds).
+    """
+    index: dict[float, int] = {}
+    for i, t in enumerate(timestamps):
+        if t is not None:
+            index.setdefault(_key(t), i)
+    ij = np.array(
+        [[index.get(_key(r.t1), -1), index.get(_key(r.t2), -1)] for r in relations], dtype=int
+    ).reshape(-1, 2)
+    return ij, (ij >= 0).all(axis=1)
+
+
+def relation_errors(
+    relations: Sequence[Relation],
+    poses: Mapping[float, Pose2 | None] | Sequence[Pose2 | None],
+    timestamps: Sequence[float | None] | None = None,
+    *,
+    mounting: Pose2 | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Translation (m) and rotation (rad) error of each relation, and its span (s).
+
+    Parameters
+    ----------
+    relations : sequence of Relation
+    poses : mapping timestamp -> Pose2, or sequence of Pose2 (one per scan, with
+        ``timestamps``)
+        Estimated poses in any common world frame. ``None`` poses (unplaced scans) make the
+        relation's error NaN.
+    timestamps : sequence of float, optional
+        Needed when ``poses`` is a sequence.
+    mounting : Pose2, optional
+        Pose of the frame the relations refer to (the robot's) in the frame the estimates
+        are of (the sensor's): ``x_robot = x_sensor @ mounting``. Default: the same frame.
+
+    Returns
+    -------
+    (t_err, r_err, span) : three ndarrays of shape (n,)
+        ``|translation(E)|``, ``|angle(E)|`` with ``E = (x1^-1 x2) delta*^-1``; NaN where a
+        timestamp did not join or a pose is None.
+    """
+    if isinstance(poses, Mapping):
+        keyed = {_key(t): p for t, p in poses.items()}
+        pairs = [(keyed.get(_key(r.t1)), keyed.get(_key(r.t2))) for r in relations]
+    else:
+        if timestamps is None or len(timestamps) != len(poses):
+            raise ScanError("relation_errors: a sequence of poses needs one timestamp per pose")
+        ij, _ = join_relations(relations, timestamps)
+        pairs = [
+            (poses[i] if i >= 0 else None, poses[j] if j >= 0 else None) for i, j in ij.tolist()
+        ]
+    n = len(relations)
+    t_err = np.full(n, np.nan)
+    r_err = np.full(n, np.nan)
+    span = np.array([r.span for r in relations], dtype=float)
+    m_inv = None if mounting is None else mounting.inverse()
+    for k, (r, (p1, p2)) in enumerate(zip(relations, pairs, strict=True)):
+        if p1 is None or p2 is None:
+            continue
+        rel = p1.inverse() @ p2
+        if mounting is not None:
+            rel = m_inv @ rel @ mounting
+        E = rel @ r.delta.inverse()
+        t_err[k] = math.hypot(E.x, E.y)
+        r_err[k] = abs(E.theta)
+    return t_err, r_err, span
+
+
+@dataclass(frozen=True, slots=True)
+class RelationErrors:
+    """Summary of relation errors over a set of relations.
+
+    ``translation_*`` in metres (``translation_sq_*`` in m²), ``rotation_*`` in degrees
+    (``rotation_sq_*`` in deg²); ``n`` relations counted, ``missing`` that could not be
+    evaluated (a timestamp without a scan, or an unplaced scan)."""
+
+    n: int
+    missing: int
+    translation_mean: float
+    translation_std: float
+    rotation_mean: float
+    rotation_std: float
+    translation_sq_mean: float
+    translation_sq_std: float
+    rotation_sq_mean: float
+    rotation_sq_std: float
+    translation_max: float
+
+    @classmethod
+    def of(cls, t_err: np.ndarray, r_err: np.ndarray) -> RelationErrors:
+        ok = np.isfinite(t_err) & np.isfinite(r_err)
+        t = t_err[ok]
+        r = np.degrees(r_err[ok])
+
+        def ms(a):
+            return (float(a.mean()), float(a.std())) if a.size else (math.nan, math.nan)
+
+        tm, ts = ms(t)
+        rm, rs = ms(r)
+        tqm, tqs = ms(t**2)
+        rqm, rqs = ms(r**2)
+        return cls(
+            int(ok.sum()),
+            int((~ok).sum()),
+            tm,
+            ts,
+            rm,
+            rs,
+            tqm,
+            tqs,
+            rqm,
+            rqs,
+            float(t.max()) if t.size else math.nan,
+        )
+
+    def to_dict(self) -> dict:
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in ((s, getattr(self, s)) for s in self.__slots__)}  # fmt: skip
+
+
+@dataclass(frozen=True, slots=True)
+class SplitErrors:
+    """Relation errors over all relations, those spanning at most ``short_seconds`` and the
+    longer ones."""
+
+    all: RelationErrors
+    short: RelationErrors
+    long: RelationErrors
+    short_seconds: float = SHORT_SECONDS
+
+    def to_dict(self) -> dict:
+        return {
+            "all": self.all.to_dict(),
+            "short": self.short.to_dict(),
+            "long": self.long.to_dict(),
+            "short_seconds": self.short_seconds,
+        }
+
+
+def relation_metrics(
+    relations: Sequence[Relation],
+    poses: Mapping[float, Pose2 | None] | Sequence[Pose2 | None],
+    timestamps: Sequence[float | None] | None = None,
+    *,
+    mounting: Pose2 | None = None,
+    short_seconds: float = SHORT_SECONDS,
+) -> SplitErrors:
+    """The relation metric (module docstring) over all relations and split by span.
+
+    See :func:`relation_errors` for the parameters.
+    """
+    t, r, span = relation_errors(relations, poses, timestamps, mounting=mounting)
+    short = span <= short_seconds
+    return SplitErrors(
+        RelationErrors.of(t, r),
+        RelationErrors.of(t[short], r[short]),
+        RelationErrors.of(t[~short], r[~short]),
+        short_seconds,
+    )
