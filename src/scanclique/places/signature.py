@@ -1,0 +1,199 @@
+"""Rotation-invariant signatures of prepared scans: the prefilter of place recognition.
+
+A place database cannot run the clique matcher (a few milliseconds per pair) against tens
+of thousands of places per query. The prefilter ranks the places by a cheap distance
+between *signatures*, vectors computed once per scan from what the pipeline already has
+(:class:`scanclique.match.PreparedScan`), and only the best few candidates are verified
+by the matcher (:mod:`scanclique.places.verify`).
+
+A signature is a concatenation of histograms ("blocks"), each invariant to a rotation of
+the sensor, and all but the first to a translation of the same surfaces too:
+
+``range``
+    the valid ranges (distance of each return from the sensor);
+``distance``
+    the distances between pairs of the scan's sample points (the D2 shape distribution of
+    Osada et al. 2002);
+``normal``
+    the angles between the surface normals of pairs of points, folded to ``[0, pi/2]``
+    (angle-histogram matching, Weiss et al. 1994, made rotation-free by differencing);
+``feature``
+    the invariant edge labels of the feature graph (paper §5.1) by kind pair:
+    point–point distances, point–line perpendicular distances, line–line acute angles.
+
+The prefilter's recall (a place it drops can never be recognised) is measured by
+``benchmarks/places.py``; each block alone ranks a true place among the first 10 for
+about half to two thirds of the queries on the shared logs, together somewhat more.
+
+Each histogram is soft-binned (every value split linearly between its two nearest bins),
+normalised to unit sum and square-rooted, then scaled by the block's weight with the
+squared weights summing to one. The distance (:func:`signature_distance`) is the squared
+Euclidean distance of two signatures: per block ``2 - 2 BC`` with ``BC`` the
+Bhattacharyya coefficient of the two histograms, i.e. twice the squared Hellinger
+distance, weighted. It lies in ``[0, 2]``; 0 for identical histograms. Being a squared
+Euclidean distance it is searched exactly by one matrix product (:mod:`.index`).
+
+Examples
+--------
+>>> import numpy as np, scanclique as sc
+>>> from scanclique.match import prepare_scan
+>>> pair = sc.sim.simulate_pair(np.random.default_rng(0))
+>>> sa = scan_signature(prepare_scan(pair.scan_a))
+>>> sa.shape == (SIGNATURE_SIZE,), sa.dtype
+(True, dtype('float64'))
+>>> float(signature_distance(sa, sa))
+0.0
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "SIGNATURE_VERSION",
+    "SIGNATURE_BLOCKS",
+    "SIGNATURE_SIZE",
+    "scan_signature",
+    "signature_distance",
+]
+
+#: bump when the signature changes: stored signatures of another version are recomputed
+SIGNATURE_VERSION = 1
+
+#: metres: ranges and distances are binned on a square-root scale up to this (farther
+#: values go to the last bin)
+_FAR = 30.0
+#: at most this many points enter the pairwise histograms (evenly spaced in beam order)
+_PAIR_POINTS = 120
+
+#: (name, number of bins, weight before normalisation)
+SIGNATURE_BLOCKS: tuple[tuple[str, int, float], ...] = (
+    ("range", 24, 1.0),
+    ("distance", 24, 1.0),
+    ("normal", 12, 1.0),
+    ("feature", 24, 1.0),
+)
+SIGNATURE_SIZE = sum(n for _, n, _ in SIGNATURE_BLOCKS)
+_W = np.array([w for _, _, w in SIGNATURE_BLOCKS], dtype=float)
+_W = _W / math.sqrt(float(np.sum(_W**2)))
+
+
+def _soft_hist(u: np.ndarray, n: int) -> np.ndarray:
+    """Histogram of ``u`` (already scaled so that bin centres are 0 .. n-1; values are
+    clipped into that range), each value split linearly between its two nearest bins."""
+    out = np.zeros(n)
+    if u.size == 0:
+        return out
+    u = np.clip(np.asarray(u, dtype=float), 0.0, n - 1.0)
+    lo = np.floor(u).astype(np.int64)
+    hi = np.minimum(lo + 1, n - 1)
+    w_hi = u - lo
+    out += np.bincount(lo, weights=1.0 - w_hi, minlength=n)[:n]
+    out += np.bincount(hi, weights=w_hi, minlength=n)[:n]
+    return out
+
+
+def _sqrt_scale(v: np.ndarray, n: int, far: float = _FAR) -> np.ndarray:
+    """Values in metres mapped to bin coordinates on a square-root scale over ``[0, far]``."""
+    return np.sqrt(np.maximum(v, 0.0) / far) * (n - 1)
+
+
+def _pair_values(x: np.ndarray) -> np.ndarray:
+    """Indices ``(i, j)``, ``i < j`` of ``len(x)`` items, as two arrays."""
+    return np.triu_indices(len(x), k=1)
+
+
+def _evenly(n: int, k: int) -> np.ndarray:
+    if n <= k:
+        return np.arange(n)
+    return np.linspace(0, n - 1, k).round().astype(np.int64)
+
+
+def _blocks(prepared) -> list[np.ndarray]:
+    """The raw (unnormalised) histograms of the blocks of :data:`SIGNATURE_BLOCKS`."""
+    scan = prepared.scan
+    nb = {name: n for name, n, _ in SIGNATURE_BLOCKS}
+    # range: distance of each valid return from the sensor
+    r = scan.ranges[scan.valid]
+    h_range = _soft_hist(_sqrt_scale(r, nb["range"]), nb["range"])
+    # distance: pairwise distances of (at most _PAIR_POINTS) sample points
+    pts = np.asarray(prepared.sample, dtype=float).reshape(-1, 2)
+    pts = pts[_evenly(len(pts), _PAIR_POINTS)]
+    i, j = _pair_values(pts)
+    d = np.hypot(*(pts[i] - pts[j]).T) if len(i) else np.zeros(0)
+    h_dist = _soft_hist(_sqrt_scale(d, nb["distance"]), nb["distance"])
+    # normal: angles between surface normals of pairs of points, folded to [0, pi/2]
+    nrm = np.asarray(prepared.cloud.normals, dtype=float).reshape(-1, 2)
+    nrm = nrm[np.any(nrm != 0.0, axis=1)]
+    nrm = nrm[_evenly(len(nrm), _PAIR_POINTS)]
+    a = np.arctan2(nrm[:, 1], nrm[:, 0])
+    i, j = _pair_values(a)
+    da = np.abs(a[i] - a[j]) % math.pi
+    da = np.minimum(da, math.pi - da)
+    h_norm = _soft_hist(da / (math.pi / 2) * (nb["normal"] - 1), nb["normal"])
+    # feature: invariant edge labels of the feature graph by kind pair (paper §5.1)
+    h_feat = _feature_hist(prepared, nb["feature"])
+    return [h_range, h_dist, h_norm, h_feat]
+
+
+def _feature_hist(prepared, n: int) -> np.ndarray:
+    """Three sub-histograms of ``n // 3`` bins: point–point distances, |point–line|
+    distances, line–line acute angles, each over all unordered pairs of features."""
+    m = n // 3
+    f = prepared.features
+    xy = np.asarray(f.points_xy, dtype=float).reshape(-1, 2)
+    ra = np.asarray(f.lines_rho_alpha, dtype=float).reshape(-1, 2)
+    i, j = _pair_values(xy)
+    pp = np.hypot(*(xy[i] - xy[j]).T) if len(i) else np.zeros(0)
+    if len(xy) and len(ra):
+        pl = np.abs(xy @ np.column_stack((np.cos(ra[:, 1]), np.sin(ra[:, 1]))).T - ra[:, 0])
+        pl = pl.ravel()
+    else:
+        pl = np.zeros(0)
+    i, j = _pair_values(ra)
+    ll = np.abs(ra[i, 1] - ra[j, 1]) % math.pi
+    ll = np.minimum(ll, math.pi - ll)
+    return np.concatenate(
+        (
+            _soft_hist(_sqrt_scale(pp, m), m),
+            _soft_hist(_sqrt_scale(pl, m), m),
+            _soft_hist(ll / (math.pi / 2) * (m - 1), n - 2 * m),
+        )
+    )
+
+
+def scan_signature(prepared) -> np.ndarray:
+    """The rotation-invariant signature of one prepared scan (see the module docstring).
+
+    Parameters
+    ----------
+    prepared : scanclique.match.PreparedScan
+        From :func:`scanclique.prepare_scan`: the signature reads its scan's ranges, its
+        sample points, its cloud's surface normals and its features.
+
+    Returns
+    -------
+    ndarray, shape (SIGNATURE_SIZE,), float64
+        Blocks of :data:`SIGNATURE_BLOCKS` in order; each block is the square root of a
+        unit-sum histogram times its weight (zero when the scan gives the block no value,
+        e.g. no features). Compare two with :func:`signature_distance`.
+    """
+    out = []
+    for h, w in zip(_blocks(prepared), _W, strict=True):
+        s = float(h.sum())
+        out.append(np.sqrt(h / s) * w if s > 0 else np.zeros_like(h))
+    return np.concatenate(out)
+
+
+def signature_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of signatures: the squared Euclidean distance, in ``[0, 2]``.
+
+    ``a`` and ``b`` broadcast over leading axes: ``(D,)`` against ``(N, D)`` gives
+    ``(N,)``. Per block it is ``w² (2 - 2 BC)``, BC the Bhattacharyya coefficient of the
+    two histograms (``w²`` when one of them is empty); 0 means identical histograms.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return np.sum((a - b) ** 2, axis=-1)
