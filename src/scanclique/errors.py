@@ -66,3 +66,9 @@ class GraphError(ScanCliqueError, ValueError):
 
 class ScanIndexError(ScanCliqueError, IndexError):
     """A scan index outside the log, or a scan file holding no scan."""
+
+
+class PlaceDatabaseError(ScanCliqueError):
+    """A place database (``scanclique.places``) cannot be used: not a place database, a
+    newer schema, a corrupted file or record, or a configuration incompatible with the
+    one its places were prepared with. The message names the file and what was wrong."""
