@@ -319,3 +319,90 @@ def test_demo_with_real_data(tmp_path):
     assert "Intel Research Lab log, scans 120 and 121" in r.stdout
     assert "vs reference: success" in r.stdout.strip().splitlines()[-1]
     assert png.read_bytes()[:8] == PNG_MAGIC
+
+
+# ---------------------------------------------------------------------------------------
+# The split: library layer in scanclique.tools, light command modules
+# ---------------------------------------------------------------------------------------
+_HEAVY = ("numpy", "scipy", "numba", "matplotlib")
+
+
+def _new_modules_of(stmt: str, after: str = "import scanclique") -> list[str]:
+    import subprocess
+
+    code = (
+        f"import sys\n{after}\nbefore = set(sys.modules)\n{stmt}\n"
+        "print('\\n'.join(sorted(set(sys.modules) - before)))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
+    ).stdout
+    return out.split()
+
+
+def test_cli_package_imports_nothing_heavy_beyond_the_core():
+    """The app and every command module load only typer, rich and the standard library:
+    what ``import scanclique.cli`` adds to ``import scanclique`` holds no NumPy, SciPy,
+    numba or matplotlib module and none of the core's stage modules."""
+    new = _new_modules_of("import scanclique.cli")
+    assert "scanclique.cli.match" in new  # the command modules were registered
+    heavy = [m for m in new if m.split(".")[0] in _HEAVY]
+    core = [m for m in new if m.startswith("scanclique.") and not m.startswith("scanclique.cli")]
+    assert not heavy, heavy
+    assert not core, core
+
+
+def test_tools_import_neither_typer_nor_rich():
+    new = _new_modules_of(
+        "import scanclique.tools as t\nfor n in t.__all__: getattr(t, n)", after="pass"
+    )
+    assert "scanclique.tools.runs" in new
+    assert not [m for m in new if m.split(".")[0] in ("typer", "rich", "click")]
+
+
+def test_version_does_not_load_numba():
+    """``scanclique --version`` must not import numba (issue 11 item 8). The CLI side is
+    held by the test above; this one needs ``import scanclique`` itself to be light."""
+    import subprocess
+
+    base = subprocess.run(
+        [sys.executable, "-c", "import sys, scanclique; print('numba' in sys.modules)"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    ).stdout.strip()
+    if base == "True":
+        pytest.skip("`import scanclique` itself loads numba (the core's package init)")
+    r = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "scanclique", "--version"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 0 and r.stdout.startswith("scanclique ")
+    assert "numba" not in r.stderr
+
+
+def test_old_names_still_resolve_from_cli():
+    from scanclique import tools
+
+    for name in (
+        "run_match",
+        "run_demo",
+        "run_validate",
+        "load_scan",
+        "load_scan_pair",
+        "load_config",
+        "MatchRun",
+        "ValidateRun",
+        "odometry_path",
+        "match_rows",
+        "validation_rows",
+        "feature_rows",
+        "features_to_dict",
+        "confusion_rows",
+    ):
+        assert getattr(cli, name) is getattr(tools, name)
+    with pytest.raises(AttributeError):
+        cli.no_such_name  # noqa: B018
