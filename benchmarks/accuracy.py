@@ -94,6 +94,7 @@ def _worker(args):
                 "clique": m.clique_size,
                 "ambiguous": m.ambiguous,
                 "score": m.score,
+                "pose": None if m.pose is None else [m.pose.x, m.pose.y, m.pose.theta],
             }
         )
     return out

@@ -13,15 +13,16 @@ pairs of pairs), straight into a dense boolean adjacency matrix for the clique s
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from .config import CorrespondenceConfig
 from .errors import GraphError
+from ._lazy import kernel_module
 from .graph import FeatureGraph
+
+_K = kernel_module("scanclique._kernels.correspondence")
 
 __all__ = ["CorrespondenceGraph", "correspondence_graph", "candidate_pairs"]
 
@@ -67,39 +68,6 @@ def candidate_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
     return np.column_stack((ia, ib)).astype(np.int64)
 
 
-@numba.njit(cache=True, nogil=True)
-def _edges_kernel(ia, ib, inv_a, inv_b, tol_a, tol_b, circular, out):  # pragma: no cover - compiled
-    n = ia.size
-    K = inv_a.shape[0]
-    two_pi = 2.0 * math.pi
-    for u in range(n):
-        a1 = ia[u]
-        b1 = ib[u]
-        for v in range(u + 1, n):
-            a2 = ia[v]
-            b2 = ib[v]
-            if a1 == a2 or b1 == b2:
-                continue
-            ok = True
-            for k in range(K):
-                x = inv_a[k, a1, a2]
-                y = inv_b[k, b1, b2]
-                if math.isnan(x) or math.isnan(y):
-                    continue
-                d = abs(x - y)
-                if circular[k]:
-                    d = d % two_pi
-                    if d > math.pi:
-                        d = two_pi - d
-                t = max(tol_a[k, a1, a2], tol_b[k, b1, b2])
-                if d > t:
-                    ok = False
-                    break
-            if ok:
-                out[u, v] = True
-                out[v, u] = True
-
-
 def correspondence_graph(
     graph_a: FeatureGraph, graph_b: FeatureGraph, config: CorrespondenceConfig | None = None
 ) -> CorrespondenceGraph:
@@ -137,7 +105,7 @@ def correspondence_graph(
         )
     adj = np.zeros((n, n), dtype=np.bool_)
     if n > 1:
-        _edges_kernel(
+        _K.edges(
             np.ascontiguousarray(pairs[:, 0]),
             np.ascontiguousarray(pairs[:, 1]),
             graph_a.invariants,

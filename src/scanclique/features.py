@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ._lazy import kernel_module
 from .config import ClusterConfig, FeatureConfig
 from .scan import Scan
 
@@ -373,16 +374,11 @@ def _chains(scan: Scan, xy: np.ndarray, cfg: FeatureConfig) -> list[np.ndarray]:
 # --------------------------------------------------------------------------------------
 # Stage 3: features (paper §4)
 # --------------------------------------------------------------------------------------
-_K = None
+_K = kernel_module("scanclique._feature_kernels")
 
 
 def _kernels():
-    """The compiled kernels, imported on first use (importing numba takes a moment)."""
-    global _K
-    if _K is None:
-        from . import _feature_kernels
-
-        _K = _feature_kernels
+    """The compiled kernels (:mod:`scanclique._feature_kernels`), loaded on first use."""
     return _K
 
 

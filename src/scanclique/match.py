@@ -18,9 +18,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _clique_kernels as _CK
-from . import _match_kernels as _K
 from . import clique as _clique
+from ._lazy import kernel_module
 from .config import MatchConfig
 from .correspondence import CorrespondenceGraph, correspondence_graph
 from .features import Features, extract_features
@@ -34,15 +33,11 @@ from .pose import (
     mapped_features,
     points_first,
 )
-from .refine import (
-    BRUTE_FORCE_MAX,
-    ReferenceCloud,
-    agreement,
-    free_space_conflicts,
-    icp_point_to_line,
-    reference_cloud,
-)
+from .refine import ReferenceCloud, icp_point_to_line, reference_cloud
 from .scan import Scan
+
+_K = kernel_module("scanclique._match_kernels")
+_CK = kernel_module("scanclique._clique_kernels")
 
 __all__ = [
     "FeaturePair",
@@ -254,8 +249,9 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     )
 
 
-#: the raw-point cloud of a prepared scan keeps at most this many points
-CLOUD_MAX_POINTS = BRUTE_FORCE_MAX
+#: the raw-point cloud of a prepared scan keeps at most this many points (evenly spaced in
+#: beam order), so that its bearing windows stay small and scoring and ICP stay bounded
+CLOUD_MAX_POINTS = 4096
 
 
 def pose_score(
@@ -266,17 +262,7 @@ def pose_score(
     and the same for A's points against B's, minus ``refine.conflict_weight`` times the
     mean fraction of points lying in the other scan's observed free space."""
     cfg = config or MatchConfig()
-    if pa.cloud.windowed and pb.cloud.windowed:
-        return _score(pa, pb, pose.x, pose.y, pose.theta, cfg)
-    d = cfg.refine.inlier_distance
-    score = 0.5 * (
-        agreement(pa.cloud, pb.sample, pose, d) + agreement(pb.cloud, pa.sample, pose.inverse(), d)
-    )
-    if cfg.refine.conflict_weight > 0:
-        c_ab = free_space_conflicts(pa.scan, pb.sample, pose=pose)
-        c_ba = free_space_conflicts(pb.scan, pa.sample, pose=pose.inverse())
-        score -= cfg.refine.conflict_weight * 0.5 * (c_ab + c_ba)
-    return score
+    return _score(pa, pb, pose.x, pose.y, pose.theta, cfg)
 
 
 #: free-space conflict test of the score: a point conflicts when nearer than the beams'
@@ -295,7 +281,7 @@ def _scan_args(p: PreparedScan) -> tuple:
 
 
 def _score(pa: PreparedScan, pb: PreparedScan, x: float, y: float, th: float, cfg) -> float:
-    """:func:`pose_score` of the pose ``(x, y, th)``, compiled (windowed clouds)."""
+    """:func:`pose_score` of the pose ``(x, y, th)``, compiled."""
     r = cfg.refine
     return float(
         _K.pose_score(
@@ -314,26 +300,19 @@ def _score(pa: PreparedScan, pb: PreparedScan, x: float, y: float, th: float, cf
 
 def _scores(pa, pb, poses, ok, sizes, exact_best, cfg) -> np.ndarray:
     """:func:`pose_score` of each of ``poses`` (n, 3) with ``ok`` set (``-inf`` for the
-    others), compiled in one batch where the clouds allow: coarse (every third sample
-    point) except for the ``exact_best`` best by rank, score plus ``refine.size_weight``
-    per clique vertex (``sizes``); see :func:`scanclique._match_kernels.score_batch`."""
+    others), compiled in one batch: coarse (every third sample point) except for the
+    ``exact_best`` best by rank, score plus ``refine.size_weight`` per clique vertex
+    (``sizes``); see :func:`scanclique._match_kernels.score_batch`."""
     n = len(poses)
     r = cfg.refine
-    if pa.cloud.windowed and pb.cloud.windowed:
-        scores = np.empty(n)
-        exact = np.empty(n, dtype=bool)
-        _K.score_batch(
-            poses, ok, np.asarray(sizes, dtype=float), r.size_weight, exact_best,
-            *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
-            r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
-        )  # fmt: skip
-        return scores
-    return np.array(
-        [
-            pose_score(pa, pb, Pose2.from_array(x), cfg) if k else -np.inf
-            for x, k in zip(poses, ok, strict=True)
-        ]
-    )
+    scores = np.empty(n)
+    exact = np.empty(n, dtype=bool)
+    _K.score_batch(
+        poses, ok, np.asarray(sizes, dtype=float), r.size_weight, exact_best,
+        *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
+        r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
+    )  # fmt: skip
+    return scores
 
 
 def _node_pairs_to_feature_pairs(
@@ -522,11 +501,13 @@ def _refine_candidates(
     return out
 
 
-def _refine_candidates_slow(
+def _refine_median_candidates(
     pa: PreparedScan, pb: PreparedScan, distinct: list[Hypothesis], cfg: MatchConfig
 ) -> list[Hypothesis]:
-    """:func:`_refine_candidates` for the median method and for clouds too large for the
-    compiled search, one step at a time."""
+    """Step 4 of :func:`match_prepared` for the paper's median method
+    (``pose.method="median"``, :func:`scanclique.pose.estimate_pose_median`): the same
+    score and ICP as :func:`_refine_candidates`, one candidate at a time (the compiled
+    step computes weighted least-squares estimates only)."""
     full = []
     for h in distinct:
         est = h.estimate
@@ -735,10 +716,10 @@ def match_prepared(
             break
     seconds["pose"] = time.perf_counter() - t
     t = time.perf_counter()
-    if cfg.pose.method == "lsq" and pa.cloud.windowed and pb.cloud.windowed:
+    if cfg.pose.method == "lsq":
         full = _refine_candidates(pa, pb, distinct, cfg)
     else:
-        full = _refine_candidates_slow(pa, pb, distinct, cfg)
+        full = _refine_median_candidates(pa, pb, distinct, cfg)
     seconds["refine"] = time.perf_counter() - t
     if not full:
         return _empty(

@@ -24,9 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtri
 
-from . import _match_kernels as K
+from ._lazy import kernel_module
 from .features import Features
 from .geometry import Pose2, rotation_matrix, wrap_angle
+
+K = kernel_module("scanclique._match_kernels")
 
 __all__ = [
     "PoseEstimate",

@@ -16,11 +16,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from . import _match_kernels as K
-from .geometry import Pose2, rotation_matrix, wrap_angle
+from ._lazy import kernel_module
+from .geometry import Pose2
 from .scan import Scan
+
+K = kernel_module("scanclique._match_kernels")
 
 __all__ = [
     "ReferenceCloud",
@@ -50,50 +51,24 @@ class ReferenceCloud:
         ``atan2(y, x)`` of each point, ascending.
     index : tuple
         The search index of ``bearings`` (:func:`scanclique._match_kernels.make_index`).
-    tree : scipy.spatial.cKDTree or None
-        Built only for clouds of more than :data:`BRUTE_FORCE_MAX` points; smaller ones
-        are searched by bearing window (exact, compiled; see
-        :mod:`scanclique._match_kernels`).
+        Queries search a window of bearings (exact, compiled; see
+        :mod:`scanclique._match_kernels`): a few candidates per query on a laser scan. The
+        pipeline caps its clouds at ``scanclique.match.CLOUD_MAX_POINTS`` points, where a
+        window stays small.
     """
 
     points: np.ndarray
     normals: np.ndarray
     bearings: np.ndarray
     index: tuple
-    tree: cKDTree | None
-
-    @property
-    def windowed(self) -> bool:
-        """True when queries use the compiled bearing-window search."""
-        return self.tree is None
-
-
-#: Clouds up to this many points are searched by bearing window (a few candidates per
-#: query on a scan); larger ones (a dense window would hold thousands) by a KD-tree.
-BRUTE_FORCE_MAX = 4096
 
 
 def reference_cloud(points: np.ndarray, k: int = 5, radius: float = 0.3) -> ReferenceCloud:
     """Prepare ``(M, 2)`` points (sensor frame, the sensor at the origin) for
     :func:`agreement`, :func:`nearest` and the ICP."""
     p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
-    small = len(p) <= BRUTE_FORCE_MAX
-    p, bear, index, normals = K.cloud_arrays(p, int(k), float(radius), small)
-    if small:
-        return ReferenceCloud(p, normals, bear, index, None)
-    tree = cKDTree(p)
-    kk = min(k, len(p))
-    d, idx = tree.query(p, k=kk)
-    nb = p[idx]  # (M, k, 2)
-    w = (d <= radius).astype(float)
-    cnt = w.sum(axis=1)
-    mean = np.einsum("mk,mkd->md", w, nb) / np.maximum(cnt, 1)[:, None]
-    q = (nb - mean[:, None, :]) * w[:, :, None]
-    cov = np.einsum("mki,mkj->mij", q, q)
-    _, vec = np.linalg.eigh(cov)
-    normals = vec[:, :, 0]
-    normals[cnt < 3] = 0.0
-    return ReferenceCloud(p, normals, bear, index, tree)
+    p, bear, index, normals = K.cloud_arrays(p, int(k), float(radius), True)
+    return ReferenceCloud(p, normals, bear, index)
 
 
 def search_index(values: np.ndarray) -> tuple:
@@ -113,15 +88,11 @@ def nearest(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance
     ``max_distance``: ``(index into ref.points, distance)`` arrays, index -1 and distance
     inf when none."""
     pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
-    if ref.windowed:
-        idx = np.empty(len(pts), dtype=np.int64)
-        d2 = np.empty(len(pts))
-        K.nearest_many(ref.index, ref.points, pts, *_moved(pose), max_distance, idx, d2)
-        found = idx >= 0
-        return idx, np.where(found, np.sqrt(d2), np.inf)
-    d, idx = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=max_distance)
-    found = np.isfinite(d)
-    return np.where(found, idx, -1), d
+    idx = np.empty(len(pts), dtype=np.int64)
+    d2 = np.empty(len(pts))
+    K.nearest_many(ref.index, ref.points, pts, *_moved(pose), max_distance, idx, d2)
+    found = idx >= 0
+    return idx, np.where(found, np.sqrt(d2), np.inf)
 
 
 def agreement(
@@ -132,11 +103,8 @@ def agreement(
     pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
     if len(pts) == 0 or len(ref.points) == 0:
         return 0.0
-    if ref.windowed:
-        count = K.agreement_count(ref.index, ref.points, pts, *_moved(pose), float(inlier_distance))
-        return count / len(pts)
-    d, _ = ref.tree.query(pose.transform(pts), k=1, distance_upper_bound=inlier_distance)
-    return float(np.mean(np.isfinite(d)))
+    count = K.agreement_count(ref.index, ref.points, pts, *_moved(pose), float(inlier_distance))
+    return count / len(pts)
 
 
 def free_ranges(scan: Scan) -> np.ndarray:
@@ -204,63 +172,17 @@ def icp_point_to_line(
     pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
     if len(pts) < 3 or len(ref.points) < 3:
         return IcpResult(initial, 0.0, math.inf, 0)
-    if ref.windowed:
-        out = np.empty(3)
-        fitness, rmse, it = K.icp(
-            ref.index,
-            ref.points,
-            ref.normals,
-            pts,
-            initial.as_array(),
-            int(iterations),
-            float(max_correspondence),
-            float(min_correspondence),
-            out,
-        )
-        return IcpResult(Pose2.from_array(out), float(fitness), float(rmse), int(it))
-    return _icp_tree(ref, pts, initial, iterations, max_correspondence, min_correspondence)
+    out = np.empty(3)
+    fitness, rmse, it = K.icp(
+        ref.index,
+        ref.points,
+        ref.normals,
+        pts,
+        initial.as_array(),
+        int(iterations),
+        float(max_correspondence),
+        float(min_correspondence),
+        out,
+    )
+    return IcpResult(Pose2.from_array(out), float(fitness), float(rmse), int(it))
 
-
-def _icp_tree(ref, pts, initial, iterations, max_correspondence, min_correspondence):
-    """:func:`icp_point_to_line` over a KD-tree (clouds too large for the window search)."""
-    x = initial.as_array()
-    fitness, rmse, it = 0.0, math.inf, 0
-    eps = K.ICP_POINT_WEIGHT
-    for it in range(1, iterations + 1):
-        dmax = max(min_correspondence, max_correspondence * 0.7 ** (it - 1))
-        R = rotation_matrix(x[2])
-        pb = pts @ R.T + x[:2]
-        idx, d = nearest(ref, pts, Pose2.from_array(x), dmax)
-        ok = idx >= 0
-        if ok.sum() < 3:
-            break
-        p, q, n = pb[ok], ref.points[idx[ok]], ref.normals[idx[ok]]
-        src = pts[ok]
-        diff = p - q
-        # rotation derivative of R p about the current estimate: dR/dθ p = J p
-        rp = src @ R.T
-        dp = np.column_stack((-rp[:, 1], rp[:, 0]))
-        r_line = np.einsum("kd,kd->k", n, diff)
-        J_line = np.column_stack((n[:, 0], n[:, 1], np.einsum("kd,kd->k", n, dp)))
-        scale = K.ICP_HUBER
-        w = np.where(np.abs(r_line) < scale, 1.0, scale / np.maximum(np.abs(r_line), 1e-12))
-        H = (J_line * w[:, None]).T @ J_line
-        g = (J_line * w[:, None]).T @ r_line
-        # weak point-to-point term
-        Jx = np.column_stack((np.ones(len(p)), np.zeros(len(p)), dp[:, 0]))
-        Jy = np.column_stack((np.zeros(len(p)), np.ones(len(p)), dp[:, 1]))
-        H += eps * (Jx.T @ Jx + Jy.T @ Jy)
-        g += eps * (Jx.T @ diff[:, 0] + Jy.T @ diff[:, 1])
-        H += np.eye(3) * 1e-9
-        dx = -np.linalg.solve(H, g)
-        x = x + dx
-        x[2] = float(wrap_angle(x[2]))
-        fitness = float(ok.mean())
-        rmse = float(np.sqrt(np.mean(r_line**2)))
-        if (
-            np.abs(dx[:2]).max() < K.ICP_STEP_T
-            and abs(dx[2]) < K.ICP_STEP_R
-            and dmax <= min_correspondence
-        ):
-            break
-    return IcpResult(Pose2.from_array(x), fitness, rmse, it)
