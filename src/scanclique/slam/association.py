@@ -1,0 +1,541 @@
+"""Data association of a batch of range-bearing observations with a feature map.
+
+Three methods behind one interface (:func:`associate`, and
+:func:`associate_predicted` inside the filter):
+
+``"nn"``
+    Nearest neighbour with individual-compatibility gates: each observation's Mahalanobis
+    distance to each predicted landmark, gated by the chi-square bound of 2 degrees of
+    freedom; pairs taken greedily by increasing distance, one-to-one.
+``"jcbb"``
+    Joint compatibility branch and bound (J. Neira and J. D. Tardos, "Data association in
+    stochastic mapping using the joint compatibility test", IEEE Trans. Robotics and
+    Automation 17(6), 2001): the largest set of pairs whose joint innovation passes the
+    chi-square gate of 2n degrees of freedom with the full covariance (ties: the least
+    joint distance). Exact, over the individually compatible pairs.
+``"clique"``
+    Batch graph association (Bailey et al., ICRA 2000, section 5; the paper's feature
+    tracking argument of section 2): the observed features and the predicted map features
+    each form a complete graph whose edges carry the point-point distance, an invariant of
+    the vehicle pose; the correspondence graph joins two pairs whose distances agree within
+    a tolerance from both covariances (:func:`point_distance_invariants`); its maximum
+    clique is the association, checked by a joint compatibility gate with the full
+    covariance (pairs with the worst individual distance are dropped until it passes).
+    Candidate pairs are gated individually with a much looser bound than NN and JCBB use,
+    since the clique's mutual consistency is the real test. A distinct maximum clique that
+    also passes the joint gate makes the step *ambiguous*: only the pairs all such cliques
+    agree on are kept.
+
+Observations left unpaired become a new landmark when they are far from every landmark
+(beyond the chi-square bound at ``new_probability``), else they are rejected.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .models import inverse_observe, observe, wrap
+
+__all__ = [
+    "NEW",
+    "REJECTED",
+    "METHODS",
+    "AssociationConfig",
+    "Association",
+    "Predicted",
+    "associate",
+    "associate_predicted",
+    "point_distance_invariants",
+    "joint_distance",
+    "chi2_bound",
+]
+
+#: Association codes of an observation that is paired with no landmark.
+NEW = -1
+REJECTED = -2
+METHODS = ("nn", "jcbb", "clique")
+
+
+@functools.lru_cache(maxsize=4096)
+def chi2_bound(dof: int, probability: float) -> float:
+    """The chi-square quantile of ``dof`` degrees of freedom at ``probability``."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(probability, dof))
+
+
+@dataclass(frozen=True, slots=True)
+class AssociationConfig:
+    """Parameters of the association (all methods).
+
+    Attributes
+    ----------
+    gate_probability : float
+        Chi-square probability of the individual (NN, JCBB candidates) and joint (JCBB,
+        clique) gates.
+    new_probability : float
+        An unpaired observation whose least Mahalanobis distance to any landmark exceeds
+        the chi-square bound at this probability starts a new landmark; otherwise it is
+        rejected (too close to a landmark to be another, too far to be it).
+    clique_probability : float
+        The looser individual gate of the clique method's candidate pairs.
+    invariant_sigmas : float
+        Correspondence-graph tolerance: two pairs are consistent when their point-point
+        distances differ by at most this many standard deviations of the difference.
+    attribute_tolerance : float or None
+        When set, and attributes are given, a candidate pair's attributes (tree diameters,
+        m) must agree within this (the node attribute of the correspondence graph).
+    jcbb_node_limit : int
+        Node budget of the branch and bound (the best hypothesis so far is kept).
+    """
+
+    gate_probability: float = 0.99
+    new_probability: float = 0.9999
+    clique_probability: float = 0.999999
+    invariant_sigmas: float = 3.0
+    attribute_tolerance: float | None = None
+    jcbb_node_limit: int = 200_000
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Association:
+    """The association of one batch observation.
+
+    Attributes
+    ----------
+    landmarks : (k,) int64 ndarray, read-only
+        Per observation: the index of its landmark (into the map given to
+        :func:`associate`), :data:`NEW` or :data:`REJECTED`.
+    joint_d2 : float
+        Joint Mahalanobis distance (squared) of the pairs with the full covariance
+        (paper section 7's validation); 0 with no pair.
+    dof : int
+        Its degrees of freedom (2 per pair).
+    ambiguous : bool
+        A distinct hypothesis (clique) as large also passed the joint gate; only the
+        pairs all of them share were kept.
+    method : str
+    candidates : int
+        Candidate pairs considered (correspondence-graph vertices for the clique).
+    clique_size : int
+        Size of the maximum clique (clique method), else the number of pairs.
+    seconds : float
+        Wall-clock time of the association.
+    """
+
+    landmarks: np.ndarray
+    joint_d2: float
+    dof: int
+    ambiguous: bool
+    method: str
+    candidates: int = 0
+    clique_size: int = 0
+    seconds: float = 0.0
+
+    def __post_init__(self) -> None:
+        a = np.asarray(self.landmarks, np.int64).copy()
+        a.setflags(write=False)
+        object.__setattr__(self, "landmarks", a)
+
+    @property
+    def pairs(self) -> np.ndarray:
+        """``(n, 2)`` int64: (observation, landmark) of each pair."""
+        i = np.flatnonzero(self.landmarks >= 0)
+        return np.column_stack([i, self.landmarks[i]]).astype(np.int64)
+
+    @property
+    def n_pairs(self) -> int:
+        return int((self.landmarks >= 0).sum())
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Predicted:
+    """The map as the sensor should see it: predicted measurements and their covariance.
+
+    Attributes
+    ----------
+    z : (n, 2) ndarray
+        Predicted range and bearing of each landmark.
+    Sz : (2n, 2n) ndarray
+        Their joint covariance ``H P H^T`` (vehicle and map uncertainty, without the
+        sensor noise).
+    positions : (n, 2) ndarray
+        World positions of the landmarks (for the invariants).
+    Pm : (2n, 2n) ndarray
+        Joint covariance of the positions.
+    attributes : (n,) ndarray or None
+        A scalar attribute per landmark (tree diameter).
+    """
+
+    z: np.ndarray
+    Sz: np.ndarray
+    positions: np.ndarray
+    Pm: np.ndarray
+    attributes: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.z)
+
+
+def predict_map(state, P, model) -> Predicted:
+    """:class:`Predicted` from a joint state ``[x, y, theta, m1x, m1y, ...]`` and its
+    covariance ``P`` (dimension ``3 + 2n``), with ``model``'s sensor offset."""
+    n = (len(state) - 3) // 2
+    lm = np.asarray(state[3:], float).reshape(n, 2)
+    z, Hx, Hm = observe(state[:3], lm, model.sensor_x, model.sensor_y)
+    # H (2n, 3+2n): [Hx_j, 0.., Hm_j, ..]; H P H^T without forming H
+    Hx2 = Hx.reshape(2 * n, 3)
+    Pvv = P[:3, :3]
+    Pvm = P[:3, 3:]
+    Pmm = P[3:, 3:]
+    # block-diagonal Hm as (2n, 2n)
+    HmB = np.zeros((2 * n, 2 * n))
+    idx = np.arange(n)
+    for a in range(2):
+        for b in range(2):
+            HmB[2 * idx + a, 2 * idx + b] = Hm[:, a, b]
+    A = Hx2 @ Pvm @ HmB.T
+    Sz = Hx2 @ Pvv @ Hx2.T + A + A.T + HmB @ Pmm @ HmB.T
+    return Predicted(z, Sz, lm, Pmm)
+
+
+def _innovations(z, zhat):
+    """``nu[i, j] = z_i - zhat_j`` (k, n, 2) with the bearing wrapped."""
+    nu = z[:, None, :] - zhat[None, :, :]
+    nu[..., 1] = wrap(nu[..., 1])
+    return nu
+
+
+def _individual_d2(nu, Sz, R):
+    """Mahalanobis distances (k, n) of each observation to each predicted landmark."""
+    n = nu.shape[1]
+    idx = np.arange(n)
+    s00 = Sz[2 * idx, 2 * idx][None, :] + R[:, 0, 0][:, None]
+    s01 = Sz[2 * idx, 2 * idx + 1][None, :] + R[:, 0, 1][:, None]
+    s11 = Sz[2 * idx + 1, 2 * idx + 1][None, :] + R[:, 1, 1][:, None]
+    det = s00 * s11 - s01 * s01
+    a, b = nu[..., 0], nu[..., 1]
+    return (s11 * a * a - 2 * s01 * a * b + s00 * b * b) / det
+
+
+def _pair_cov(pairs, Sz, R):
+    """Innovation covariance (2m, 2m) and its row indices for pairs (obs, lm)."""
+    obs = pairs[:, 0]
+    rows = (2 * pairs[:, 1][:, None] + np.arange(2)).reshape(-1)
+    S = Sz[np.ix_(rows, rows)].copy()
+    m = len(pairs)
+    same = obs[:, None] == obs[None, :]
+    Rb = np.zeros((m, 2, m, 2))
+    ii, jj = np.nonzero(same)
+    Rb[ii, :, jj, :] = R[obs[ii]]
+    S += Rb.reshape(2 * m, 2 * m)
+    return S
+
+
+def joint_distance(pairs, nu, Sz, R) -> float:
+    """Joint Mahalanobis distance (squared) of ``pairs`` ((m, 2) obs, landmark) with the
+    full covariance; ``nu`` (k, n, 2) innovations."""
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    if len(pairs) == 0:
+        return 0.0
+    S = _pair_cov(pairs, Sz, R)
+    v = nu[pairs[:, 0], pairs[:, 1]].reshape(-1)
+    try:
+        c = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        return math.inf
+    w = np.linalg.solve(c, v)
+    return float(w @ w)
+
+
+def point_distance_invariants(points, cov):
+    """Point-point distances and their variances: the invariant edge labels of a graph of
+    point features (paper section 5.1).
+
+    This is the one place where the invariant of the point kind is computed (for the
+    core's registry of feature kinds to take over).
+
+    Parameters
+    ----------
+    points : (n, 2) array
+    cov : (2n, 2n) array or (n, 2, 2) array
+        Joint covariance of the points (or independent per-point blocks).
+
+    Returns
+    -------
+    D : (n, n) ndarray
+        ``|p_a - p_b|``.
+    V : (n, n) ndarray
+        First-order variance of ``D`` (including the points' cross-covariance when the
+        joint covariance is given).
+    """
+    p = np.asarray(points, float).reshape(-1, 2)
+    n = len(p)
+    d = p[:, None, :] - p[None, :, :]
+    D = np.sqrt((d * d).sum(-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = d / D[..., None]
+    u[~np.isfinite(u)] = 0.0
+    cov = np.asarray(cov, float)
+    if cov.ndim == 3:
+        B = cov
+        C = None
+    else:
+        B = cov.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :]
+        C = cov.reshape(n, 2, n, 2).transpose(0, 2, 1, 3)  # (n, n, 2, 2) blocks
+    Sab = B[:, None] + B[None, :]
+    if C is not None:
+        Sab = Sab - C - C.transpose(0, 1, 3, 2)
+    V = np.einsum("abi,abij,abj->ab", u, Sab, u)
+    return D, np.maximum(V, 0.0)
+
+
+def _observation_points(z, R):
+    """Cartesian points (k, 2) in the sensor frame and their covariances (k, 2, 2)."""
+    r, b = z[:, 0], z[:, 1]
+    c, s = np.cos(b), np.sin(b)
+    pts = np.column_stack([r * c, r * s])
+    J = np.empty((len(z), 2, 2))
+    J[:, 0, 0] = c
+    J[:, 0, 1] = -r * s
+    J[:, 1, 0] = s
+    J[:, 1, 1] = r * c
+    return pts, J @ R @ J.transpose(0, 2, 1)
+
+
+def _new_or_rejected(out, d2, cfg, blocked=()):
+    """Unpaired observations -> NEW when far from all landmarks, else REJECTED."""
+    bound = chi2_bound(2, cfg.new_probability)
+    for i in np.flatnonzero(out < 0):
+        far = d2.shape[1] == 0 or float(d2[i].min()) > bound
+        out[i] = NEW if far and i not in blocked else REJECTED
+
+
+def _nn(d2, cfg):
+    k, n = d2.shape
+    out = np.full(k, REJECTED, np.int64)
+    gate = chi2_bound(2, cfg.gate_probability)
+    if n:
+        oi, lj = np.nonzero(d2 <= gate)
+        order = np.argsort(d2[oi, lj], kind="stable")
+        used_o = np.zeros(k, bool)
+        used_l = np.zeros(n, bool)
+        for q in order:
+            i, j = oi[q], lj[q]
+            if not used_o[i] and not used_l[j]:
+                out[i] = j
+                used_o[i] = used_l[j] = True
+    return out
+
+
+def _gate_table(kmax, probability):
+    return np.array([0.0] + [chi2_bound(2 * m, probability) for m in range(1, kmax + 1)])
+
+
+def _jcbb(d2, nu, Sz, R, cfg, allowed=None):
+    """JCBB over the individually compatible pairs (restricted to ``allowed`` (k, n)
+    bool when given). Returns (out, nodes)."""
+    from ._kernels import jcbb_search
+
+    k, n = d2.shape
+    out = np.full(k, REJECTED, np.int64)
+    if n == 0 or k == 0:
+        return out, 0
+    ok = d2 <= chi2_bound(2, cfg.gate_probability)
+    if allowed is not None:
+        ok &= allowed
+    oi, lj = np.nonzero(ok)
+    if len(oi) == 0:
+        return out, 0
+    # candidates of each observation, most likely first
+    order = np.lexsort((d2[oi, lj], oi))
+    oi, lj = oi[order], lj[order]
+    pairs = np.column_stack([oi, lj])
+    S = _pair_cov(pairs, Sz, R)
+    v = nu[oi, lj].reshape(-1)
+    cand_start = np.searchsorted(oi, np.arange(k + 1)).astype(np.int64)
+    cand = np.arange(len(oi), dtype=np.int64)
+    gate = _gate_table(k, cfg.gate_probability)
+    best, _d2, nodes = jcbb_search(
+        S, v, cand_start, cand, lj.astype(np.int64), n, gate, cfg.jcbb_node_limit
+    )
+    out[oi[best]] = lj[best]
+    return out, nodes
+
+
+def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None):
+    """Max clique of the correspondence graph, then the joint gate. Returns
+    (out, candidates, clique size, ambiguous, blocked observations)."""
+    from ..clique import all_maximum_cliques
+
+    k, n = d2.shape
+    out = np.full(k, REJECTED, np.int64)
+    if n == 0 or k == 0:
+        return out, 0, 0, False, ()
+    ok = d2 <= chi2_bound(2, cfg.clique_probability)
+    if cfg.attribute_tolerance is not None and attributes is not None and pred.attributes is not None:
+        ok &= np.abs(attributes[:, None] - pred.attributes[None, :]) <= cfg.attribute_tolerance
+    oi, lj = np.nonzero(ok)
+    C = len(oi)
+    if C == 0:
+        return out, 0, 0, False, ()
+    # the two graphs' invariant edges (point-point distances) and their variances
+    pts, pcov = _observation_points(z, R)
+    Do, Vo = point_distance_invariants(pts, pcov)
+    Dm, Vm = point_distance_invariants(pred.positions, pred.Pm)
+    # correspondence graph (paper section 5.2): pairs a=(i, j), b=(k, l), i != k, j != l
+    diff = Do[np.ix_(oi, oi)] - Dm[np.ix_(lj, lj)]
+    var = Vo[np.ix_(oi, oi)] + Vm[np.ix_(lj, lj)]
+    A = diff * diff <= cfg.invariant_sigmas**2 * var
+    A &= oi[:, None] != oi[None, :]
+    A &= lj[:, None] != lj[None, :]
+    res = all_maximum_cliques(A, limit=8)
+    gate = _gate_table(k, cfg.gate_probability)
+    passing = []
+    for cl in res.cliques:
+        sel = np.asarray(cl, np.int64)
+        # joint gate with the full covariance; drop the worst pair until it passes
+        while len(sel):
+            pairs = np.column_stack([oi[sel], lj[sel]])
+            D2 = joint_distance(pairs, nu, pred.Sz, R)
+            if D2 <= gate[len(sel)]:
+                break
+            sel = np.delete(sel, int(np.argmax(d2[oi[sel], lj[sel]])))
+        passing.append((len(sel), D2 if len(sel) else 0.0, sel))
+    size = max(p[0] for p in passing)
+    best = [p for p in passing if p[0] == size]
+    best.sort(key=lambda p: p[1])
+    sel = best[0][2]
+    ambiguous = False
+    blocked: set[int] = set()
+    if len(best) > 1 and size > 0:
+        sets = [set(zip(oi[p[2]].tolist(), lj[p[2]].tolist())) for p in best]
+        common = set.intersection(*sets)
+        if any(s != sets[0] for s in sets[1:]):
+            ambiguous = True
+            union = set.union(*sets)
+            blocked = {i for i, _ in union - common}
+            out_pairs = sorted(common)
+            for i, j in out_pairs:
+                out[i] = j
+            return out, C, int(res.omega), ambiguous, tuple(blocked)
+    out[oi[sel]] = lj[sel]
+    return out, C, int(res.omega), ambiguous, ()
+
+
+def associate_predicted(
+    z, R, pred: Predicted, method: str = "clique", config: AssociationConfig | None = None,
+    attributes=None,
+) -> Association:
+    """Associate observations ``z`` (k, 2) with noise ``R`` ((2, 2) or (k, 2, 2)) to the
+    predicted map ``pred`` (see :func:`associate` for the methods)."""
+    t0 = time.perf_counter()
+    cfg = config or AssociationConfig()
+    z = np.asarray(z, float).reshape(-1, 2)
+    k = len(z)
+    R = np.asarray(R, float)
+    if R.ndim == 2:
+        R = np.broadcast_to(R, (k, 2, 2))
+    nu = _innovations(z, pred.z)
+    d2 = _individual_d2(nu, pred.Sz, R)
+    amb = False
+    blocked: tuple = ()
+    cands = int((d2 <= chi2_bound(2, cfg.gate_probability)).sum())
+    csize = 0
+    if method == "nn":
+        out = _nn(d2, cfg)
+    elif method == "jcbb":
+        out, _nodes = _jcbb(d2, nu, pred.Sz, R, cfg)
+    elif method == "clique":
+        out, cands, csize, amb, blocked = _clique(z, R, d2, nu, pred, cfg, attributes)
+    else:
+        raise ValueError(f"association method must be one of {', '.join(METHODS)}, got {method!r}")
+    pairs = np.column_stack([np.flatnonzero(out >= 0), out[out >= 0]])
+    D2 = joint_distance(pairs, nu, pred.Sz, R) if len(pairs) else 0.0
+    _new_or_rejected(out, d2, cfg, blocked)
+    np_ = len(pairs)
+    return Association(
+        out, D2, 2 * np_, amb, method, cands, csize if method == "clique" else np_,
+        time.perf_counter() - t0,
+    )
+
+
+def associate(
+    z, R, map_mean, map_cov, pose, pose_cov, method: str = "clique", *,
+    cross_cov=None, sensor=(0.0, 0.0), config: AssociationConfig | None = None,
+    attributes=None, map_attributes=None,
+) -> Association:
+    """Associate one batch of range-bearing observations with a map of point landmarks.
+
+    Usable on its own, outside the filter.
+
+    Parameters
+    ----------
+    z : (k, 2) array
+        Range (m) and bearing (rad, counter-clockwise from the vehicle's heading) of each
+        observation, from the sensor.
+    R : (2, 2) or (k, 2, 2) array
+        Observation noise covariance.
+    map_mean : (n, 2) array
+        World positions of the landmarks.
+    map_cov : (2n, 2n) or (n, 2, 2) array
+        Their covariance (joint, or independent per landmark).
+    pose : (3,) array
+        Vehicle pose ``(x, y, theta)`` in the world.
+    pose_cov : (3, 3) array
+    method : {"clique", "jcbb", "nn"}
+    cross_cov : (3, 2n) array, optional
+        Covariance between pose and map (zero when omitted).
+    sensor : (2,) float
+        Sensor position in the vehicle frame.
+    attributes, map_attributes : (k,), (n,) arrays, optional
+        Per-feature scalar attributes (tree diameters), used with
+        ``config.attribute_tolerance``.
+
+    Returns
+    -------
+    Association
+        ``landmarks[i]`` = index into ``map_mean``, :data:`NEW` or :data:`REJECTED`.
+
+    Examples
+    --------
+    >>> lm = np.array([[10.0, 0.0], [10.0, 5.0], [15.0, -3.0]])
+    >>> z, _, _ = observe(np.zeros(3), lm[[2, 0]])
+    >>> a = associate(z, np.diag([0.1, 0.01]) ** 2, lm, np.tile(np.eye(2) * 0.01, (3, 1, 1)),
+    ...               np.zeros(3), np.eye(3) * 1e-4, method="jcbb")
+    >>> a.landmarks.tolist()
+    [2, 0]
+    """
+    mean = np.asarray(map_mean, float).reshape(-1, 2)
+    n = len(mean)
+    cov = np.asarray(map_cov, float)
+    if cov.ndim == 3:
+        full = np.zeros((2 * n, 2 * n))
+        for j in range(n):
+            full[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] = cov[j]
+        cov = full
+    P = np.zeros((3 + 2 * n, 3 + 2 * n))
+    P[:3, :3] = pose_cov
+    P[3:, 3:] = cov
+    if cross_cov is not None:
+        P[:3, 3:] = cross_cov
+        P[3:, :3] = np.asarray(cross_cov).T
+    state = np.concatenate([np.asarray(pose, float), mean.reshape(-1)])
+
+    class _S:  # sensor offset holder
+        sensor_x, sensor_y = float(sensor[0]), float(sensor[1])
+
+    pred = predict_map(state, P, _S)
+    if map_attributes is not None:
+        pred = Predicted(pred.z, pred.Sz, pred.positions, pred.Pm, np.asarray(map_attributes, float))
+    att = None if attributes is None else np.asarray(attributes, float)
+    return associate_predicted(z, R, pred, method, config, att)
+
+
+__all__ += ["predict_map", "inverse_observe"]

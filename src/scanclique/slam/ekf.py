@@ -1,0 +1,450 @@
+"""EKF-SLAM with point landmarks and batch data association.
+
+The joint state is ``[x, y, theta, m1x, m1y, m2x, m2y, ...]``: the vehicle pose (see
+:mod:`scanclique.slam.models`) and world landmark positions, with their full covariance.
+The recipe of :func:`ekf_slam`, per step of the log:
+
+1. **predict** the vehicle with the step's control held since the previous step (the
+   vehicle block of the covariance every step; the vehicle-map cross-covariance is
+   multiplied by the accumulated motion Jacobian only when an observation needs it);
+2. **select** the landmarks the sensor may see (predicted range and bearing within the
+   sensor's limits plus a margin) and predict their measurements and covariance;
+3. **associate** the batch (:func:`scanclique.slam.association.associate_predicted`);
+4. **update** with all pairs at once, in Joseph form (expanded in the gain and the
+   innovation covariance so that it costs O(n^2 m), symmetric by construction);
+5. **initialise** new landmarks (inverse observation, covariance augmentation) as
+   *tentative*; a landmark becomes permanent after ``confirm_hits`` sightings, and a
+   tentative landmark expected in view but unseen ``max_misses`` times is removed.
+
+Angles are wrapped after every operation that changes them (heading, bearing
+innovations), so associations behind the vehicle at +-pi are handled.
+
+References
+----------
+H. Durrant-Whyte and T. Bailey, "Simultaneous localization and mapping: part I", IEEE
+Robotics and Automation Magazine 13(2), 2006. J. Guivant and E. Nebot (2001), the
+Victoria Park vehicle model (see :class:`~scanclique.slam.models.Ackermann`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .association import NEW, REJECTED, AssociationConfig, Predicted, associate_predicted
+from .models import MotionModel, observe, wrap
+from .reader import Step
+
+__all__ = ["SlamConfig", "SlamResult", "ekf_slam"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class SlamConfig:
+    """Parameters of :func:`ekf_slam` (defaults for the Victoria Park tree detector).
+
+    Attributes
+    ----------
+    sigma_range : float
+        Standard deviation of a tree centre's range (m): the laser's range noise plus the
+        centre estimate from a trunk's arc.
+    sigma_bearing : float
+        Standard deviation of the bearing (rad): about the angular resolution of the
+        laser (0.5 deg) plus the centre estimate.
+    max_range : float or None
+        Observations farther than this are not used (m).
+    sensor_fov : float
+        Field of view of the sensor (rad), centred on the heading (180 deg for the SICK).
+    sigma_xy_rate, sigma_theta_rate : float
+        Additive process noise (m, rad per square root of second): slip and model error
+        that the controls' noise does not cover.
+    initial_sigma : (3,) float
+        Standard deviations of the initial pose (m, m, rad).
+    confirm_hits : int
+        Sightings after which a tentative landmark becomes permanent.
+    max_misses : int
+        A tentative landmark expected in view (within ``visible_range``) and not seen this
+        many times is removed.
+    visible_range : float
+        Range (m) within which a landmark in the field of view is expected to be seen.
+    association : AssociationConfig
+    """
+
+    sigma_range: float = 0.5
+    sigma_bearing: float = math.radians(1.5)
+    max_range: float | None = 30.0
+    sensor_fov: float = math.pi
+    sigma_xy_rate: float = 0.05
+    sigma_theta_rate: float = math.radians(0.5)
+    initial_sigma: tuple[float, float, float] = (0.01, 0.01, math.radians(0.1))
+    confirm_hits: int = 3
+    max_misses: int = 3
+    visible_range: float = 20.0
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+
+    @property
+    def R(self) -> np.ndarray:
+        return np.diag([self.sigma_range**2, self.sigma_bearing**2])
+
+
+def _ro(a):
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SlamResult:
+    """The run of :func:`ekf_slam`.
+
+    Attributes
+    ----------
+    times : (N,) ndarray
+        Time of each step (s).
+    poses : (N, 3) ndarray
+        Vehicle pose ``(x, y, theta)`` after each step (world frame; rad).
+    pose_covariances : (N, 3, 3) ndarray
+    landmarks : (n, 2) ndarray
+        Final map: permanent landmarks' world positions (m).
+    landmark_covariances : (n, 2, 2) ndarray
+    landmark_ids : (n,) int64 ndarray
+        Stable id of each landmark (the ids of :attr:`associations`).
+    landmark_hits : (n,) int64 ndarray
+        Sightings of each landmark.
+    observation_times : (S,) ndarray
+        Times of the steps with observations.
+    associations : tuple of (k,) int64 ndarrays
+        Per observation step: landmark id of each observation, or ``NEW`` (-1, started a
+        landmark) or ``REJECTED`` (-2).
+    association_seconds : (S,) ndarray
+        Time of each association.
+    joint_d2, dof : (S,) ndarrays
+        Joint Mahalanobis distance (squared) of each step's pairs and its degrees of
+        freedom (paper section 7: validation of each association).
+    ambiguous : (S,) bool ndarray
+        Steps whose best association was ambiguous (handled conservatively).
+    method : str
+    seconds : float
+        Wall-clock time of the whole run.
+    config : SlamConfig
+    """
+
+    times: np.ndarray
+    poses: np.ndarray
+    pose_covariances: np.ndarray
+    landmarks: np.ndarray
+    landmark_covariances: np.ndarray
+    landmark_ids: np.ndarray
+    landmark_hits: np.ndarray
+    observation_times: np.ndarray
+    associations: tuple
+    association_seconds: np.ndarray
+    joint_d2: np.ndarray
+    dof: np.ndarray
+    ambiguous: np.ndarray
+    method: str
+    seconds: float
+    config: SlamConfig
+
+    def __post_init__(self) -> None:
+        for name in (
+            "times", "poses", "pose_covariances", "landmarks", "landmark_covariances",
+            "landmark_ids", "landmark_hits", "observation_times", "association_seconds",
+            "joint_d2", "dof", "ambiguous",
+        ):
+            object.__setattr__(self, name, _ro(getattr(self, name)))
+
+    def positions_at(self, t) -> np.ndarray:
+        """Vehicle positions (len(t), 2) linearly interpolated at times ``t``."""
+        t = np.asarray(t, float)
+        return np.column_stack(
+            [np.interp(t, self.times, self.poses[:, 0]), np.interp(t, self.times, self.poses[:, 1])]
+        )
+
+
+class _Filter:
+    """The joint state and covariance, with room to grow (internal)."""
+
+    def __init__(self, pose, pose_cov, cap=256):
+        self.x = np.zeros(3 + 2 * cap)
+        self.P = np.zeros((3 + 2 * cap, 3 + 2 * cap))
+        self.x[:3] = pose
+        self.P[:3, :3] = pose_cov
+        self.n = 0  # landmarks
+        self.ids = np.zeros(cap, np.int64)
+        self.hits = np.zeros(cap, np.int64)
+        self.misses = np.zeros(cap, np.int64)
+        self.att = np.zeros(cap)
+        self.next_id = 0
+
+    @property
+    def dim(self):
+        return 3 + 2 * self.n
+
+    def _grow(self):
+        cap = len(self.ids)
+        new = cap * 2
+        x = np.zeros(3 + 2 * new)
+        x[: len(self.x)] = self.x
+        P = np.zeros((3 + 2 * new, 3 + 2 * new))
+        d = self.dim
+        P[:d, :d] = self.P[:d, :d]
+        self.x, self.P = x, P
+        for name in ("ids", "hits", "misses", "att"):
+            a = getattr(self, name)
+            b = np.zeros(new, a.dtype)
+            b[:cap] = a
+            setattr(self, name, b)
+
+    def add(self, m, Gx, Gz, R, attribute):
+        """Append a landmark at ``m`` with Jacobians of the inverse observation."""
+        if self.n == len(self.ids):
+            self._grow()
+        d = self.dim
+        P = self.P
+        rows = Gx @ P[:3, :d]  # (2, d)
+        Pmm = Gx @ P[:3, :3] @ Gx.T + Gz @ R @ Gz.T
+        P[d : d + 2, :d] = rows
+        P[:d, d : d + 2] = rows.T
+        P[d : d + 2, d : d + 2] = 0.5 * (Pmm + Pmm.T)
+        self.x[d : d + 2] = m
+        j = self.n
+        self.ids[j] = self.next_id
+        self.next_id += 1
+        self.hits[j] = 1
+        self.misses[j] = 0
+        self.att[j] = attribute
+        self.n += 1
+        return self.ids[j]
+
+    def remove(self, js):
+        """Remove landmarks (local indices ``js``)."""
+        js = np.asarray(sorted(set(int(j) for j in js)), int)
+        if len(js) == 0:
+            return
+        d = self.dim
+        keep_l = np.setdiff1d(np.arange(self.n), js)
+        keep = np.r_[0, 1, 2, (3 + 2 * keep_l[:, None] + np.arange(2)).reshape(-1)].astype(int)
+        x = self.x[keep].copy()
+        P = self.P[np.ix_(keep, keep)].copy()
+        m = len(keep)
+        self.x[:m] = x
+        self.P[:m, :m] = P
+        self.x[m:d] = 0
+        for name in ("ids", "hits", "misses", "att"):
+            a = getattr(self, name)
+            a[: len(keep_l)] = a[keep_l]
+        self.n = len(keep_l)
+
+
+def ekf_slam(
+    steps: Sequence[Step],
+    motion_model: MotionModel,
+    *,
+    association: str = "clique",
+    config: SlamConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    initial_pose=(0.0, 0.0, 0.0),
+) -> SlamResult:
+    """EKF-SLAM over a log of :class:`~scanclique.slam.Step` records.
+
+    Parameters
+    ----------
+    steps : sequence of Step
+        Time-ordered controls and batch observations (range, bearing in the sensor frame).
+    motion_model : Ackermann or Unicycle
+        The vehicle model, with the sensor's position on the vehicle.
+    association : {"clique", "jcbb", "nn"}
+        The data association method (:mod:`scanclique.slam.association`).
+    config : SlamConfig, optional
+    progress : callable(done, total), optional
+        Called every few hundred steps.
+    initial_pose : (3,) float
+        The vehicle's pose at the first step.
+
+    Returns
+    -------
+    SlamResult
+    """
+    cfg = config or SlamConfig()
+    acfg = cfg.association if isinstance(cfg.association, AssociationConfig) else AssociationConfig()
+    t_start = time.perf_counter()
+    R = cfg.R
+    f = _Filter(np.asarray(initial_pose, float), np.diag(np.square(cfg.initial_sigma)))
+    sx, sy = motion_model.sensor_x, motion_model.sensor_y
+    N = len(steps)
+    times = np.empty(N)
+    poses = np.empty((N, 3))
+    pcovs = np.empty((N, 3, 3))
+    obs_t, assoc_out, assoc_sec, jd2, jdof, amb = [], [], [], [], [], []
+    control = None
+    t_prev = steps[0].time if N else 0.0
+    Pvv = f.P[:3, :3].copy()
+    Fcum = np.eye(3)
+    half_fov = 0.5 * cfg.sensor_fov
+    qxy, qth = cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2
+    every = max(1, N // 200)
+    for s_i, step in enumerate(steps):
+        # 1. predict the vehicle over [t_prev, t] with the control that held
+        dt = step.time - t_prev
+        if dt > 0 and control is not None:
+            xv, F, G = motion_model.predict(f.x[:3], control, dt)
+            Qu = motion_model.control_covariance(control)
+            Pvv = F @ Pvv @ F.T + G @ Qu @ G.T
+            moving = abs(control[0]) > 1e-6
+            if moving:
+                Pvv[0, 0] += qxy * dt
+                Pvv[1, 1] += qxy * dt
+                Pvv[2, 2] += qth * dt
+            f.x[:3] = xv
+            Fcum = F @ Fcum
+        t_prev = step.time
+        if step.control is not None:
+            control = step.control
+        z = step.observations
+        if len(z):
+            att = step.attributes
+            if cfg.max_range is not None:
+                keep = z[:, 0] <= cfg.max_range
+                z = z[keep]
+                att = None if att is None else att[keep]
+            # bring the cross-covariance up to date
+            d = f.dim
+            P = f.P
+            if f.n:
+                P[:3, 3:d] = Fcum @ P[:3, 3:d]
+                P[3:d, :3] = P[:3, 3:d].T
+            P[:3, :3] = Pvv
+            Fcum = np.eye(3)
+            a_out = np.full(len(z), REJECTED, np.int64)
+            sec = 0.0
+            D2, dof, ambiguous = 0.0, 0, False
+            if len(z):
+                # 2. landmarks the sensor may see
+                lm_all = f.x[3:d].reshape(-1, 2)
+                if f.n:
+                    zall, _, _ = observe(f.x[:3], lm_all, sx, sy)
+                    lim = (cfg.max_range or np.inf) + 5.0
+                    J = np.flatnonzero((zall[:, 0] <= lim) & (np.abs(zall[:, 1]) <= half_fov + 0.35))
+                else:
+                    zall = np.zeros((0, 2))
+                    J = np.zeros(0, int)
+                idx = np.r_[0, 1, 2, (3 + 2 * J[:, None] + np.arange(2)).reshape(-1)].astype(int)
+                Psub = P[np.ix_(idx, idx)]
+                zJ, Hx, Hm = observe(f.x[:3], lm_all[J], sx, sy)
+                pred = _predicted(zJ, Hx, Hm, Psub, lm_all[J], f.att[J] if att is not None else None)
+                # 3. associate
+                a = associate_predicted(z, R, pred, association, acfg, att)
+                sec = a.seconds
+                D2, dof, ambiguous = a.joint_d2, a.dof, a.ambiguous
+                loc = a.landmarks
+                paired = np.flatnonzero(loc >= 0)
+                glob = J[loc[paired]]
+                # 4. update with all pairs
+                if len(paired):
+                    _update(f, z[paired], glob, R, sx, sy)
+                    f.hits[glob] += 1
+                    f.misses[glob] = 0
+                    if att is not None:
+                        f.att[glob] += (att[paired] - f.att[glob]) / np.minimum(f.hits[glob], 20)
+                    a_out[paired] = f.ids[glob]
+                # tentative landmarks expected in view but unseen
+                if len(J):
+                    seen = np.zeros(len(J), bool)
+                    seen[loc[paired]] = True
+                    vis = (zall[J, 0] <= cfg.visible_range) & (np.abs(zall[J, 1]) <= half_fov - 0.1)
+                    missed = J[vis & ~seen]
+                    f.misses[missed] += 1
+                # 5. new landmarks
+                new = np.flatnonzero(loc == NEW)
+                if len(new):
+                    from .models import inverse_observe
+
+                    m, Gx, Gz = inverse_observe(f.x[:3], z[new], sx, sy)
+                    for q, i in enumerate(new):
+                        lid = f.add(m[q], Gx[q], Gz[q], R, att[i] if att is not None else 0.0)
+                        a_out[i] = NEW
+                        _ = lid
+                drop = np.flatnonzero(
+                    (f.hits[: f.n] < cfg.confirm_hits) & (f.misses[: f.n] >= cfg.max_misses)
+                )
+                if len(drop):
+                    f.remove(drop)
+            Pvv = f.P[:3, :3].copy()
+            obs_t.append(step.time)
+            assoc_out.append(_ro(a_out))
+            assoc_sec.append(sec)
+            jd2.append(D2)
+            jdof.append(dof)
+            amb.append(ambiguous)
+        times[s_i] = step.time
+        poses[s_i] = f.x[:3]
+        pcovs[s_i] = Pvv
+        if progress is not None and (s_i % every == 0 or s_i == N - 1):
+            progress(s_i + 1, N)
+    # the final map: permanent landmarks only
+    f.remove(np.flatnonzero(f.hits[: f.n] < cfg.confirm_hits))
+    d = f.dim
+    lms = f.x[3:d].reshape(-1, 2).copy()
+    idx = np.arange(f.n)
+    lcov = f.P[3:d, 3:d].reshape(f.n, 2, f.n, 2)[idx, :, idx, :].copy()
+    return SlamResult(
+        times, poses, pcovs, lms, lcov, f.ids[: f.n].copy(), f.hits[: f.n].copy(),
+        np.asarray(obs_t), tuple(assoc_out), np.asarray(assoc_sec), np.asarray(jd2),
+        np.asarray(jdof, np.int64), np.asarray(amb, bool), association,
+        time.perf_counter() - t_start, cfg,
+    )
+
+
+def _predicted(zJ, Hx, Hm, Psub, positions, attributes) -> Predicted:
+    """:class:`Predicted` for the selected landmarks (Psub over [vehicle, m_J])."""
+    n = len(zJ)
+    if n == 0:
+        return Predicted(zJ, np.zeros((0, 0)), positions, np.zeros((0, 0)), attributes)
+    Hx2 = Hx.reshape(2 * n, 3)
+    Pvv = Psub[:3, :3]
+    Pvm = Psub[:3, 3:]
+    Pmm = Psub[3:, 3:]
+    # block-diagonal Hm applied without forming it: (HmB M)[2j+a] = sum_b Hm[j,a,b] M[2j+b]
+    def hm_left(M):  # HmB @ M, M (2n, c)
+        Mr = M.reshape(n, 2, M.shape[1])
+        return np.einsum("jab,jbc->jac", Hm, Mr).reshape(2 * n, -1)
+
+    A = Hx2 @ hm_left(Pvm.T).T  # Hx Pvm HmB^T
+    B = hm_left(hm_left(Pmm).T).T  # HmB Pmm HmB^T
+    Sz = Hx2 @ Pvv @ Hx2.T + A + A.T + B
+    return Predicted(zJ, Sz, positions, Pmm, attributes)
+
+
+def _update(f: _Filter, z, glob, R, sx, sy):
+    """Batch EKF update with observations ``z`` paired with landmarks ``glob`` (local
+    indices), Joseph form expanded: P - K H P - P H^T K^T + K S K^T."""
+    d = f.dim
+    x, P = f.x, f.P
+    m = len(glob)
+    lm = x[3 + 2 * glob[:, None] + np.arange(2)]
+    zhat, Hx, Hm = observe(x[:3], lm, sx, sy)
+    cols = np.r_[0, 1, 2, (3 + 2 * glob[:, None] + np.arange(2)).reshape(-1)].astype(int)
+    Hs = np.zeros((2 * m, 3 + 2 * m))
+    Hs[:, :3] = Hx.reshape(2 * m, 3)
+    for q in range(m):
+        Hs[2 * q : 2 * q + 2, 3 + 2 * q : 5 + 2 * q] = Hm[q]
+    PHt = P[:d, cols] @ Hs.T  # (d, 2m)
+    S = Hs @ PHt[cols] + np.kron(np.eye(m), R)
+    S = 0.5 * (S + S.T)
+    K = np.linalg.solve(S, PHt.T).T  # (d, 2m)
+    nu = (z - zhat)
+    nu[:, 1] = wrap(nu[:, 1])
+    x[:d] += K @ nu.reshape(-1)
+    x[2] = wrap(x[2])
+    # K S K^T - K PHt^T - PHt K^T = K M^T + M K^T with M = 0.5 K S - PHt
+    from ._kernels import sym_update
+
+    Mt = 0.5 * (K @ S) - PHt
+    sym_update(P, d, np.ascontiguousarray(K), np.ascontiguousarray(Mt))

@@ -1,0 +1,131 @@
+"""Error of an estimated trajectory against GPS fixes, and map statistics.
+
+The estimated position compared with a fix is the sensor's (the laser's) position,
+interpolated linearly to the fix's time: in the Victoria Park vehicle model of Guivant and
+Nebot the tracked point is the laser's, and the GPS fixes are compared with it.
+
+Two alignments of the estimate's frame to the GPS frame (the filter starts at the
+origin, heading along x):
+
+* **start**: the rotation and translation that put the estimated position at the first fix
+  onto that fix and the estimated direction of travel over the first ``start_distance``
+  metres of the GPS track onto the GPS's;
+* **best**: the least-squares rigid (SE(2)) alignment over all fixes (Kabsch / Umeyama
+  without scale).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["gps_outliers", "GpsError", "gps_error", "align_se2", "duplicate_pairs", "sensor_positions", "nees"]
+
+
+@dataclass(frozen=True, slots=True)
+class GpsError:
+    """RMS and max position error (m) at the GPS fixes, for each alignment."""
+
+    rmse_start: float
+    max_start: float
+    rmse_best: float
+    max_best: float
+    fixes: int
+    rotation_best: float  # rad, rotation of the best alignment (estimate -> GPS)
+    translation_best: tuple[float, float]
+
+
+def align_se2(src, dst):
+    """Least-squares rotation ``Rm`` and translation ``t`` with ``dst ~ src @ Rm.T + t``."""
+    src = np.asarray(src, float)
+    dst = np.asarray(dst, float)
+    ms, md = src.mean(0), dst.mean(0)
+    H = (src - ms).T @ (dst - md)
+    ang = math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+    c, s = math.cos(ang), math.sin(ang)
+    Rm = np.array([[c, -s], [s, c]])
+    return Rm, md - Rm @ ms, ang
+
+
+def sensor_positions(poses, sensor_x: float, sensor_y: float) -> np.ndarray:
+    """World positions (N, 2) of the sensor for vehicle poses (N, 3)."""
+    p = np.asarray(poses, float)
+    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+    return np.column_stack(
+        [p[:, 0] + c * sensor_x - s * sensor_y, p[:, 1] + s * sensor_x + c * sensor_y]
+    )
+
+
+def gps_outliers(gps, max_speed: float = 15.0) -> np.ndarray:
+    """Fixes (bool (G,)) that imply a speed above ``max_speed`` (m/s) both from the
+    previous and to the next fix: isolated jumps of the receiver (Victoria Park's GPS
+    holds one of 141 m), not motion of a car in a park."""
+    g = np.asarray(gps, float)
+    if len(g) < 3:
+        return np.zeros(len(g), bool)
+    dt = np.maximum(np.diff(g[:, 0]), 1e-6)
+    v = np.hypot(*np.diff(g[:, 1:], axis=0).T) / dt
+    out = np.zeros(len(g), bool)
+    out[1:-1] = (v[:-1] > max_speed) & (v[1:] > max_speed)
+    return out
+
+
+def gps_error(times, positions, gps, *, start_distance: float = 20.0) -> GpsError:
+    """Position error of a trajectory at the GPS fixes.
+
+    Parameters
+    ----------
+    times : (N,) array
+        Times of the estimated positions (s), increasing.
+    positions : (N, 2) array
+        Estimated positions (m) in the estimate's frame.
+    gps : (G, 3) array
+        ``time x y`` fixes; those outside ``[times[0], times[-1]]`` are ignored, and so
+        are the outliers of :func:`gps_outliers`.
+    """
+    times = np.asarray(times, float)
+    positions = np.asarray(positions, float)
+    g = np.asarray(gps, float)
+    g = g[~gps_outliers(g)]
+    g = g[(g[:, 0] >= times[0]) & (g[:, 0] <= times[-1])]
+    est = np.column_stack(
+        [np.interp(g[:, 0], times, positions[:, 0]), np.interp(g[:, 0], times, positions[:, 1])]
+    )
+    ref = g[:, 1:]
+    # start alignment
+    far = np.flatnonzero(np.hypot(*(ref - ref[0]).T) >= start_distance)
+    k = int(far[0]) if len(far) else len(ref) - 1
+    de, dg = est[k] - est[0], ref[k] - ref[0]
+    ang = math.atan2(dg[1], dg[0]) - math.atan2(de[1], de[0])
+    c, s = math.cos(ang), math.sin(ang)
+    Rm = np.array([[c, -s], [s, c]])
+    a = (est - est[0]) @ Rm.T + ref[0]
+    e_start = np.hypot(*(a - ref).T)
+    Rb, tb, angb = align_se2(est, ref)
+    e_best = np.hypot(*((est @ Rb.T + tb) - ref).T)
+    return GpsError(
+        float(np.sqrt(np.mean(e_start**2))), float(e_start.max()),
+        float(np.sqrt(np.mean(e_best**2))), float(e_best.max()), len(ref), float(angb),
+        (float(tb[0]), float(tb[1])),
+    )
+
+
+def duplicate_pairs(landmarks, distance: float = 1.0) -> tuple[int, int]:
+    """``(pairs, landmarks in a pair)`` of landmarks closer than ``distance`` (m)."""
+    lm = np.asarray(landmarks, float).reshape(-1, 2)
+    if len(lm) < 2:
+        return 0, 0
+    d = np.hypot(*(lm[:, None, :] - lm[None, :, :]).transpose(2, 0, 1))
+    iu = np.triu_indices(len(lm), 1)
+    close = d[iu] < distance
+    members = np.unique(np.r_[iu[0][close], iu[1][close]])
+    return int(close.sum()), int(len(members))
+
+
+def nees(errors, covariances) -> np.ndarray:
+    """Normalised estimation error squared ``e^T P^-1 e`` of each (N, d) error."""
+    e = np.asarray(errors, float)
+    P = np.asarray(covariances, float)
+    return np.einsum("ni,ni->n", e, np.linalg.solve(P, e[..., None])[..., 0])

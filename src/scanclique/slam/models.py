@@ -1,0 +1,299 @@
+"""Motion and observation models of EKF-SLAM, with their Jacobians.
+
+Two vehicle models share one interface (:class:`MotionModel`): the state of the vehicle is
+``(x, y, theta)`` of its reference point (the rear-axle centre for :class:`Ackermann`, the
+wheel-axle centre for :class:`Unicycle`) in the world frame, theta counter-clockwise from
+the world's x axis. A range-bearing sensor sits at ``(sensor_x, sensor_y)`` in the vehicle
+frame (x forward, y left) with the vehicle's heading. Landmarks are world points.
+
+``predict(state, control, dt)`` integrates the model over ``dt`` seconds (one Euler step;
+the controls of a log come every few tens of milliseconds) and returns the new state, the
+Jacobian ``F`` = d new state / d state (3, 3) and ``G`` = d new state / d control (3, 2).
+``observe(state, landmarks)`` returns the predicted range/bearing of each landmark from the
+sensor with the Jacobians with respect to the vehicle state and to the landmark;
+``inverse(state, z)`` is the landmark at range/bearing ``z`` with its Jacobians.
+
+References
+----------
+J. Guivant and E. Nebot, "Optimization of the simultaneous localization and map-building
+algorithm for real-time implementation", IEEE Trans. Robotics and Automation 17(3), 2001
+(the vehicle model of the Victoria Park data set: Ackermann steering, encoder on the rear
+left wheel, laser ahead of the rear axle).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["wrap", "MotionModel", "Ackermann", "Unicycle", "observe", "inverse_observe"]
+
+
+def wrap(angle):
+    """Angle(s) wrapped to [-pi, pi) (radians); arrays and scalars alike.
+
+    >>> round(float(wrap(3 * math.pi / 2)), 6)
+    -1.570796
+    """
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@dataclass(frozen=True, slots=True)
+class MotionModel:
+    """Common part of the vehicle models: the sensor's position on the vehicle.
+
+    Attributes
+    ----------
+    sensor_x, sensor_y : float
+        Position of the range-bearing sensor in the vehicle frame (m; x forward, y left).
+    """
+
+    sensor_x: float = 0.0
+    sensor_y: float = 0.0
+
+    def predict(self, state, control, dt):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def control_covariance(self, control) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def observe(self, state, landmarks):
+        """See :func:`observe` (with this model's sensor offset)."""
+        return observe(state, landmarks, self.sensor_x, self.sensor_y)
+
+    def inverse(self, state, z):
+        """See :func:`inverse_observe` (with this model's sensor offset)."""
+        return inverse_observe(state, z, self.sensor_x, self.sensor_y)
+
+    def sensor_pose(self, state) -> np.ndarray:
+        """World pose ``(x, y, theta)`` of the sensor for the vehicle ``state``."""
+        x, y, th = state
+        c, s = math.cos(th), math.sin(th)
+        return np.array(
+            [x + c * self.sensor_x - s * self.sensor_y, y + s * self.sensor_x + c * self.sensor_y, th]
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Ackermann(MotionModel):
+    """Car-like vehicle with a speed encoder on the rear left wheel and a steering sensor
+    (Guivant and Nebot 2001; the Victoria Park utility vehicle).
+
+    Control ``(v_e, alpha)``: the encoder's speed (m/s) and the steering angle (rad). The
+    rear-axle centre moves at ``v_c = v_e / (1 - tan(alpha) H / L)`` and::
+
+        x'     = v_c cos(theta)
+        y'     = v_c sin(theta)
+        theta' = v_c tan(alpha) / L
+
+    The laser sits ``laser_a`` ahead of and ``laser_b`` left of the rear-axle centre.
+
+    Parameters
+    ----------
+    wheelbase : float
+        ``L`` (m).
+    encoder_offset : float
+        ``H``: lateral offset of the encoder wheel from the vehicle's centre line (m).
+    laser_a, laser_b : float
+        Sensor position (m) ahead of / left of the rear axle centre.
+    sigma_speed : float
+        Standard deviation of the encoder speed (m/s), plus ``sigma_speed_rel`` times the
+        speed.
+    sigma_steering : float
+        Standard deviation of the steering angle (rad).
+
+    Examples
+    --------
+    >>> m = Ackermann(wheelbase=2.83, encoder_offset=0.76, laser_a=3.78, laser_b=0.5)
+    >>> x, F, G = m.predict(np.zeros(3), np.array([1.0, 0.0]), 1.0)
+    >>> x.round(6).tolist()
+    [1.0, 0.0, 0.0]
+    """
+
+    wheelbase: float = 2.83
+    encoder_offset: float = 0.76
+    sigma_speed: float = 0.05
+    sigma_speed_rel: float = 0.05
+    sigma_steering: float = math.radians(1.0)
+
+    def __init__(
+        self,
+        wheelbase: float = 2.83,
+        encoder_offset: float = 0.76,
+        laser_a: float = 3.78,
+        laser_b: float = 0.5,
+        *,
+        sigma_speed: float = 0.05,
+        sigma_speed_rel: float = 0.05,
+        sigma_steering: float = math.radians(1.0),
+    ) -> None:
+        object.__setattr__(self, "sensor_x", float(laser_a))
+        object.__setattr__(self, "sensor_y", float(laser_b))
+        object.__setattr__(self, "wheelbase", float(wheelbase))
+        object.__setattr__(self, "encoder_offset", float(encoder_offset))
+        object.__setattr__(self, "sigma_speed", float(sigma_speed))
+        object.__setattr__(self, "sigma_speed_rel", float(sigma_speed_rel))
+        object.__setattr__(self, "sigma_steering", float(sigma_steering))
+
+    @property
+    def laser_a(self) -> float:
+        return self.sensor_x
+
+    @property
+    def laser_b(self) -> float:
+        return self.sensor_y
+
+    def predict(self, state, control, dt):
+        """One Euler step of ``dt`` s: ``(new_state, F (3,3), G (3,2))``."""
+        x, y, th = state
+        ve, al = control
+        L, H = self.wheelbase, self.encoder_offset
+        ta = math.tan(al)
+        den = 1.0 - ta * H / L
+        vc = ve / den
+        c, s = math.cos(th), math.sin(th)
+        new = np.array([x + dt * vc * c, y + dt * vc * s, wrap(th + dt * vc * ta / L)])
+        F = np.array([[1.0, 0.0, -dt * vc * s], [0.0, 1.0, dt * vc * c], [0.0, 0.0, 1.0]])
+        # d vc / d ve, d vc / d alpha
+        sec2 = 1.0 + ta * ta
+        dvc_dve = 1.0 / den
+        dvc_dal = ve * (H / L) * sec2 / (den * den)
+        G = np.array(
+            [
+                [dt * c * dvc_dve, dt * c * dvc_dal],
+                [dt * s * dvc_dve, dt * s * dvc_dal],
+                [dt * ta / L * dvc_dve, dt / L * (dvc_dal * ta + vc * sec2)],
+            ]
+        )
+        return new, F, G
+
+    def control_covariance(self, control) -> np.ndarray:
+        """Covariance (2, 2) of ``(speed, steering)``."""
+        sv = self.sigma_speed + self.sigma_speed_rel * abs(float(control[0]))
+        return np.diag([sv * sv, self.sigma_steering**2])
+
+
+@dataclass(frozen=True, slots=True)
+class Unicycle(MotionModel):
+    """Differential-drive robot with wheel odometry: control ``(v m/s, omega rad/s)``::
+
+        x' = v cos(theta),  y' = v sin(theta),  theta' = omega
+
+    Parameters
+    ----------
+    sensor_x, sensor_y : float
+        Sensor position in the vehicle frame (m).
+    sigma_v, sigma_omega : float
+        Standard deviations of the controls (m/s, rad/s); ``sigma_v_rel`` adds a part
+        proportional to the speed.
+
+    Examples
+    --------
+    >>> x, F, G = Unicycle().predict(np.zeros(3), np.array([1.0, 0.5]), 2.0)
+    >>> x.round(6).tolist()
+    [2.0, 0.0, 1.0]
+    """
+
+    sigma_v: float = 0.05
+    sigma_v_rel: float = 0.05
+    sigma_omega: float = math.radians(2.0)
+
+    def predict(self, state, control, dt):
+        """One Euler step of ``dt`` s: ``(new_state, F (3,3), G (3,2))``."""
+        x, y, th = state
+        v, w = control
+        c, s = math.cos(th), math.sin(th)
+        new = np.array([x + dt * v * c, y + dt * v * s, wrap(th + dt * w)])
+        F = np.array([[1.0, 0.0, -dt * v * s], [0.0, 1.0, dt * v * c], [0.0, 0.0, 1.0]])
+        G = np.array([[dt * c, 0.0], [dt * s, 0.0], [0.0, dt]])
+        return new, F, G
+
+    def control_covariance(self, control) -> np.ndarray:
+        sv = self.sigma_v + self.sigma_v_rel * abs(float(control[0]))
+        return np.diag([sv * sv, self.sigma_omega**2])
+
+
+def observe(state, landmarks, sensor_x: float = 0.0, sensor_y: float = 0.0):
+    """Predicted range and bearing of world landmarks from the vehicle's sensor.
+
+    Parameters
+    ----------
+    state : (3,) array
+        Vehicle pose ``(x, y, theta)`` in the world.
+    landmarks : (k, 2) array
+        World positions.
+    sensor_x, sensor_y : float
+        Sensor position in the vehicle frame.
+
+    Returns
+    -------
+    z : (k, 2) ndarray
+        Range (m) and bearing (rad, wrapped to [-pi, pi), counter-clockwise from the heading).
+    Hx : (k, 2, 3) ndarray
+        d z / d state.
+    Hm : (k, 2, 2) ndarray
+        d z / d landmark.
+    """
+    x, y, th = state
+    lm = np.asarray(landmarks, float).reshape(-1, 2)
+    c, s = math.cos(th), math.sin(th)
+    sx = x + c * sensor_x - s * sensor_y
+    sy = y + s * sensor_x + c * sensor_y
+    dsx = -s * sensor_x - c * sensor_y  # d sensor / d theta
+    dsy = c * sensor_x - s * sensor_y
+    dx = lm[:, 0] - sx
+    dy = lm[:, 1] - sy
+    q = dx * dx + dy * dy
+    r = np.sqrt(q)
+    z = np.column_stack([r, wrap(np.arctan2(dy, dx) - th)])
+    k = len(lm)
+    Hm = np.empty((k, 2, 2))
+    Hm[:, 0, 0] = dx / r
+    Hm[:, 0, 1] = dy / r
+    Hm[:, 1, 0] = -dy / q
+    Hm[:, 1, 1] = dx / q
+    Hx = np.empty((k, 2, 3))
+    Hx[:, :, 0] = -Hm[:, :, 0]
+    Hx[:, :, 1] = -Hm[:, :, 1]
+    Hx[:, :, 2] = -(Hm[:, :, 0] * dsx + Hm[:, :, 1] * dsy)
+    Hx[:, 1, 2] -= 1.0
+    return z, Hx, Hm
+
+
+def inverse_observe(state, z, sensor_x: float = 0.0, sensor_y: float = 0.0):
+    """World positions of features at range/bearing ``z`` from the vehicle's sensor.
+
+    Returns
+    -------
+    m : (k, 2) ndarray
+        World positions.
+    Gx : (k, 2, 3) ndarray
+        d m / d state.
+    Gz : (k, 2, 2) ndarray
+        d m / d z.
+    """
+    x, y, th = state
+    z = np.asarray(z, float).reshape(-1, 2)
+    c, s = math.cos(th), math.sin(th)
+    sx = x + c * sensor_x - s * sensor_y
+    sy = y + s * sensor_x + c * sensor_y
+    dsx = -s * sensor_x - c * sensor_y
+    dsy = c * sensor_x - s * sensor_y
+    r, b = z[:, 0], z[:, 1]
+    ang = th + b
+    ca, sa = np.cos(ang), np.sin(ang)
+    m = np.column_stack([sx + r * ca, sy + r * sa])
+    k = len(z)
+    Gx = np.zeros((k, 2, 3))
+    Gx[:, 0, 0] = 1.0
+    Gx[:, 1, 1] = 1.0
+    Gx[:, 0, 2] = dsx - r * sa
+    Gx[:, 1, 2] = dsy + r * ca
+    Gz = np.empty((k, 2, 2))
+    Gz[:, 0, 0] = ca
+    Gz[:, 0, 1] = -r * sa
+    Gz[:, 1, 0] = sa
+    Gz[:, 1, 1] = r * ca
+    return m, Gx, Gz

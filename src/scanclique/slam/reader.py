@@ -1,0 +1,340 @@
+"""Reader of the ACFR Victoria Park data set (trees as point features).
+
+The three text files of the data set (see ``data/README.md`` of the shared data):
+
+* ``measurements.dat``: ``time range bearing diameter``, one row per detected tree; rows
+  with the same time are one batch observation. The bearing is in [0, pi] with 0 on the
+  scanner's right, so the vehicle-frame bearing (counter-clockwise from the vehicle's
+  heading) is ``bearing - pi/2``.
+* ``inputs.dat``: ``time speed steering`` (m/s at the rear-left wheel encoder, rad).
+* ``gps.dat``: ``time x y`` (m), intermittent GPS fixes, the only ground truth.
+
+:func:`read_victoria_park` merges the controls and the observations into one time-ordered
+sequence of :class:`Step` records, the input of :func:`scanclique.slam.ekf_slam`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataNotFoundError, ParseError
+
+__all__ = [
+    "Step",
+    "VictoriaPark",
+    "read_victoria_park",
+    "read_table",
+    "resolve_victoria_park",
+    "steps_from_arrays",
+]
+
+log = logging.getLogger(__name__)
+
+#: The registered name of the data set, resolved in the shared data directory.
+DATASET_NAME = "victoria-park"
+FILES = ("measurements.dat", "inputs.dat", "gps.dat")
+SOURCE = (
+    "the ACFR Victoria Park data set (E. Nebot, J. Guivant; "
+    "www-personal.acfr.usyd.edu.au/nebot/victoria_park.htm)"
+)
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Step:
+    """One event of a SLAM log: a control that holds from ``time`` on, and a batch
+    observation taken at ``time``.
+
+    Attributes
+    ----------
+    time : float
+        Seconds.
+    control : (2,) float64 ndarray, read-only, or None
+        The control applied from ``time`` until the next step: ``(speed m/s, steering rad)``
+        for :class:`~scanclique.slam.Ackermann`, ``(v m/s, omega rad/s)`` for
+        :class:`~scanclique.slam.Unicycle`. None: the previous control still holds.
+    observations : (k, 2) float64 ndarray, read-only
+        Range (m) and bearing (rad, counter-clockwise from the vehicle's heading, in
+        (-pi, pi]) of each detected feature, in the sensor frame. ``k`` may be 0.
+    attributes : (k,) float64 ndarray, read-only, or None
+        A scalar attribute per observation (a tree's diameter, m), or None.
+    """
+
+    time: float
+    control: np.ndarray | None
+    observations: np.ndarray
+    attributes: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.control is not None:
+            object.__setattr__(self, "control", _ro(np.asarray(self.control, float).reshape(2)))
+        obs = np.asarray(self.observations, float).reshape(-1, 2)
+        object.__setattr__(self, "observations", _ro(obs))
+        if self.attributes is not None:
+            att = np.asarray(self.attributes, float).reshape(-1)
+            if len(att) != len(obs):
+                raise ValueError(
+                    f"Step at t={self.time}: {len(att)} attributes for {len(obs)} observations"
+                )
+            object.__setattr__(self, "attributes", _ro(att))
+
+    @property
+    def n_observations(self) -> int:
+        return len(self.observations)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class VictoriaPark:
+    """The raw tables of the data set (each row as in its file; read-only arrays).
+
+    Attributes
+    ----------
+    measurements : (M, 4) float64 ndarray
+        ``time range bearing diameter`` with the file's bearing (0 on the right).
+    inputs : (U, 3) float64 ndarray
+        ``time speed steering``.
+    gps : (G, 3) float64 ndarray
+        ``time x y``.
+    directory : Path
+    """
+
+    measurements: np.ndarray
+    inputs: np.ndarray
+    gps: np.ndarray
+    directory: Path
+
+    def __post_init__(self) -> None:
+        for name in ("measurements", "inputs", "gps"):
+            object.__setattr__(self, name, _ro(getattr(self, name)))
+
+
+def resolve_victoria_park(source: str | os.PathLike = DATASET_NAME) -> Path:
+    """The directory of the data set: the name ``"victoria-park"`` (looked for in
+    :func:`scanclique.datasets.data_dir`) or a directory path.
+
+    Raises
+    ------
+    DataNotFoundError
+        The directory or one of its three files is missing; the message names what was
+        looked for and where.
+    """
+    from .. import datasets
+
+    s = os.fspath(source)
+    if s == DATASET_NAME:
+        d = datasets.data_dir() / DATASET_NAME
+        looked = f"{DATASET_NAME}/ in {datasets._looked_in()}"
+    else:
+        d = Path(s).expanduser()
+        looked = str(d)
+    if not d.is_dir():
+        raise DataNotFoundError(
+            f"Victoria Park data not found: looked for the directory {looked} "
+            f"(holding {', '.join(FILES)}). Set {datasets.ENV_VAR} to the shared data "
+            f"directory or give the directory; the data are public: {SOURCE}."
+        )
+    missing = [f for f in FILES if not (d / f).is_file()]
+    if missing:
+        raise DataNotFoundError(
+            f"Victoria Park data incomplete: {d} lacks {', '.join(missing)} "
+            f"(expected {', '.join(FILES)}); the data are public: {SOURCE}."
+        )
+    return d
+
+
+def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
+    """A whitespace-separated table of floats, one row per non-empty line.
+
+    Lines starting with ``#`` and blank lines are skipped. Every row must hold
+    ``len(columns)`` finite numbers and the first column (time) must not decrease.
+
+    Raises
+    ------
+    ParseError
+        Names the file, the 1-based line and the field that is wrong.
+    """
+    path = Path(path)
+    n = len(columns)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise DataNotFoundError(f"{path}: no such file") from None
+    try:  # fast path: a well-formed file
+        arr = np.loadtxt(path, dtype=float, comments="#", ndmin=2)
+        if arr.size == 0:
+            arr = arr.reshape(0, n)
+        if arr.shape[1] == n and np.isfinite(arr).all() and (np.diff(arr[:, 0]) >= 0).all():
+            return arr
+    except ValueError:
+        pass
+    rows = []
+    last_t = -math.inf
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = s.split()
+        if len(parts) != n:
+            raise ParseError(
+                str(path), lineno, f"expected {n} numbers ({' '.join(columns)}), found {len(parts)}"
+            )
+        vals = []
+        for name, p in zip(columns, parts):
+            try:
+                v = float(p)
+            except ValueError:
+                raise ParseError(str(path), lineno, f"not a number: {p!r}", field=name) from None
+            if not math.isfinite(v):
+                raise ParseError(str(path), lineno, f"not finite: {p!r}", field=name)
+            vals.append(v)
+        if vals[0] < last_t:
+            raise ParseError(
+                str(path), lineno, f"time goes back: {vals[0]} after {last_t}", field=columns[0]
+            )
+        last_t = vals[0]
+        rows.append(vals)
+    return np.array(rows, dtype=float).reshape(-1, n)
+
+
+def load_victoria_park(source: str | os.PathLike = DATASET_NAME) -> VictoriaPark:
+    """The three raw tables of the data set (see :class:`VictoriaPark`)."""
+    d = resolve_victoria_park(source)
+    meas = read_table(d / "measurements.dat", ("time", "range", "bearing", "diameter"))
+    inputs = read_table(d / "inputs.dat", ("time", "speed", "steering"))
+    gps = read_table(d / "gps.dat", ("time", "x", "y"))
+    bad = np.flatnonzero(meas[:, 1] <= 0)
+    if len(bad):
+        raise ParseError(
+            str(d / "measurements.dat"), _line_of(d / "measurements.dat", int(bad[0])),
+            f"range must be positive, found {meas[bad[0], 1]}", field="range",
+        )
+    return VictoriaPark(meas, inputs, gps, d)
+
+
+def _line_of(path: Path, row: int) -> int:
+    """1-based line number of data row ``row`` (comments and blank lines skipped)."""
+    k = -1
+    with open(path) as fh:
+        for lineno, line in enumerate(fh, start=1):
+            s = line.strip()
+            if s and not s.startswith("#"):
+                k += 1
+                if k == row:
+                    return lineno
+    return k + 1
+
+
+def steps_from_arrays(
+    controls: np.ndarray,
+    measurements: np.ndarray,
+    *,
+    bearing_offset: float = 0.0,
+    max_range: float | None = None,
+) -> list[Step]:
+    """Merge controls and observations into one time-ordered list of :class:`Step`.
+
+    Parameters
+    ----------
+    controls : (U, 3) array
+        ``time c1 c2`` rows; each control holds from its time until the next.
+    measurements : (M, 3) or (M, 4) array
+        ``time range bearing [attribute]`` rows; rows with equal times are one batch.
+    bearing_offset : float
+        Added to every bearing (``-pi/2`` for Victoria Park's scanner); the result is
+        wrapped to (-pi, pi].
+    max_range : float, optional
+        Observations farther than this are dropped.
+
+    Returns
+    -------
+    list of Step
+        One step per distinct time; a time with both a control and a batch gives one
+        step carrying both.
+    """
+    from .models import wrap
+
+    controls = np.asarray(controls, float).reshape(-1, 3)
+    measurements = np.asarray(measurements, float)
+    if measurements.ndim != 2 or measurements.shape[1] not in (3, 4):
+        raise ValueError(f"measurements must be (M, 3) or (M, 4), got {measurements.shape}")
+    if max_range is not None:
+        measurements = measurements[measurements[:, 1] <= max_range]
+    has_att = measurements.shape[1] == 4
+    t_m = measurements[:, 0]
+    # batches: runs of equal times
+    if len(t_m):
+        starts = np.flatnonzero(np.r_[True, t_m[1:] != t_m[:-1]])
+        ends = np.r_[starts[1:], len(t_m)]
+    else:
+        starts = ends = np.zeros(0, int)
+    batch_t = t_m[starts]
+    ctrl_t = controls[:, 0]
+    times = np.union1d(ctrl_t, batch_t)
+    ci = np.searchsorted(ctrl_t, times)
+    bi = np.searchsorted(batch_t, times)
+    empty = np.zeros((0, 2))
+    steps: list[Step] = []
+    for k, t in enumerate(times):
+        c = controls[ci[k], 1:] if ci[k] < len(ctrl_t) and ctrl_t[ci[k]] == t else None
+        if bi[k] < len(batch_t) and batch_t[bi[k]] == t:
+            rows = measurements[starts[bi[k]] : ends[bi[k]]]
+            obs = np.column_stack([rows[:, 1], wrap(rows[:, 2] + bearing_offset)])
+            att = rows[:, 3] if has_att else None
+        else:
+            obs, att = empty, None
+        steps.append(Step(float(t), c, obs, att))
+    return steps
+
+
+def read_victoria_park(
+    source: str | os.PathLike = DATASET_NAME, *, max_range: float | None = None
+) -> list[Step]:
+    """The Victoria Park log as a time-ordered list of :class:`Step`.
+
+    Controls are ``(speed m/s, steering rad)`` of :class:`~scanclique.slam.Ackermann`;
+    observations are (range m, bearing rad) of the tree centres in the laser's frame,
+    bearing counter-clockwise from the vehicle's heading (the file's bearing - pi/2);
+    attributes are the trees' diameters (m).
+
+    Parameters
+    ----------
+    source : str or path
+        ``"victoria-park"`` (looked for in the shared data directory) or the directory
+        holding ``measurements.dat``, ``inputs.dat`` and ``gps.dat``.
+    max_range : float, optional
+        Drop detections farther than this (m).
+
+    Raises
+    ------
+    DataNotFoundError
+        A file is missing (the message says where it was looked for).
+    ParseError
+        A malformed row (file and line named).
+
+    Examples
+    --------
+    >>> steps = read_victoria_park()          # doctest: +SKIP
+    >>> sum(s.n_observations > 0 for s in steps)  # doctest: +SKIP
+    7230
+    """
+    vp = load_victoria_park(source)
+    return steps_from_arrays(
+        vp.inputs, vp.measurements, bearing_offset=-math.pi / 2, max_range=max_range
+    )
+
+
+def read_gps(source: str | os.PathLike = DATASET_NAME) -> np.ndarray:
+    """The GPS fixes ``(G, 3)``: time (s), x, y (m)."""
+    d = resolve_victoria_park(source)
+    return _ro(read_table(d / "gps.dat", ("time", "x", "y")))
