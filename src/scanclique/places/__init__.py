@@ -2,9 +2,35 @@
 places, each a stored batch observation; a query scan returns the places it sees and its
 pose relative to each, verified by the clique matcher and validated (paper §7).
 
+>>> import scanclique as sc
+>>> from scanclique.places import PlaceDB, PlaceHit       # doctest: +SKIP
+
 * :mod:`.signature` — rotation-invariant signatures, the prefilter's vectors;
+* :mod:`.index` — exact brute-force nearest-signature search;
+* :mod:`.store` — the SQLite store (WAL, typed blobs, schema version, stored config);
+* :mod:`.verify` — match and validate a candidate: accepted / ambiguous / rejected;
+* :mod:`.database` — :class:`PlaceDB` and :class:`PlaceHit`, the contract;
+* :mod:`.loops` — every revisit of a log, serially, over local processes or Dask.
 """
 
+from .database import PlaceDB, PlaceHit
+from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature, signature_distance
+from .store import PlaceStore
+from .verify import ACCEPTED, AMBIGUOUS, REJECTED, Verification, verify_pair
 
-__all__ = ["SIGNATURE_SIZE", "SIGNATURE_VERSION", "scan_signature", "signature_distance"]
+__all__ = [
+    "ACCEPTED",
+    "AMBIGUOUS",
+    "REJECTED",
+    "SIGNATURE_SIZE",
+    "SIGNATURE_VERSION",
+    "PlaceDB",
+    "PlaceHit",
+    "PlaceStore",
+    "SignatureIndex",
+    "Verification",
+    "scan_signature",
+    "signature_distance",
+    "verify_pair",
+]

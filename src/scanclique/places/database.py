@@ -1,0 +1,407 @@
+"""The place database: add observations as places, query a scan for the places it sees.
+
+>>> import tempfile, os, numpy as np, scanclique as sc
+>>> pair = sc.sim.simulate_pair(np.random.default_rng(3))
+>>> path = os.path.join(tempfile.mkdtemp(), "places.db")
+>>> with PlaceDB(path) as db:
+...     pid = db.add(pair.scan_a, name="room")
+...     hits = db.query(pair.scan_b, k=1)
+>>> hits[0].name, hits[0].verdict
+('room', 'accepted')
+>>> t_err, r_err = hits[0].pose.distance_to(pair.pose_a_b)
+>>> bool(t_err < 0.1 and r_err < 0.02)
+True
+
+A query is, in order:
+
+1. the query scan prepared (features, feature graph, raw-point cloud) and its signature
+   (:func:`.signature.scan_signature`);
+2. the prefilter: the ``candidates`` places of nearest signature, exact brute force
+   (:class:`.index.SignatureIndex`);
+3. each candidate verified (:func:`.verify.verify_pair`): the clique matcher against
+   the stored place, then validation without odometry;
+4. the hits ranked: accepted first, then ambiguous, then rejected; by raw-scan score
+   within each.
+
+Places are stored in SQLite (:class:`.store.PlaceStore`); the stored scan is prepared
+again when a place is verified (a quarter of a millisecond, less than reading and checking
+its features' blobs) and kept in a cache of recently used places. A database opened by
+several processes sees the places another process added at its next query.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from collections import OrderedDict
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import __version__
+from ..config import MatchConfig, config_from_dict, config_to_dict
+from ..errors import ConfigError, PlaceDatabaseError
+from ..geometry import Pose2
+from ..match import PreparedScan, prepare_scan
+from ..scan import Scan
+from .index import SignatureIndex
+from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
+from .store import PlaceRecord, PlaceStore
+from .verify import REJECTED, VERDICT_RANK, verify_pair
+
+__all__ = ["PlaceDB", "PlaceHit", "PREPARE_KEYS", "feature_arrays"]
+
+log = logging.getLogger(__name__)
+
+#: the configuration values that decide a place's stored features and signature: a
+#: database refuses to be used with a configuration that differs in any of them
+PREPARE_KEYS = ("clustering", "features", "refine.sample_points")
+
+_FEATURE_FIELDS = (
+    "points_xy",
+    "points_label",
+    "points_cov",
+    "points_beam",
+    "lines_rho_alpha",
+    "lines_ends",
+    "lines_cov",
+    "lines_beams",
+    "lines_n_points",
+    "clusters",
+)
+
+
+def feature_arrays(prepared: PreparedScan) -> dict[str, np.ndarray]:
+    """The array fields of a prepared scan's features, keyed ``"features.<field>"``."""
+    f = prepared.features
+    return {f"features.{k}": np.asarray(getattr(f, k)) for k in _FEATURE_FIELDS}
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PlaceHit:
+    """One place a query scan may see, and what verification said.
+
+    Attributes
+    ----------
+    place_id : int
+    name : str or None
+    pose : Pose2 or None
+        Pose of the query scan's sensor frame in the place's frame (maps the query's
+        points into the place's frame); None when the verdict is ``rejected``.
+    score : float
+        Raw-scan agreement of the match (at most 1; 0 without a pose).
+    verdict : str
+        ``"accepted"``, ``"ambiguous"`` or ``"rejected"`` (:mod:`.verify`).
+    distance : float
+        Signature distance of the prefilter (:func:`.signature.signature_distance`).
+    rank : int
+        Rank of the place in the prefilter (0: nearest signature).
+    n_features : int
+        Mapped features agreeing with the pose.
+    covariance : ndarray (3, 3) or None
+        Covariance of ``pose``.
+    reason : str
+        The validation's reason, in words.
+    """
+
+    place_id: int
+    name: str | None
+    pose: Pose2 | None
+    score: float
+    verdict: str
+    distance: float
+    rank: int
+    n_features: int
+    covariance: np.ndarray | None
+    reason: str
+
+    def to_dict(self) -> dict:
+        p = self.pose
+        return {
+            "place_id": self.place_id,
+            "name": self.name,
+            "pose": None if p is None else {"x": p.x, "y": p.y, "theta": p.theta},
+            "score": self.score,
+            "verdict": self.verdict,
+            "distance": self.distance,
+            "rank": self.rank,
+            "n_features": self.n_features,
+            "reason": self.reason,
+        }
+
+
+def _get(d: dict, dotted: str):
+    for part in dotted.split("."):
+        d = d.get(part, {}) if isinstance(d, dict) else {}
+    return d
+
+
+def _flat(d, prefix=""):
+    if not isinstance(d, dict):
+        return {prefix: d}
+    out = {}
+    for k, v in d.items():
+        out.update(_flat(v, f"{prefix}.{k}" if prefix else k))
+    return out
+
+
+def config_differences(stored: dict, given: dict, keys=PREPARE_KEYS) -> list[str]:
+    """``"section.key: stored X, given Y"`` for each value under ``keys`` that differs."""
+    out = []
+    for key in keys:
+        a, b = _flat(_get(stored, key), key), _flat(_get(given, key), key)
+        for k in sorted(set(a) | set(b)):
+            if a.get(k) != b.get(k):
+                out.append(f"{k}: database {a.get(k)!r}, given {b.get(k)!r}")
+    return out
+
+
+class PlaceDB:
+    """A persistent database of places (paper §2: topological localisation).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The SQLite file; created when absent.
+    config : MatchConfig, optional
+        The configuration to prepare and match scans with. A new database stores it; an
+        existing one refuses a configuration whose :data:`PREPARE_KEYS` values differ
+        from its own (its places were prepared with those). None: the stored one (the
+        defaults for a new database).
+    readonly : bool
+        Open an existing database for queries only.
+    durable : bool
+        Commit with ``synchronous=FULL`` (survive power loss, slower adds).
+    min_score : float
+        Accepted matches below this raw-scan score are rejected (:func:`.verify_pair`).
+    cache : int
+        Prepared places kept in memory (most recently used).
+
+    Raises
+    ------
+    PlaceDatabaseError
+        The file is not a place database, is newer, corrupted, or was built with an
+        incompatible configuration or signature.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        config: MatchConfig | None = None,
+        *,
+        readonly: bool = False,
+        durable: bool = False,
+        min_score: float = 0.0,
+        cache: int = 4096,
+    ) -> None:
+        given = None if config is None else config_to_dict(config)
+        meta = {
+            "config": json.dumps(given if given is not None else config_to_dict(MatchConfig())),
+            "signature_version": str(SIGNATURE_VERSION),
+            "signature_size": str(SIGNATURE_SIZE),
+            "scanclique_version": __version__,
+        }
+        self.store = PlaceStore(path, meta, readonly=readonly, durable=durable)
+        self.path = self.store.path
+        try:
+            self.config = self._check_meta(given, config)
+        except BaseException:
+            self.store.close()
+            raise
+        self.min_score = float(min_score)
+        self.index = SignatureIndex(SIGNATURE_SIZE)
+        self._last = 0
+        self._cache: OrderedDict[int, PreparedScan] = OrderedDict()
+        self._cache_size = int(cache)
+        self._names: dict[int, str | None] = {}
+        self.refresh()
+
+    def _check_meta(self, given: dict | None, config: MatchConfig | None) -> MatchConfig:
+        where = os.fspath(self.path)
+        m = self.store.meta
+        sv = m.get("signature_version")
+        if sv != str(SIGNATURE_VERSION) or m.get("signature_size") != str(SIGNATURE_SIZE):
+            raise PlaceDatabaseError(
+                f"{where}: signatures of version {sv} ({m.get('signature_size')} values); this "
+                f"scanclique computes version {SIGNATURE_VERSION} ({SIGNATURE_SIZE}): rebuild "
+                "the database"
+            )
+        try:
+            stored = json.loads(m.get("config", ""))
+            stored_cfg = config_from_dict(stored)
+        except (ValueError, ConfigError) as exc:
+            raise PlaceDatabaseError(f"{where}: meta.config is not a valid configuration ({exc})")
+        if given is None:
+            return stored_cfg
+        diff = config_differences(stored, given)
+        if diff:
+            raise PlaceDatabaseError(
+                f"{where}: the configuration differs from the one its places were prepared "
+                f"with: {'; '.join(diff)}"
+            )
+        return config
+
+    # -- writing -----------------------------------------------------------------------
+    def prepare(self, scan: Scan) -> PreparedScan:
+        """The scan prepared with the database's configuration."""
+        return prepare_scan(scan, self.config)
+
+    def add(self, scan: Scan, name: str | None = None) -> int:
+        """Store ``scan`` as a new place, with its features and signature, in one
+        transaction; returns the place id.
+
+        Raises
+        ------
+        PlaceDatabaseError
+            ``name`` is already used (names are unique; None is allowed any number of
+            times).
+        """
+        p = self.prepare(scan)
+        sig = scan_signature(p)
+        pid = self.store.add(scan, feature_arrays(p), sig, name=name, n_features=len(p.features))
+        self.refresh()
+        self._remember(pid, p)
+        return pid
+
+    # -- reading -----------------------------------------------------------------------
+    def refresh(self) -> int:
+        """Load the signatures of places added since the last call (by any process);
+        returns how many."""
+        ids, sigs = self.store.signatures_after(self._last)
+        if len(ids):
+            self.index.add(ids, sigs)
+            self._last = int(ids[-1])
+        return len(ids)
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    @property
+    def ids(self) -> np.ndarray:
+        return self.index.ids
+
+    def get(self, place_id: int) -> PlaceRecord:
+        """The stored place (scan, features' arrays)."""
+        return self.store.get(place_id)
+
+    def _remember(self, pid: int, p: PreparedScan) -> None:
+        self._cache[pid] = p
+        self._cache.move_to_end(pid)
+        while len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+
+    def prepared(self, place_id: int) -> PreparedScan:
+        """The stored place's scan, prepared (cached)."""
+        pid = int(place_id)
+        p = self._cache.get(pid)
+        if p is None:
+            p = self.prepare(self.store.get(pid, arrays=False).scan)
+        self._remember(pid, p)
+        return p
+
+    def candidates(
+        self, scan: Scan | PreparedScan, n: int = 10, exclude: Iterable[int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The prefilter alone: ids of the ``n`` places of nearest signature and their
+        distances, nearest first (places in ``exclude`` left out)."""
+        self.refresh()
+        p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
+        return self._candidates(scan_signature(p), n, exclude)
+
+    def _candidates(self, sig, n, exclude):
+        allowed = None
+        if exclude is not None:
+            ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
+            if len(ex):
+                allowed = ~np.isin(self.index.ids, ex)
+        return self.index.search(sig, n, allowed)
+
+    def query(
+        self,
+        scan: Scan | PreparedScan,
+        k: int = 5,
+        *,
+        candidates: int | None = None,
+        exclude: Iterable[int] | None = None,
+    ) -> list[PlaceHit]:
+        """The places ``scan`` may see, verified, best first.
+
+        Parameters
+        ----------
+        scan : Scan or PreparedScan
+            The query (prepared with the database's configuration when a Scan).
+        k : int
+            Return at most this many hits.
+        candidates : int, optional
+            Verify this many prefilter candidates (default ``k``); the best ``k`` of them
+            are returned.
+        exclude : iterable of int, optional
+            Place ids not to consider (e.g. the scans just before the query in a log).
+
+        Returns
+        -------
+        list of PlaceHit
+            Accepted first, then ambiguous, then rejected; by raw-scan score within each.
+            ``hit.pose`` maps the query's points into the place's frame.
+        """
+        self.refresh()
+        p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
+        n = max(int(k), int(candidates or 0))
+        ids, dist = self._candidates(scan_signature(p), n, exclude)
+        missing = [int(i) for i in ids if int(i) not in self._names]
+        if missing:
+            self._names.update(self.store.names(missing))
+        hits = []
+        for rank, (pid, d) in enumerate(zip(ids.tolist(), dist.tolist(), strict=True)):
+            v = verify_pair(self.prepared(pid), p, self.config, min_score=self.min_score)
+            hits.append(
+                PlaceHit(
+                    pid,
+                    self._names.get(pid),
+                    v.pose,
+                    v.score,
+                    v.verdict,
+                    float(d),
+                    rank,
+                    v.n_features,
+                    v.covariance,
+                    v.reason,
+                )
+            )
+        hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.score, h.rank))
+        return hits[: int(k)]
+
+    def best(self, scan: Scan | PreparedScan, **kw) -> PlaceHit | None:
+        """The best hit if it is not rejected, else None (``kw`` as for :meth:`query`)."""
+        hits = self.query(scan, **kw)
+        return hits[0] if hits and hits[0].verdict != REJECTED else None
+
+    def info(self, check: bool = False) -> dict:
+        """Counts, sizes, versions and the stored configuration; ``check`` also runs
+        SQLite's integrity check (reads the whole file)."""
+        out = {"path": os.fspath(self.path), **self.store.stats()}
+        m = self.store.meta
+        out.update(
+            {
+                "schema_version": int(m.get("schema_version", 0)),
+                "signature_version": int(m.get("signature_version", 0)),
+                "signature_size": int(m.get("signature_size", 0)),
+                "scanclique_version": m.get("scanclique_version"),
+                "created": float(m["created"]) if "created" in m else None,
+                "config": json.loads(m.get("config", "{}")),
+            }
+        )
+        if check:
+            out["integrity"] = self.store.integrity_check() or ["ok"]
+        return out
+
+    def close(self) -> None:
+        self.store.close()
+
+    def __enter__(self) -> PlaceDB:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

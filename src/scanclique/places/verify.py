@@ -1,0 +1,156 @@
+"""Verification of a place candidate: the clique matcher, then validation (paper §5–§7).
+
+The prefilter (:mod:`.index`) only ranks; a place is recognised when the matcher finds
+the mapping of the features common to the stored observation and the query and the
+validation (:func:`scanclique.validation.validate_match`) accepts it. Without a prior
+(a place query has no odometry between the place and the query) the validation rests on
+the match's own evidence: enough mapped features, a constellation that fixes the pose,
+and no rival hypothesis (symmetry) explaining the scans nearly as well.
+
+A candidate's verdict, with the meanings of pairwise validation:
+
+``accepted``
+    the validation accepted the match (and its raw-scan score is at least ``min_score``):
+    the pose can be used;
+``ambiguous``
+    distinct hypotheses explain the scans about equally well (the place repeats): the
+    pose is the best one's, and must not be used without other evidence;
+``rejected``
+    no pose, too few mapped features, a constellation that does not fix the pose, or an
+    accepted match whose score is below ``min_score``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import MatchConfig
+from ..geometry import Pose2
+from ..match import PreparedScan, match_prepared
+from ..validation import ACCEPTED as _V_ACCEPTED
+from ..validation import AMBIGUOUS as _V_AMBIGUOUS
+from ..validation import ValidationConfig, validate_match
+
+__all__ = ["ACCEPTED", "AMBIGUOUS", "REJECTED", "VERDICTS", "Verification", "verify_pair"]
+
+ACCEPTED = "accepted"
+AMBIGUOUS = "ambiguous"
+REJECTED = "rejected"
+VERDICTS = (ACCEPTED, AMBIGUOUS, REJECTED)
+#: order of verdicts when ranking hits (best first)
+VERDICT_RANK = {ACCEPTED: 0, AMBIGUOUS: 1, REJECTED: 2}
+
+
+def _readonly(a):
+    if a is None:
+        return None
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Verification:
+    """The verdict on one (place, query) pair.
+
+    Attributes
+    ----------
+    verdict : str
+        ``"accepted"``, ``"ambiguous"`` or ``"rejected"`` (module docstring).
+    pose : Pose2 or None
+        Pose of the query's sensor frame in the place's frame (maps query points into
+        the place's frame); None when rejected.
+    covariance : ndarray (3, 3) or None
+        Covariance of ``pose`` from the mapped features (m², m·rad, rad²).
+    score : float
+        Raw-scan agreement of the match's pose (:func:`scanclique.match.pose_score`,
+        at most 1); 0 without a pose.
+    n_features : int
+        Mapped features that agree with the pose.
+    validation : str
+        The pairwise validation's verdict (``accepted``, ``ambiguous``,
+        ``too_few_features``).
+    reason : str
+        Why, in words.
+    seconds : float
+        Time of the match and its validation.
+    """
+
+    verdict: str
+    pose: Pose2 | None
+    covariance: np.ndarray | None
+    score: float
+    n_features: int
+    validation: str
+    reason: str
+    seconds: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "covariance", _readonly(self.covariance))
+
+    def to_dict(self) -> dict:
+        p = self.pose
+        return {
+            "verdict": self.verdict,
+            "pose": None if p is None else {"x": p.x, "y": p.y, "theta": p.theta},
+            "score": self.score,
+            "n_features": self.n_features,
+            "validation": self.validation,
+            "reason": self.reason,
+        }
+
+
+def verify_pair(
+    place: PreparedScan,
+    query: PreparedScan,
+    config: MatchConfig | None = None,
+    *,
+    min_score: float = 0.0,
+    validation: ValidationConfig | None = None,
+) -> Verification:
+    """Match ``query`` against ``place`` and validate the match (no odometry).
+
+    Parameters
+    ----------
+    place, query : PreparedScan
+        The stored observation (scan A of the match) and the query (scan B).
+    config : MatchConfig, optional
+    min_score : float
+        An accepted match whose raw-scan score is below this is ``rejected`` (0: the
+        validation alone decides).
+    validation : ValidationConfig, optional
+
+    Returns
+    -------
+    Verification
+        ``pose`` maps the query's points into the place's frame.
+    """
+    t0 = time.perf_counter()
+    cfg = config or MatchConfig()
+    m = match_prepared(place, query, cfg)
+    v = validate_match(m, config=validation)
+    reason = v.reasons[0] if v.reasons else ""
+    if v.verdict == _V_ACCEPTED and m.score >= min_score:
+        verdict = ACCEPTED
+    elif v.verdict == _V_ACCEPTED:
+        verdict = REJECTED
+        reason = f"raw-scan score {m.score:.3f} below min_score {min_score:g}; {reason}"
+    elif v.verdict == _V_AMBIGUOUS:
+        verdict = AMBIGUOUS
+    else:
+        verdict = REJECTED
+    pose = v.pose if verdict != REJECTED else None
+    cov = v.covariance if verdict != REJECTED else None
+    return Verification(
+        verdict,
+        pose,
+        cov,
+        float(m.score) if m.pose is not None else 0.0,
+        int(v.n_features),
+        v.verdict,
+        reason,
+        time.perf_counter() - t0,
+    )
