@@ -277,11 +277,12 @@ def test_property_maxsat_filter_is_exact(adj):
     # dense graphs beyond the reference's reach: the search with the MaxSAT-style filter
     # (from the first node, or after local search as by default) must find the clique
     # number and every maximum clique that the plain colouring bound finds
-    from scanclique import _clique_kernels as K
+    from scanclique._kernels.clique_search import solve
+    from scanclique._kernels.codes import NO_LIMIT, Mode
 
     A = bitsets_from_adjacency(adj)
     n = adj.shape[0]
-    runs = [K.solve(A, n, 0, 2, 10**6, np.inf, time.perf_counter(), opts) for opts in (0, 1, 3)]
+    runs = [solve(A, n, 0, int(Mode.ALL_MAXIMUM), 10**6, np.inf, NO_LIMIT, o) for o in (0, 1, 3)]
     omegas = {r[0].shape[0] for r in runs}
     assert len(omegas) == 1 and all(r[2] == 0 and r[4] == 0 for r in runs)
     found = [sorted(map(tuple, r[3].tolist())) for r in runs]
@@ -329,18 +330,18 @@ def blocky(n: int, p: float, b: int, q: float, seed: int) -> np.ndarray:
 
 def lean_path(adj: np.ndarray) -> str:
     """Which way ``max_clique(adj)`` goes (the steps of ``maximum_peeled``, replayed)."""
-    from scanclique import _clique_kernels as K
+    from scanclique._kernels import clique_search, heuristics, ordering
 
     n = adj.shape[0]
     if n <= 64:
         return "word"
     A = bitsets_from_adjacency(adj)
     deg = adj.sum(1).astype(np.int64)
-    top = np.argsort(-deg, kind="stable")[: K.SPARSE_STARTS].astype(np.int64)
+    top = np.argsort(-deg, kind="stable")[: clique_search.SPARSE_STARTS].astype(np.int64)
     scratch = (np.empty(n + 1, np.int64), np.empty(n, np.int64), np.empty(A.shape[1], np.uint64))
-    k = K._greedy_raw(A, deg, top, len(top), *scratch)
+    k = heuristics.greedy_by_degree(A, deg, top, len(top), *scratch)
     alive = bitsets_from_adjacency(np.ones((1, n), bool))[0].copy()
-    m = K._peel(A, n, deg, k, alive, np.empty(n, np.int64))
+    m = ordering.peel_core(A, n, deg, k, alive, np.empty(n, np.int64))
     core = np.flatnonzero(bitsets_to_bool(alive, n))
     if m == 0:
         return "empty core"
@@ -349,6 +350,16 @@ def lean_path(adj: np.ndarray) -> str:
     if 4 * deg[core].sum() <= m * m:
         return "core in words"
     return "dense core" if m < n else "dense"
+
+
+def full_search(adj: np.ndarray):
+    """The full search (degeneracy order, local search, MaxSAT-style filter) in mode
+    MAXIMUM, without the lean paths: ``(clique, nodes, status, found, status_all)``."""
+    from scanclique._kernels.clique_search import OPT_DEFAULT, solve
+    from scanclique._kernels.codes import NO_LIMIT, Mode
+
+    A = bitsets_from_adjacency(adj)
+    return solve(A, adj.shape[0], 0, int(Mode.MAXIMUM), 0, np.inf, NO_LIMIT, OPT_DEFAULT)
 
 
 def bitsets_to_bool(bits: np.ndarray, n: int) -> np.ndarray:
@@ -418,10 +429,7 @@ def test_property_peeled_path_vs_bron_kerbosch(adj, lower_bound):
 def test_property_dense_core_vs_full_search(adj, lower_bound):
     # a dense core of more than 64 vertices goes to the full search, on the core alone:
     # the clique number must be the full search's on the whole graph
-    from scanclique import _clique_kernels as K
-
-    n = adj.shape[0]
-    best, _, status, _, _ = K.solve(bitsets_from_adjacency(adj), n, 0, 0, 0, np.inf, 0.0, 3)
+    best, _, status, _, _ = full_search(adj)
     assert status == 0
     check_max_clique(adj, lower_bound, omega=best.shape[0])
 
@@ -442,10 +450,7 @@ def test_property_dense_core_vs_full_search(adj, lower_bound):
 )
 def test_lean_paths(adj, path):
     assert lean_path(adj) == path
-    from scanclique import _clique_kernels as K
-
-    n = adj.shape[0]
-    best, _, _, _, _ = K.solve(bitsets_from_adjacency(adj), n, 0, 0, 0, np.inf, 0.0, 3)
+    best, _, _, _, _ = full_search(adj)
     omega = best.shape[0]
     for lower_bound in (None, omega - 1, omega, omega + 1):
         check_max_clique(adj, lower_bound, omega=omega)
@@ -465,25 +470,27 @@ def test_lean_path_time_limit():
 def test_one_word_search_time_limit():
     # the one-word search stops at its deadline (max_clique hands a dense graph like this
     # to the full search after a few hundred nodes, before the clock is read)
-    from scanclique import _clique_kernels as K
+    from scanclique._kernels.clique_search import _bb_word
+    from scanclique._kernels.codes import NO_LIMIT, Status
 
     adj = random_graph(64, 0.9, 59)  # 5945 nodes, the clock read every 4096
     S = bitsets_from_adjacency(adj)[:, 0].copy()
     found = np.empty(64, np.int64)
-    size, nodes, status = K._bb_word(S, 64, 0, 0.0, found, 1 << 62, np.empty(65, np.uint64))
-    assert status == 1
+    size, nodes, status = _bb_word(S, 64, 0, 0.0, found, NO_LIMIT, np.empty(65, np.uint64))
+    assert status == Status.TIME_LIMIT
     assert size == 0 or is_clique(adj, found[:size])
-    size, nodes, status = K._bb_word(S, 64, 0, np.inf, found, 1 << 62, np.empty(65, np.uint64))
-    assert status == 0 and size == max_clique(adj).size and is_clique(adj, found[:size])
+    size, nodes, status = _bb_word(S, 64, 0, np.inf, found, NO_LIMIT, np.empty(65, np.uint64))
+    assert status == Status.FINISHED and size == max_clique(adj).size
+    assert is_clique(adj, found[:size])
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 11, 63, 64, 65, 100, 128, 130])
 def test_packing(n):
     # 64 flags at a time where 64 bytes can be read, the last bytes eight or one at a time
-    from scanclique import _clique_kernels as K
+    from scanclique._kernels.bitset import pack_checked
 
     adj = random_graph(n, 0.5, n)
-    A, u, v = K.pack_checked(adj)
+    A, u, v = pack_checked(adj)
     assert (u, v) == (-1, -1) and np.array_equal(A, bitsets_from_adjacency(adj))
     for i, j in [(0, n - 1), (n - 1, 0), (n // 2, n - 1), (n - 1, n - 2)]:
         if i == j or min(i, j) < 0:
@@ -610,3 +617,295 @@ def test_dimacs_table_has_all_27():
     if not OMEGA:
         pytest.skip(f"DIMACS data not found: {_dimacs_dir()}/omega.txt (set SCANCLIQUE_DATA)")
     assert len(OMEGA) == 27
+
+
+# -- node budgets: results that do not depend on the machine (issue 15, item 3) ------------
+BUDGET_GRAPHS = [
+    pytest.param(random_graph(40, 0.7, 2), id="word"),
+    pytest.param(random_graph(64, 0.9, 59), id="word-dense-then-full"),
+    pytest.param(random_graph(400, 0.2, 11), id="core-in-words"),
+    pytest.param(blocky(150, 0.03, 80, 0.5, 6), id="dense-core"),
+    pytest.param(random_graph(100, 0.5, 7), id="dense"),
+]
+
+
+@pytest.mark.parametrize("adj", BUDGET_GRAPHS)
+def test_node_limit_gives_the_same_result_regardless_of_time(adj):
+    full = max_clique(adj)
+    assert full.optimal and full.reason is None and full.nodes > 3
+    for limit in (1, full.nodes // 3, full.nodes - 1):
+        runs = [max_clique(adj, node_limit=limit, time_limit=t) for t in (None, 1e6, None)]
+        assert len({(tuple(r.vertices.tolist()), r.nodes, r.optimal) for r in runs}) == 1
+        r = runs[0]
+        assert is_clique(adj, r.vertices) and r.size <= full.size
+        assert r.nodes <= limit + 2
+        if not r.optimal:
+            assert r.reason == "node_limit"
+    # a limit the search does not reach changes nothing
+    r = max_clique(adj, node_limit=full.nodes + 5)
+    assert r.optimal and r.vertices.tolist() == full.vertices.tolist() and r.nodes == full.nodes
+
+
+def test_node_limit_stops_a_search_that_cannot_finish():
+    adj = random_graph(400, 0.9, 5)
+    a, b = (max_clique(adj, node_limit=5000) for _ in range(2))
+    assert not a.optimal and a.reason == "node_limit" and a.nodes <= 5002
+    assert a.vertices.tolist() == b.vertices.tolist() and is_clique(adj, a.vertices)
+
+
+@pytest.mark.parametrize("adj", BUDGET_GRAPHS[1:])
+def test_node_limit_of_the_other_entry_points(adj):
+    full = all_maximum_cliques(adj, limit=10**6)
+    assert full.complete and full.reason is None and full.nodes > 0
+    limit = max(full.nodes // 2, 1)
+    a, b = (
+        all_maximum_cliques(adj, limit=10**6, node_limit=limit, time_limit=t) for t in (None, 1e6)
+    )
+    assert [c.tolist() for c in a.cliques] == [c.tolist() for c in b.cliques]
+    assert (a.omega, a.optimal, a.complete, a.nodes) == (b.omega, b.optimal, b.complete, b.nodes)
+    assert not a.complete and a.reason == "node_limit" and a.nodes <= limit + 2
+    assert all(is_clique(adj, c) for c in a.cliques)
+    w = np.arange(adj.shape[0], dtype=float) % 7 + 1
+    fw = max_clique(adj, weights=w)
+    if fw.nodes > 2:
+        ws = [max_clique(adj, weights=w, node_limit=fw.nodes // 2) for _ in range(2)]
+        assert ws[0].vertices.tolist() == ws[1].vertices.tolist() and ws[0].weight == ws[1].weight
+        assert not ws[0].optimal and ws[0].reason == "node_limit"
+    t1, t2 = (top_cliques(adj, 4, node_limit=50) for _ in range(2))
+    assert [c.tolist() for c in t1] == [c.tolist() for c in t2] and len(t1) >= 1
+
+
+def test_reasons():
+    adj = random_graph(50, 0.5, 4)
+    omega = max_clique(adj).size
+    assert max_clique(adj, lower_bound=omega + 1).reason == "lower_bound"
+    assert max_clique(adj, lower_bound=omega).reason is None
+    G = nx.turan_graph(12, 4)
+    a = all_maximum_cliques(G, limit=10)
+    assert a.optimal and not a.complete and a.reason == "clique_limit"
+    r = max_clique(random_graph(400, 0.9, 5), time_limit=0.05)
+    assert not r.optimal and r.reason == "time_limit"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"time_limit": "1"}, "time_limit must be a number"),
+        ({"time_limit": True}, "time_limit must be a number"),
+        ({"time_limit": -1.0}, "non-negative"),
+        ({"node_limit": 2.5}, "node_limit must be an int"),
+        ({"node_limit": "10"}, "node_limit must be an int"),
+        ({"node_limit": -1}, "node_limit must be non-negative"),
+    ],
+)
+def test_budget_arguments_are_checked(kwargs, match):
+    adj = random_graph(10, 0.5, 1)
+    for f in (max_clique, all_maximum_cliques, lambda g, **kw: top_cliques(g, 2, **kw)):
+        with pytest.raises(GraphError, match=match):
+            f(adj, **kwargs)
+
+
+# -- bounded memory: vertex counts checked before allocating (issue 15, item 2) ------------
+def test_edge_list_naming_a_huge_vertex_is_refused():
+    e = np.array([[0, 10**8]])
+    for f in (max_clique, all_maximum_cliques, as_adjacency, lambda g: top_cliques(g, 2)):
+        with pytest.raises(GraphError, match=r"edge list: 100000001 vertices would need 10\.0 PiB"):
+            f(e)
+    with pytest.raises(GraphError, match="limit is 32768 vertices"):
+        as_adjacency((np.zeros((0, 2), np.int64), 10**6))
+    with pytest.raises(GraphError, match="limit is 100 vertices"):
+        as_adjacency((np.array([[0, 1]]), 101), max_vertices=100)
+    assert as_adjacency((np.array([[0, 1]]), 100), max_vertices=100).shape == (100, 100)
+    with pytest.raises(GraphError, match="networkx graph: 40000 vertices"):
+        max_clique(nx.empty_graph(40000))
+    with pytest.raises(GraphError, match="max_vertices must be a non-negative int"):
+        as_adjacency(e, max_vertices=1.5)
+
+
+def test_vertex_bound_from_the_environment(monkeypatch):
+    monkeypatch.setenv("SCANCLIQUE_MAX_VERTICES", "10")
+    with pytest.raises(GraphError, match="limit is 10 vertices"):
+        max_clique(np.array([[0, 10]]))
+    assert max_clique(np.array([[0, 9]])).size == 2
+    monkeypatch.setenv("SCANCLIQUE_MAX_VERTICES", "lots")
+    with pytest.raises(GraphError, match="SCANCLIQUE_MAX_VERTICES must be a whole number"):
+        max_clique(np.array([[0, 9]]))
+
+
+def test_huge_vertex_is_refused_under_a_memory_limit(tmp_path):
+    # in a child limited to 1 GiB of address space: a GraphError, not numpy's MemoryError
+    import subprocess
+    import sys
+
+    code = (
+        "import resource, numpy as np\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n"
+        "from scanclique.clique import max_clique\n"
+        "from scanclique.errors import GraphError\n"
+        "try:\n"
+        "    max_clique(np.array([[0, 10**8]]))\n"
+        "except GraphError as e:\n"
+        "    print('GraphError', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "SCANCLIQUE_MAX_VERTICES"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1] / "src")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.startswith("GraphError edge list: 100000001 vertices would need")
+
+
+# -- DIMACS files: weights used or refused, omega only when proven (issue 15, item 13) -----
+def _weighted_file(tmp_path) -> Path:
+    from scanclique.io.dimacs import write_dimacs
+
+    # K4 on vertices 1..4 (weight 1 each), and the edge 5-6 (weight 10 each)
+    edges = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3], [4, 5]])
+    path = tmp_path / "w.clq"
+    write_dimacs(path, (edges, 6), weights=np.array([1, 1, 1, 1, 10, 10.0]))
+    return path
+
+
+def test_solve_file_uses_vertex_weights(tmp_path):
+    path = _weighted_file(tmp_path)
+    out = solve_file(path)
+    json.dumps(out)
+    assert out["weighted"] and out["clique"] == [5, 6] and out["weight"] == 20.0
+    assert out["optimal"] and out["omega"] is None and out["size"] == 2
+    out = solve_file(path, weights=False)
+    assert not out["weighted"] and out["clique"] == [1, 2, 3, 4] and out["omega"] == 4
+    assert out["weight"] is None
+    with pytest.raises(GraphError, match="vertex weights.*by cardinality"):
+        solve_file(path, all=True)
+    assert solve_file(path, all=True, weights=False)["cliques"] == [[1, 2, 3, 4]]
+    with pytest.raises(GraphError, match="no 'n v w' weight lines"):
+        solve_file(_unweighted(tmp_path), weights=True)
+
+
+def _unweighted(tmp_path) -> Path:
+    from scanclique.io.dimacs import write_dimacs
+
+    path = tmp_path / "u.clq"
+    write_dimacs(path, random_graph(12, 0.5, 3))
+    return path
+
+
+def test_solve_file_reports_omega_only_when_proven(tmp_path):
+    from scanclique.io.dimacs import write_dimacs
+
+    path = tmp_path / "hard.clq"
+    write_dimacs(path, random_graph(300, 0.9, 8))
+    out = solve_file(path, node_limit=100)
+    assert not out["optimal"] and out["reason"] == "node_limit" and out["omega"] is None
+    assert out["size"] >= 20 and len(out["clique"]) == out["size"]
+    with pytest.raises(GraphError, match="limit is 100 vertices"):
+        solve_file(path, max_vertices=100)
+
+
+# -- the kernel cache stamp (issue 11, item 5) ---------------------------------------------
+def test_kernel_stamp_changes_with_any_kernel_source(tmp_path):
+    import shutil
+
+    from scanclique._kernels import kernel_sources, kernel_stamp
+
+    src = kernel_sources()
+    names = {p.name for p in src}
+    assert {"__init__.py", "clique_search.py", "bitset.py"} <= names
+    assert any(p.name.endswith("_kernels.py") and p.parent.name == "scanclique" for p in src)
+    pkg = tmp_path / "pkg"
+    (pkg / "_kernels").mkdir(parents=True)
+    for p in src:
+        dest = pkg / "_kernels" / p.name if p.parent.name == "_kernels" else pkg / p.name
+        shutil.copy(p, dest)
+    copies = kernel_sources(pkg)
+    assert len(copies) == len(src) and kernel_stamp(copies) == kernel_stamp()
+    before = kernel_stamp(copies)
+    callee = pkg / "_kernels" / "bitset.py"
+    callee.write_text(callee.read_text().replace("ONE = np.uint64(1)", "ONE = np.uint64(1)  #"))
+    assert kernel_stamp(kernel_sources(pkg)) != before
+    (pkg / "_kernels" / "extra.py").write_text("")
+    assert len({before, kernel_stamp(kernel_sources(pkg))}) == 2
+
+
+def test_cache_dir_respects_the_users_numba_cache_dir(tmp_path, monkeypatch):
+    from scanclique._kernels import _MARK, cache_dir_for
+
+    monkeypatch.delenv(_MARK, raising=False)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert cache_dir_for("abc") == tmp_path / "scanclique-abc"
+    # a child process inherits the stamped directory: it is not stamped again
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "scanclique-abc"))
+    monkeypatch.setenv(_MARK, str(tmp_path / "scanclique-abc"))
+    assert cache_dir_for("abc") == tmp_path / "scanclique-abc"
+    assert cache_dir_for("def") == tmp_path / "scanclique-def"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.delenv(_MARK)
+    assert cache_dir_for("abc").name == "kernels-abc"
+
+
+_CALLER = """
+from ._kernels import callee
+import numba
+
+@numba.njit(cache=True)
+def g(x):
+    return 10 * callee.f(x)
+"""
+_CALLEE = """
+import numba
+
+@numba.njit(cache=True)
+def f(x):
+    return x + {k}
+"""
+_STAMPED = """
+import os
+from scanclique._kernels import ensure_cache
+
+ensure_cache(package=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+"""
+
+
+def _run_caller(root: Path, k: int) -> int:
+    """Write the callee with ``x + k``, then call the caller from a fresh process."""
+    import subprocess
+    import sys
+
+    (root / "kpkg" / "_kernels" / "callee.py").write_text(_CALLEE.format(k=k))
+    env = {
+        key: v
+        for key, v in os.environ.items()
+        if key not in ("NUMBA_CACHE_DIR", "SCANCLIQUE_KERNEL_CACHE")
+    }
+    src = Path(__file__).resolve().parents[1] / "src"
+    env["PYTHONPATH"] = os.pathsep.join([str(root), str(src)])
+    code = "import kpkg._caller_kernels as m; print(m.g(1))"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return int(r.stdout.split()[-1])
+
+
+def _kernel_package(root: Path, stamped: bool) -> None:
+    (root / "kpkg" / "_kernels").mkdir(parents=True)
+    (root / "kpkg" / "__init__.py").write_text("")
+    (root / "kpkg" / "_kernels" / "__init__.py").write_text(_STAMPED if stamped else "")
+    (root / "kpkg" / "_caller_kernels.py").write_text(_CALLER)
+
+
+def test_editing_a_callee_recompiles_its_callers(tmp_path):
+    # the documented trap, gone: a cached kernel that calls a kernel of another module
+    # sees the callee's edit in the next process
+    _kernel_package(tmp_path, stamped=True)
+    assert _run_caller(tmp_path, 1) == 20
+    assert _run_caller(tmp_path, 1) == 20  # from the cache
+    assert _run_caller(tmp_path, 2) == 30  # the callee changed: recompiled
+    stamps = list((tmp_path / "kpkg" / "__pycache__").glob("kernels-*"))
+    assert len(stamps) == 2
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SLOW, reason="seconds; set SCANCLIQUE_SLOW_TESTS=1")
+def test_without_the_stamp_the_trap_is_real(tmp_path):
+    # the control: numba's own cache keeps the caller's stale code (why the stamp exists)
+    _kernel_package(tmp_path, stamped=False)
+    assert _run_caller(tmp_path, 1) == 20
+    assert _run_caller(tmp_path, 2) == 20

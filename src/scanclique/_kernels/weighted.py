@@ -1,0 +1,163 @@
+"""Maximum-weight clique by branch and bound with the weighted colouring bound
+(Kumlander 2004) (private; see :func:`scanclique.clique.max_clique`).
+"""
+
+# ruff: noqa: E402 (ensure_cache() runs before numba is imported)
+from __future__ import annotations
+
+from . import ensure_cache
+
+ensure_cache()  # before any njit(cache=True) below picks its cache location
+
+import numba
+import numpy as np
+
+from .bitset import (
+    ONE,
+    ZERO,
+    check_mask,
+    clearbit,
+    ctpop,
+    cttz,
+    grow,
+    head,
+    mapped_sorted,
+    now,
+    setbit,
+)
+from .codes import Status
+from .colouring import colour_weighted
+from .ordering import degeneracy_order, relabel
+
+_FINISHED = int(Status.FINISHED)
+_TIME_LIMIT = int(Status.TIME_LIMIT)
+_NODE_LIMIT = int(Status.NODE_LIMIT)
+
+
+@numba.njit(cache=True)
+def solve_weighted(A, n, weights, time_limit, node_limit):
+    """Maximum-weight clique by branch and bound with the weighted colouring bound.
+
+    ``time_limit``: seconds from the call (the wall-clock guard), ``node_limit``: search
+    nodes. Returns ``(clique, weight, nodes, status)`` in the caller's labels; status
+    :class:`~scanclique._kernels.codes.Status` ``FINISHED``, ``TIME_LIMIT`` or
+    ``NODE_LIMIT``.
+    """
+    deadline = now() + time_limit
+    W = A.shape[1]
+    order, core = degeneracy_order(A, n)
+    B = relabel(A, n, order)
+    wt = np.empty(n)
+    for i in range(n):
+        wt[i] = weights[order[i]]
+    # initial clique: from each of the first 128 vertices (densest core), add the
+    # heaviest candidate until none is left
+    U = np.empty(W, np.uint64)
+    Q = np.empty(W, np.uint64)
+    best = np.empty(0, np.int64)
+    best_w = -1.0
+    cur = np.empty(n, np.int64)
+    for s in range(min(n, 128)):
+        if (s & 15) == 15 and now() > deadline:
+            break
+        for w in range(W):
+            U[w] = B[s, w]
+        cur[0] = s
+        size = 1
+        tot = wt[s]
+        while True:
+            u = -1
+            bw = -1.0
+            for w in range(W):
+                x = U[w]
+                while x:
+                    b = cttz(x)
+                    x &= x - ONE
+                    j = w * 64 + int(b)
+                    if wt[j] > bw:
+                        bw = wt[j]
+                        u = j
+            if u < 0:
+                break
+            cur[size] = u
+            size += 1
+            tot += wt[u]
+            for w in range(W):
+                U[w] &= B[u, w]
+        if tot > best_w:
+            best_w = tot
+            best = head(cur, size)
+
+    maxd = n + 2
+    Pst = np.empty((maxd, W), np.uint64)
+    pos = np.empty(maxd, np.int64)
+    base = np.empty(maxd, np.int64)
+    cnt = np.empty(maxd, np.int64)
+    C = np.empty(maxd, np.int64)
+    Cw = np.zeros(maxd)
+    cap = 4 * n + 64
+    ord_v = np.empty(cap, np.int64)
+    ord_b = np.empty(cap)
+    mask = check_mask(n, W)
+    nodes = 1
+    status = _FINISHED
+    Pst[0, :] = ZERO
+    for i in range(n):
+        setbit(Pst[0], i)
+    if n > cap:
+        cap = 2 * n
+        ord_v = np.empty(cap, np.int64)
+        ord_b = np.empty(cap)
+    base[0] = 0
+    c = colour_weighted(Pst[0], B, W, wt, best_w, U, Q, ord_v, ord_b, 0)
+    cnt[0] = c
+    pos[0] = c - 1
+    depth = 0
+    while depth >= 0:
+        # invariant: C[:depth] is a clique of weight Cw[depth]; the branching candidates
+        # left are ord_*[base + 0 .. base + pos], each with a bound on the weight it can add
+        p = pos[depth]
+        if p < 0:
+            depth -= 1
+            continue
+        b0 = base[depth]
+        v = ord_v[b0 + p]
+        if Cw[depth] + ord_b[b0 + p] <= best_w:
+            pos[depth] = -1
+            continue
+        pos[depth] = p - 1
+        size = 0
+        for w in range(W):
+            x = Pst[depth, w] & B[v, w]
+            Pst[depth + 1, w] = x
+            size += int(ctpop(x))
+        clearbit(Pst[depth], v)
+        C[depth] = v
+        Cw[depth + 1] = Cw[depth] + wt[v]
+        if size == 0:
+            if Cw[depth + 1] > best_w:
+                best_w = Cw[depth + 1]
+                best = head(C, depth + 1)
+            continue
+        nodes += 1
+        if nodes > node_limit:
+            status = _NODE_LIMIT
+            break
+        if (nodes & mask) == 0 and now() > deadline:
+            status = _TIME_LIMIT
+            break
+        nb = b0 + cnt[depth]
+        if nb + size > cap:
+            cap = 2 * (nb + size)
+            ord_v = grow(ord_v, nb, cap)
+            ord_b = grow(ord_b, nb, cap)
+        c = colour_weighted(
+            Pst[depth + 1], B, W, wt, best_w - Cw[depth + 1], U, Q, ord_v, ord_b, nb
+        )
+        if c == 0:
+            continue
+        depth += 1
+        base[depth] = nb
+        cnt[depth] = c
+        pos[depth] = c - 1
+    return mapped_sorted(best, best.shape[0], order), best_w, nodes, status

@@ -1,0 +1,164 @@
+"""SE(2) pose-graph optimisation with GTSAM (issue 12, part 3).
+
+Nodes are scan poses ``x_i`` (the sensor frame of scan ``i`` in the map frame); an edge
+``(i, j, Z, P)`` says ``x_i^-1 x_j = Z`` (``Z`` maps points of scan ``j`` into scan ``i``)
+with the covariance ``P`` of ``Z``'s ``(x, y, theta)`` as the matcher gives it (in frame
+``i``'s axes). GTSAM's ``BetweenFactorPose2`` measures the error in the tangent space at
+``Z`` (right perturbation ``Z Exp(xi)``), so ``P`` is rotated into ``Z``'s own axes first
+(:func:`tangent_covariance`). Scan 0 is held at the identity by a tight prior; the batch is
+solved by Levenberg–Marquardt (Dellaert & Kaess, "Factor graphs for robot perception",
+2017). GTSAM is imported lazily: ``import scanclique`` does not load it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..geometry import Pose2
+
+__all__ = ["tangent_covariance", "optimize", "PoseGraph"]
+
+log = logging.getLogger(__name__)
+
+#: variance standing in for an infinite one (a direction a match does not fix)
+BIG_VARIANCE = 1e4
+
+
+def _gtsam():
+    import gtsam  # noqa: PLC0415  (lazy: heavy, optional at import time)
+
+    return gtsam
+
+
+def tangent_covariance(Z: Pose2, P: np.ndarray) -> np.ndarray:
+    """The covariance ``P`` of ``(x, y, theta)`` of ``Z`` (frame-``i`` axes) expressed in
+    ``Z``'s tangent space (GTSAM's convention for Pose2 factors), made finite, symmetric and
+    positive definite.
+
+    ``Z Exp(xi) ~ (t + R(theta) xi_xy, theta + xi_theta)`` to first order, so
+    ``xi = J (dx, dy, dtheta)`` with ``J = diag(R(theta)^T, 1)``.
+    """
+    P = np.array(P, dtype=float)
+    bad = ~np.isfinite(P)
+    if bad.any():
+        d = np.diag(P).copy()
+        P[bad] = 0.0
+        np.fill_diagonal(P, np.where(np.isfinite(d), d, BIG_VARIANCE))
+    c, s = math.cos(Z.theta), math.sin(Z.theta)
+    J = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    Q = J @ P @ J.T
+    Q = 0.5 * (Q + Q.T)
+    w, V = np.linalg.eigh(Q)
+    w = np.clip(w, 1e-10, BIG_VARIANCE)
+    return (V * w) @ V.T
+
+
+class PoseGraph:
+    """A growing pose graph: nodes with initial guesses, between edges, batch solve.
+
+    Examples
+    --------
+    >>> g = PoseGraph()
+    >>> for k in range(4):
+    ...     g.add_node(k, Pose2(k * 1.1, 0.0, 0.0))
+    >>> for k in range(3):
+    ...     g.add_edge(k, k + 1, Pose2(1.0, 0.0, 0.0), np.diag([0.01, 0.01, 0.001]))
+    >>> poses = g.optimize()
+    >>> round(poses[3].x, 6)
+    3.0
+    """
+
+    def __init__(self) -> None:
+        gtsam = _gtsam()
+        self._g = gtsam
+        self.graph = gtsam.NonlinearFactorGraph()
+        self.values = gtsam.Values()
+        self.n_edges = 0
+        self._anchored = False
+
+    def add_node(self, key: int, guess: Pose2) -> None:
+        """Node ``key`` with initial guess ``guess``; the first node added is anchored."""
+        gtsam = self._g
+        self.values.insert(key, gtsam.Pose2(guess.x, guess.y, guess.theta))
+        if not self._anchored:
+            noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-6, 1e-6, 1e-8]))
+            self.graph.add(
+                gtsam.PriorFactorPose2(key, gtsam.Pose2(guess.x, guess.y, guess.theta), noise)
+            )
+            self._anchored = True
+
+    def add_edge(
+        self, i: int, j: int, Z: Pose2, covariance: np.ndarray, robust: str = "none",
+        robust_scale: float = 1.0,
+    ) -> None:  # fmt: skip
+        """Edge ``x_i^-1 x_j = Z`` with the covariance of ``Z`` (frame-``i`` axes), under
+        an optional M-estimator (``"cauchy"``, ``"huber"``)."""
+        gtsam = self._g
+        noise = gtsam.noiseModel.Gaussian.Covariance(tangent_covariance(Z, covariance))
+        if robust == "cauchy":
+            noise = gtsam.noiseModel.Robust.Create(
+                gtsam.noiseModel.mEstimator.Cauchy.Create(robust_scale), noise
+            )
+        elif robust == "huber":
+            noise = gtsam.noiseModel.Robust.Create(
+                gtsam.noiseModel.mEstimator.Huber.Create(robust_scale), noise
+            )
+        self.graph.add(gtsam.BetweenFactorPose2(i, j, gtsam.Pose2(Z.x, Z.y, Z.theta), noise))
+        self.n_edges += 1
+
+    def optimize(self, max_iterations: int = 100) -> dict[int, Pose2]:
+        """Levenberg–Marquardt from the initial guesses; the optimised pose of every node."""
+        gtsam = self._g
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(int(max_iterations))
+        params.setRelativeErrorTol(1e-6)
+        params.setAbsoluteErrorTol(1e-6)
+        result = gtsam.LevenbergMarquardtOptimizer(self.graph, self.values, params).optimize()
+        keys = list(gtsam.KeyVector(result.keys()))
+        arr = gtsam.utilities.extractPose2(result)
+        return {int(k): Pose2(a[0], a[1], a[2]) for k, a in zip(keys, arr, strict=True)}
+
+    def error(self, poses: dict[int, Pose2] | None = None) -> float:
+        """The graph's total error at ``poses`` (default: the initial guesses)."""
+        gtsam = self._g
+        if poses is None:
+            return float(self.graph.error(self.values))
+        v = gtsam.Values()
+        for k, p in poses.items():
+            v.insert(k, gtsam.Pose2(p.x, p.y, p.theta))
+        return float(self.graph.error(v))
+
+
+def optimize(
+    guesses: Sequence[Pose2],
+    edges: Sequence[tuple[int, int, Pose2, np.ndarray, bool]],
+    *,
+    robust: str = "cauchy",
+    robust_scale: float = 1.0,
+    max_iterations: int = 100,
+) -> list[Pose2]:
+    """Optimise a pose graph in batch.
+
+    Parameters
+    ----------
+    guesses : sequence of Pose2
+        Initial guess of every node ``0 .. n-1`` (node 0 is held fixed).
+    edges : sequence of (i, j, Z, covariance, is_loop)
+        ``x_i^-1 x_j = Z``; loop-closure edges (``is_loop``) get the robust kernel.
+
+    Returns
+    -------
+    list of Pose2
+        The optimised poses, node order.
+    """
+    g = PoseGraph()
+    for k, p in enumerate(guesses):
+        g.add_node(k, p)
+    for i, j, Z, P, is_loop in edges:
+        g.add_edge(i, j, Z, P, robust if is_loop else "none", robust_scale)
+    out = g.optimize(max_iterations)
+    return [out[k] for k in range(len(guesses))]

@@ -1,0 +1,205 @@
+"""Configuration of :func:`scanclique.mapping.map_scans` (one frozen dataclass per stage).
+
+Distances in metres, angles in radians. The defaults work out of the box on 2D laser logs
+recorded indoors at walking speed (the SLAM benchmark logs of Kümmerle et al. 2009).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..config import MatchConfig
+from ..errors import ConfigError
+from ..validation import OdometryNoise
+
+__all__ = [
+    "FrontEndConfig",
+    "LoopConfig",
+    "BackEndConfig",
+    "OccupancyConfig",
+    "MapConfig",
+]
+
+
+def _positive(obj, *names: str) -> None:
+    for name in names:
+        v = getattr(obj, name)
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{type(obj).__name__}.{name} must be a number > 0, got {v!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class FrontEndConfig:
+    """Consecutive association (issue 12, part 1).
+
+    Each scan is matched against the current *keyframe* (the last scan that moved at
+    least ``keyframe_distance`` or turned ``keyframe_angle`` from the keyframe before it):
+    a robot standing still or creeping accumulates no drift, and every match spans a
+    baseline the features can measure.
+
+    Attributes
+    ----------
+    keyframe_distance, keyframe_angle : float
+        A scan this far (m) or turned this much (rad) from the keyframe becomes the next
+        keyframe.
+    odometry_noise : OdometryNoise
+        Error model of the wheel odometry (the prior of the §7 gate, and the covariance of
+        an odometry edge when a match fails).
+    velocity_noise : OdometryNoise
+        Without odometry: the error model of the constant-velocity prediction, the prior
+        of the gate and the (inflated) covariance of a constant-velocity edge.
+    sigma_floor_metres, sigma_floor_radians : float
+        Standard deviations added to every match's feature covariance before it weighs an
+        edge (the feature estimate alone is often optimistic).
+    refine, refine_iterations, refine_max_correspondence, refine_min_correspondence :
+        Beyond the matcher: an accepted match (consecutive or closure) is refined by
+        point-to-line ICP of *all* the new scan's points onto the other's full cloud
+        (the matcher scores and refines on a sample of 120), correspondence distance
+        shrinking from ``refine_max_correspondence`` to ``refine_min_correspondence`` m;
+        kept when it stays within ``refine_max_shift`` m and ``refine_max_turn`` rad of the
+        match and keeps at least ``refine_min_fitness`` of the points paired.
+    icp_fallback, icp_min_score, icp_min_fitness, icp_gate :
+        When the feature match fails (rejected, ambiguous, too few features): ICP from the
+        prior and from the rejected match's pose, accepted when the raw scans agree
+        (score, fitness) and it lies within ``icp_gate`` sigma of the prior
+        (:func:`scanclique.mapping.frontend.icp_fallback`); only then the prior itself.
+    """
+
+    keyframe_distance: float = 0.30
+    keyframe_angle: float = math.radians(10.0)
+    odometry_noise: OdometryNoise = field(default_factory=OdometryNoise)
+    velocity_noise: OdometryNoise = field(
+        default_factory=lambda: OdometryNoise(
+            per_metre=0.3,
+            per_radian=0.3,
+            rot_per_metre=math.radians(5.0),
+            floor_metres=0.15,
+            floor_radians=math.radians(8.0),
+        )
+    )
+    sigma_floor_metres: float = 0.01
+    sigma_floor_radians: float = math.radians(0.25)
+    refine: bool = True
+    refine_iterations: int = 15
+    refine_max_correspondence: float = 0.3
+    refine_min_correspondence: float = 0.05
+    refine_max_shift: float = 0.15
+    refine_max_turn: float = math.radians(2.0)
+    refine_min_fitness: float = 0.5
+    icp_fallback: bool = True
+    icp_min_score: float = 0.5
+    icp_min_fitness: float = 0.6
+    icp_gate: float = 4.0
+
+    def __post_init__(self) -> None:
+        _positive(
+            self, "keyframe_distance", "keyframe_angle", "sigma_floor_metres", "sigma_floor_radians"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class LoopConfig:
+    """Loop-closure candidates and their verification (issue 12, part 2).
+
+    A keyframe ``j`` is tried against earlier keyframes ``i`` whose estimated position
+    lies within ``radius + growth * D`` of its own, where ``D`` is the path travelled
+    since the last accepted closure or since ``i``, whichever is shorter (the drift the
+    estimate may have accumulated), capped at ``max_radius``.
+
+    Attributes
+    ----------
+    enabled : bool
+        False: chained consecutive matching only.
+    radius, growth, max_radius : float
+        Candidate radius (m), its growth per metre of path (m/m) and its cap (m).
+    heading_growth : float
+        Heading uncertainty per metre of path (rad/m) of the prior that gates candidates.
+    min_path : float
+        Keyframes less than this path length (m) apart are *local* neighbours (matched to
+        tie the local chain, not loop closures).
+    local : int
+        How many local neighbours (besides the previous keyframe) each keyframe is
+        matched to.
+    per_keyframe : int
+        How many loop candidates (path beyond ``min_path``) each keyframe verifies at most.
+    every : int
+        Loop candidates are searched on every ``every``-th keyframe.
+    separation : int
+        Loop candidates of one keyframe are at least this many keyframes apart.
+    pcm_batch : int
+        Pairwise consistency maximisation runs over the closures of this many keyframes.
+    pcm_gate : float
+        Probability of the chi-square gate (3 dof) of pairwise consistency.
+    appearance : bool
+        Also propose candidates by appearance (``scanclique.places.signature``) when that
+        module exists.
+    """
+
+    enabled: bool = True
+    radius: float = 1.5
+    growth: float = 0.05
+    max_radius: float = 6.0
+    heading_growth: float = math.radians(0.5)
+    min_path: float = 3.0
+    local: int = 2
+    per_keyframe: int = 2
+    every: int = 1
+    separation: int = 5
+    pcm_batch: int = 10
+    pcm_gate: float = 0.99
+    appearance: bool = True
+
+    def __post_init__(self) -> None:
+        _positive(self, "radius", "max_radius", "min_path", "pcm_batch", "every")
+        if not 0 < self.pcm_gate < 1:
+            raise ConfigError(f"LoopConfig.pcm_gate must be in (0, 1), got {self.pcm_gate!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class BackEndConfig:
+    """SE(2) pose-graph optimisation with GTSAM (issue 12, part 3).
+
+    ``robust``: the M-estimator on loop-closure edges (``"cauchy"``, ``"huber"``,
+    ``"none"``) with scale ``robust_scale`` (in units of the edge's sigma), the second line
+    of defence after PCM. ``max_iterations`` of Levenberg–Marquardt."""
+
+    robust: str = "cauchy"
+    robust_scale: float = 1.0
+    max_iterations: int = 100
+
+    def __post_init__(self) -> None:
+        if self.robust not in ("cauchy", "huber", "none"):
+            raise ConfigError(
+                f"BackEndConfig.robust must be 'cauchy', 'huber' or 'none', got {self.robust!r}"
+            )
+        _positive(self, "robust_scale", "max_iterations")
+
+
+@dataclass(frozen=True, slots=True)
+class OccupancyConfig:
+    """The occupancy grid (issue 12, part 4): ``resolution`` m per cell, log-odds added per
+    hit and per pass, clamped to ``clamp``; beams longer than ``max_range`` are cut (and
+    mark only free space); every ``scan_stride``-th scan is cast."""
+
+    resolution: float = 0.05
+    log_odds_hit: float = 0.85
+    log_odds_miss: float = -0.4
+    clamp: float = 5.0
+    max_range: float = 30.0
+    scan_stride: int = 1
+    margin: float = 1.0
+
+    def __post_init__(self) -> None:
+        _positive(self, "resolution", "log_odds_hit", "clamp", "max_range", "scan_stride")
+
+
+@dataclass(frozen=True, slots=True)
+class MapConfig:
+    """Everything :func:`scanclique.mapping.map_scans` uses."""
+
+    match: MatchConfig = field(default_factory=MatchConfig)
+    front_end: FrontEndConfig = field(default_factory=FrontEndConfig)
+    loops: LoopConfig = field(default_factory=LoopConfig)
+    back_end: BackEndConfig = field(default_factory=BackEndConfig)
+    occupancy: OccupancyConfig = field(default_factory=OccupancyConfig)

@@ -1,0 +1,192 @@
+"""The front end: consecutive association of scans (issue 12, part 1).
+
+Each scan is matched by the library's matcher (paper §4–§6) against the current keyframe,
+and the match is validated (paper §7) against a prior: the wheel odometry when the log has
+it, else a constant-velocity prediction. When the match is rejected, ambiguous or has no
+pose, the scan is placed by the prior itself: the odometry increment with its noise model,
+or the constant-velocity prediction with an inflated covariance; the scan is flagged
+(:attr:`Step.kind`), never an exception.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import MatchConfig
+from ..geometry import Pose2
+from ..match import PreparedScan, match_prepared, pose_score
+from ..refine import icp_point_to_line
+from ..validation import OdometryNoise, odometry_prior, validate_match
+
+__all__ = [
+    "MATCH",
+    "ICP",
+    "ODOMETRY",
+    "CONSTANT_VELOCITY",
+    "Step",
+    "floored",
+    "constant_velocity",
+    "associate",
+]
+
+MATCH = "match"
+ICP = "icp"
+ODOMETRY = "odometry"
+CONSTANT_VELOCITY = "constant_velocity"
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Step:
+    """How one scan was placed relative to an earlier one.
+
+    ``pose`` maps points of the new scan into the earlier scan's frame; ``covariance`` of
+    its ``(x, y, theta)``; ``kind`` is ``"match"``, ``"odometry"`` or
+    ``"constant_velocity"``; ``verdict`` the §7 verdict of the match (or why there was
+    none); ``score`` the match's raw-scan agreement (NaN without a match); ``reason`` in
+    words when the scan was not placed by a match."""
+
+    pose: Pose2
+    covariance: np.ndarray
+    kind: str
+    verdict: str
+    score: float
+    reason: str | None = None
+
+
+def floored(P: np.ndarray | None, sigma_m: float, sigma_rad: float) -> np.ndarray:
+    """``P`` plus ``diag(sigma_m², sigma_m², sigma_rad²)``; a missing or non-finite ``P``
+    is replaced by a large one."""
+    F = np.diag([sigma_m**2, sigma_m**2, sigma_rad**2])
+    if P is None:
+        return F * 1e4
+    P = np.array(P, dtype=float)
+    if not np.all(np.isfinite(P)):
+        d = np.diag(P)
+        P = np.diag(np.where(np.isfinite(d), d, 1e4))
+    return 0.5 * (P + P.T) + F
+
+
+def constant_velocity(
+    prev2: Pose2 | None, prev: Pose2, t2: float | None, t1: float | None, t: float | None
+) -> Pose2:
+    """Predicted pose of the next scan from the last two (world frame): the last motion
+    ``prev2^-1 prev`` repeated, scaled by the ratio of the time steps when timestamps are
+    known (clipped to [0, 3])."""
+    if prev2 is None:
+        return prev
+    v = prev2.inverse() @ prev
+    ratio = 1.0
+    if t2 is not None and t1 is not None and t is not None and t1 - t2 > 1e-6:
+        ratio = float(np.clip((t - t1) / (t1 - t2), 0.0, 3.0))
+    return prev @ Pose2(v.x * ratio, v.y * ratio, v.theta * ratio)
+
+
+def refine_pose(pa: PreparedScan, pb: PreparedScan, pose: Pose2, fe) -> Pose2:
+    """``pose`` (maps B into A) refined by point-to-line ICP of all of B's valid points onto
+    A's full cloud (``fe`` a :class:`~scanclique.mapping.config.FrontEndConfig`); the
+    pose unchanged when ICP strays more than ``fe.refine_max_shift`` / ``refine_max_turn``
+    from it or pairs fewer than ``fe.refine_min_fitness`` of the points."""
+    if not fe.refine or len(pb.points) < 10 or len(pa.points) < 10:
+        return pose
+    icp = icp_point_to_line(
+        pa.cloud,
+        np.ascontiguousarray(pb.points),
+        pose,
+        iterations=fe.refine_iterations,
+        max_correspondence=fe.refine_max_correspondence,
+        min_correspondence=fe.refine_min_correspondence,
+    )
+    t, r = icp.pose.distance_to(pose)
+    if t > fe.refine_max_shift or r > fe.refine_max_turn or icp.fitness < fe.refine_min_fitness:
+        return pose
+    return icp.pose
+
+
+def associate(
+    pk: PreparedScan,
+    pj: PreparedScan,
+    prior_a: Pose2,
+    prior_b: Pose2,
+    noise: OdometryNoise,
+    config: MatchConfig,
+    *,
+    path: list[Pose2] | None = None,
+    sigma_floor: tuple[float, float] = (0.01, math.radians(0.25)),
+    front_end=None,
+) -> Step:
+    """Match scan ``j`` against keyframe ``k`` and validate it against the prior (the two
+    scans' odometry poses, or predicted poses, ``prior_a``, ``prior_b``).
+
+    Returns the accepted :class:`Step` (kind ``"match"``; the pose the validation chose,
+    its feature covariance plus ``sigma_floor``), or a Step of kind ``"rejected"`` whose
+    ``verdict``/``reason`` say why (the caller then places the scan by its prior).
+    """
+    m = match_prepared(pk, pj, config)
+    v = validate_match(m, prior_a, prior_b, noise, path=path)
+    if v.accepted and v.pose is not None:
+        cov = v.covariance if v.covariance is not None else m.covariance
+        pose = v.pose if front_end is None else refine_pose(pk, pj, v.pose, front_end)
+        return Step(pose, floored(cov, *sigma_floor), MATCH, v.verdict, float(m.score))
+    reason = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
+    seed = m.pose if m.pose is not None else prior_a.inverse() @ prior_b
+    return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)
+
+
+def icp_fallback(
+    pk: PreparedScan,
+    pj: PreparedScan,
+    seeds: list[Pose2],
+    priors: list[tuple[Pose2, np.ndarray]],
+    fe,
+    config: MatchConfig,
+) -> Step | None:
+    """When the feature match fails: point-to-line ICP of all of scan ``j``'s points onto
+    keyframe ``k``'s cloud from each seed (the priors, a rejected match's pose), the one
+    the raw scans agree with best. Accepted (kind ``"icp"``) when its raw-scan score
+    (:func:`scanclique.match.pose_score`) is at least ``fe.icp_min_score``, ICP paired at
+    least ``fe.icp_min_fitness`` of the points, and it lies within ``fe.icp_gate`` sigma
+    (per coordinate) of at least one of the ``priors`` (wheel odometry and the
+    constant-velocity prediction of the chain: two independent motion estimates, so that
+    a wheel slip or a reversing robot whose odometry disagrees with the scans does not
+    break the chain); its covariance is ``2 x`` the floor plus a hundredth of the
+    first prior's. None otherwise."""
+    best = None
+    for seed in seeds:
+        icp = icp_point_to_line(
+            pk.cloud,
+            np.ascontiguousarray(pj.points),
+            seed,
+            iterations=2 * fe.refine_iterations,
+            max_correspondence=0.5,
+            min_correspondence=fe.refine_min_correspondence,
+        )
+        if icp.fitness < fe.icp_min_fitness:
+            continue
+        score = pose_score(pk, pj, icp.pose, config)
+        if best is None or score > best[1]:
+            best = (icp.pose, score)
+    if best is None or best[1] < fe.icp_min_score:
+        return None
+    pose, score = best
+    inside = False
+    for prior, prior_cov in priors:
+        d = pose.as_array() - prior.as_array()
+        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+        if np.all(np.abs(d) <= fe.icp_gate * np.sqrt(np.diag(prior_cov))):
+            inside = True
+    if not inside:
+        return None
+    cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
+    return Step(pose, cov, ICP, "icp", float(score))
+
+
+def prior_step(
+    a: Pose2, b: Pose2, noise: OdometryNoise, kind: str, reason: str, verdict: str, score: float
+) -> Step:
+    """Place ``b`` relative to ``a`` by the prior itself (odometry or constant velocity),
+    with the covariance of the noise model."""
+    rel, cov = odometry_prior(a, b, noise)
+    return Step(rel, cov, kind, verdict, score, reason)

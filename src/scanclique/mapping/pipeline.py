@@ -1,0 +1,521 @@
+"""Mapping a whole log: :func:`map_scans` and its result record :class:`MapResult`.
+
+The recipe (issue 12; the paper's first application, §2):
+
+1. prepare each scan once (features §4, feature graph §5.1, raw-point cloud);
+2. front end: match it against the current keyframe, validate against odometry or a
+   constant-velocity prior (§7); else place it by the prior, flagged
+   (:mod:`.frontend`);
+3. on each new keyframe: match it against ``local`` recent keyframes (ties the local chain)
+   and verify loop candidates by estimate and appearance (:mod:`.loops`);
+4. every ``pcm_batch`` keyframes: keep the largest pairwise-consistent set of the new
+   closures (PCM, a maximum clique; :mod:`.pcm`), add the edges to the incremental
+   optimiser (iSAM2) and update the estimate the next candidates are searched with;
+5. at the end: Levenberg–Marquardt over the keyframe graph with a robust kernel on the
+   closures (:mod:`.backend`); every other scan follows its keyframe by its one edge.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ScanError
+from ..geometry import Pose2
+from ..match import prepare_scan
+from ..scan import Scan
+from ..validation import compose_covariance
+from . import loops as _loops
+from .backend import PoseGraph, _gtsam, tangent_covariance
+from .config import MapConfig
+from .frontend import (
+    CONSTANT_VELOCITY,
+    ICP,
+    MATCH,
+    ODOMETRY,
+    associate,
+    constant_velocity,
+    icp_fallback,
+    prior_step,
+)
+from ..validation import odometry_prior
+from .loops import LoopClosure
+from .pcm import pcm_select
+
+__all__ = ["Edge", "MapResult", "map_scans"]
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int, int], None]
+
+
+def _ro(a) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Edge:
+    """One edge of the pose graph: ``x_i^-1 x_j = pose`` (maps points of scan ``j`` into
+    scan ``i``) with the covariance of its ``(x, y, theta)``; ``kind`` is ``"match"``,
+    ``"odometry"``, ``"constant_velocity"`` (front end), ``"local"`` or ``"loop"``."""
+
+    i: int
+    j: int
+    pose: Pose2
+    covariance: np.ndarray
+    kind: str
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "covariance", _ro(self.covariance))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MapResult:
+    """The map of a log.
+
+    Attributes
+    ----------
+    poses : tuple of Pose2 or None
+        One per input scan: the pose of its sensor frame in the frame of scan 0 (maps
+        points of the scan into the map). None only for a scan that could not be placed
+        (see ``reasons``).
+    placed_by : tuple of str
+        Per scan: ``"match"`` (matched to its keyframe and validated), ``"icp"`` (the
+        match failed; ICP from the prior agreed with the raw scans), ``"odometry"`` or
+        ``"constant_velocity"`` (the match failed: placed by the prior, flagged), or
+        ``"first"`` for scan 0.
+    reasons : dict int -> str
+        For every scan not placed by a match: why.
+    keyframes : tuple of int
+        Scan indices of the keyframes (the nodes of the optimised graph).
+    edges : tuple of Edge
+        Every edge of the pose graph (front end, local and accepted loop edges).
+    loop_closures : tuple of LoopClosure
+        Every verified loop candidate with its verdict (accepted or not).
+    chained : tuple of Pose2
+        The front end's poses alone (chained matches, before any closure).
+    used_odometry : bool
+    seconds : dict
+        Wall time per stage (``prepare``, ``front_end``, ``loops``, ``pcm``, ``isam``,
+        ``optimize``, ``total``).
+    config : MapConfig
+    """
+
+    poses: tuple
+    placed_by: tuple
+    reasons: dict
+    keyframes: tuple
+    edges: tuple
+    loop_closures: tuple
+    chained: tuple
+    used_odometry: bool
+    seconds: dict
+    config: MapConfig = field(repr=False, default_factory=MapConfig)
+
+    @property
+    def accepted_closures(self) -> tuple:
+        """The accepted loop closures (not local matches)."""
+        return tuple(c for c in self.loop_closures if c.accepted and not c.local)
+
+    def counts(self) -> dict:
+        """Counts for reports: scans, keyframes, how scans were placed, closures."""
+        kinds = {k: 0 for k in ("first", MATCH, ICP, ODOMETRY, CONSTANT_VELOCITY)}
+        for k in self.placed_by:
+            kinds[k] = kinds.get(k, 0) + 1
+        loops = [c for c in self.loop_closures if not c.local]
+        return {
+            "scans": len(self.poses),
+            "keyframes": len(self.keyframes),
+            "placed_by": kinds,
+            "loop_candidates": len(loops),
+            "loop_closures_accepted": sum(c.accepted for c in loops),
+            "loop_verdicts": _tally(c.verdict for c in loops),
+            "local_matches": sum(1 for c in self.loop_closures if c.local),
+            "local_accepted": sum(1 for c in self.loop_closures if c.local and c.accepted),
+            "edges": len(self.edges),
+        }
+
+
+def _tally(items) -> dict:
+    out: dict[str, int] = {}
+    for x in items:
+        out[x] = out.get(x, 0) + 1
+    return out
+
+
+def _cov_xy_rot(s_xy: float, s_th: float) -> np.ndarray:
+    return np.diag([s_xy**2, s_xy**2, s_th**2])
+
+
+class _Mapper:
+    """The state carried across scans by :func:`map_scans` (keyframes, estimate, graph)."""
+
+    def __init__(self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig):
+        self.scans = scans
+        self.odo = use_odometry
+        self.cfg = cfg
+        self.fe = cfg.front_end
+        self.lc = cfg.loops
+        self.floor = (self.fe.sigma_floor_metres, self.fe.sigma_floor_radians)
+        n = len(scans)
+        self.chain: list[Pose2 | None] = [None] * n  # front-end poses (dead reckoning)
+        self.placed_by: list[str] = [""] * n
+        self.reasons: dict[int, str] = {}
+        self.edges: list[Edge] = []
+        self.closures: list[LoopClosure] = []
+        # keyframes: scan index, prepared scan, cumulative path (chain), estimate
+        self.kf: list[int] = []
+        self.kf_prep: list = []
+        self.kf_path: list[float] = []
+        self.kf_sig: list[np.ndarray] = []
+        self.kf_of: list[int] = [0] * n  # the keyframe each scan's edge hangs from
+        self.rel_to_kf: list[Pose2] = [Pose2.identity()] * n
+        self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
+        self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
+        self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
+        self.last_closure_path = -math.inf
+        self.seconds = {k: 0.0 for k in ("prepare", "front_end", "loops", "pcm", "isam")}
+        gtsam = _gtsam()
+        self.gtsam = gtsam
+        self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
+        self.new_factors = gtsam.NonlinearFactorGraph()
+        self.new_values = gtsam.Values()
+        self.sig_mod = _loops.signature_module() if self.lc.appearance else None
+
+    # -- helpers ----------------------------------------------------------------------
+    def prepare(self, j: int):
+        t = time.perf_counter()
+        p = prepare_scan(self.scans[j], self.cfg.match)
+        self.seconds["prepare"] += time.perf_counter() - t
+        return p
+
+    def estimate_of(self, kf_index: int) -> Pose2:
+        return Pose2.from_array(self.est_xy[kf_index])
+
+    def _add_isam_edge(self, a: int, b: int, Z: Pose2, P: np.ndarray, robust: bool) -> None:
+        gtsam = self.gtsam
+        noise = gtsam.noiseModel.Gaussian.Covariance(tangent_covariance(Z, P))
+        if robust and self.cfg.back_end.robust != "none":
+            est = (
+                gtsam.noiseModel.mEstimator.Cauchy.Create(self.cfg.back_end.robust_scale)
+                if self.cfg.back_end.robust == "cauchy"
+                else gtsam.noiseModel.mEstimator.Huber.Create(self.cfg.back_end.robust_scale)
+            )
+            noise = gtsam.noiseModel.Robust.Create(est, noise)
+        self.new_factors.add(gtsam.BetweenFactorPose2(a, b, gtsam.Pose2(Z.x, Z.y, Z.theta), noise))
+
+    # -- step 2: a new keyframe -------------------------------------------------------
+    def add_keyframe(self, j: int, prep, rel_prev: Pose2 | None, cov_prev: np.ndarray | None):
+        gtsam = self.gtsam
+        kidx = len(self.kf)
+        if kidx == 0:
+            guess = Pose2.identity()
+            path = 0.0
+            noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-6, 1e-6, 1e-8]))
+            self.new_factors.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(0, 0, 0), noise))
+        else:
+            guess = self.estimate_of(kidx - 1) @ rel_prev
+            path = self.kf_path[-1] + math.hypot(rel_prev.x, rel_prev.y)
+            self.kf_edges.append((kidx - 1, kidx, rel_prev, cov_prev, "chain"))
+            self._add_isam_edge(kidx - 1, kidx, rel_prev, cov_prev, False)
+        self.new_values.insert(kidx, gtsam.Pose2(guess.x, guess.y, guess.theta))
+        self.kf.append(j)
+        self.kf_prep.append(prep)
+        self.kf_path.append(path)
+        self.est_xy = np.vstack([self.est_xy, guess.as_array()[None]])
+        if self.sig_mod is not None:
+            self.kf_sig.append(np.asarray(self.sig_mod.scan_signature(prep), dtype=float))
+        if kidx > 0 and self.lc.enabled:
+            self.search(kidx)
+        if (kidx + 1) % self.lc.pcm_batch == 0:
+            self.flush()
+
+    # -- step 3: local matches and loop candidates -------------------------------------
+    def search(self, kidx: int) -> None:
+        t = time.perf_counter()
+        lc = self.lc
+        cum = np.asarray(self.kf_path)
+        est_j = self.estimate_of(kidx)
+        tried: set[int] = {kidx - 1}
+        jobs: list[tuple[int, bool, str]] = []
+        # local neighbours: recent keyframes within min_path, still overlapping
+        for back in range(2, 2 + lc.local):
+            i = kidx - back
+            if i < 0 or cum[kidx] - cum[i] >= lc.min_path:
+                break
+            jobs.append((i, True, "estimate"))
+            tried.add(i)
+        if kidx % lc.every == 0:
+            since = cum[kidx] - self.last_closure_path
+            for i in _loops.candidates(kidx, self.est_xy[:, :2], cum, since, lc, tried):
+                jobs.append((i, False, "estimate"))
+                tried.add(i)
+            if self.kf_sig:
+                sigs = np.asarray(self.kf_sig)
+                for i in _loops.appearance_candidates(kidx, sigs, cum, lc):
+                    if i not in tried:
+                        jobs.append((i, False, "appearance"))
+                        tried.add(i)
+        for i, local, source in jobs:
+            est_i = self.estimate_of(i)
+            drift = cum[kidx] - cum[i]
+            if not local:
+                drift = min(drift, cum[kidx] - self.last_closure_path)
+            sigma = _loops.drift_std(drift, lc)
+            if local:
+                sigma = (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
+            if source == "appearance":
+                sigma = (1e3, math.pi)  # the estimate says nothing: appearance only
+            pose, cov, verdict, score, reason = _loops.verify(
+                self.kf_prep[i], self.kf_prep[kidx], est_i, est_j, sigma, self.cfg.match,
+                self.floor, self.fe,
+            )  # fmt: skip
+            if pose is None:
+                self.closures.append(
+                    LoopClosure(self.kf[i], self.kf[kidx], None, None, verdict, False, local,
+                                source, score, reason)
+                )  # fmt: skip
+                continue
+            if local:
+                self.closures.append(
+                    LoopClosure(self.kf[i], self.kf[kidx], pose, cov, verdict, True, True,
+                                source, score, reason)
+                )  # fmt: skip
+                self.kf_edges.append((i, kidx, pose, cov, "local"))
+                self._add_isam_edge(i, kidx, pose, cov, False)
+            else:
+                self.pending.append((i, kidx, pose, cov, source, score, reason))
+        self.seconds["loops"] += time.perf_counter() - t
+
+    def chain_rel(self, a: int, b: int) -> tuple[Pose2, np.ndarray]:
+        """Front-end relative pose of keyframe ``b`` in keyframe ``a`` and a covariance
+        growing with the path between them (PCM's chain)."""
+        pa, pb = self.chain[self.kf[a]], self.chain[self.kf[b]]
+        D = abs(self.kf_path[b] - self.kf_path[a])
+        s_xy = 0.02 + 0.02 * D
+        s_th = math.radians(0.5) + math.radians(0.3) * D
+        return pa.inverse() @ pb, _cov_xy_rot(s_xy, s_th)
+
+    # -- step 4: PCM over the batch, then iSAM2 ----------------------------------------
+    def flush(self) -> None:
+        t = time.perf_counter()
+        if self.pending:
+            cl = [(i, j, Z, P) for i, j, Z, P, *_ in self.pending]
+            keep = set(pcm_select(cl, self.chain_rel, self.lc.pcm_gate).tolist())
+            for k, (i, j, Z, P, source, score, reason) in enumerate(self.pending):
+                ok = k in keep
+                self.closures.append(
+                    LoopClosure(self.kf[i], self.kf[j], Z, P, "accepted" if ok else "pcm_rejected",
+                                ok, False, source, score, reason)
+                )  # fmt: skip
+                if ok:
+                    self.kf_edges.append((i, j, Z, P, "loop"))
+                    self._add_isam_edge(i, j, Z, P, True)
+                    self.last_closure_path = max(self.last_closure_path, self.kf_path[j])
+            self.pending = []
+        self.seconds["pcm"] += time.perf_counter() - t
+        t = time.perf_counter()
+        if self.new_factors.size() or self.new_values.size():
+            self.isam.update(self.new_factors, self.new_values)
+            self.new_factors = self.gtsam.NonlinearFactorGraph()
+            self.new_values = self.gtsam.Values()
+            est = self.isam.calculateEstimate()
+            self.est_xy = np.asarray(self.gtsam.utilities.extractPose2(est), dtype=float)
+        self.seconds["isam"] += time.perf_counter() - t
+
+    # -- step 2: the front end ----------------------------------------------------------
+    def run(self, progress: Progress | None = None) -> None:
+        scans, fe = self.scans, self.fe
+        n = len(scans)
+        t_fe = time.perf_counter()
+        loops_before = 0.0
+        p0 = self.prepare(0)
+        self.chain[0] = Pose2.identity()
+        self.placed_by[0] = "first"
+        self.add_keyframe(0, p0, None, None)
+        world_prev2: Pose2 | None = None
+        world_prev = Pose2.identity()  # chain pose of the previous scan
+        for j in range(1, n):
+            k = self.kf[-1]
+            pk = self.kf_prep[-1]
+            pj = self.prepare(j)
+            sj, sk = scans[j], scans[k]
+            chain_k = self.chain[k]
+            # the prior of scan j relative to keyframe k
+            if self.odo and sj.odometry is not None and sk.odometry is not None:
+                prior_a, prior_b = sk.odometry, sj.odometry
+                noise = fe.odometry_noise
+                path = [s.odometry for s in scans[k : j + 1] if s.odometry is not None]
+                kind = ODOMETRY
+            else:
+                pred = constant_velocity(
+                    world_prev2, world_prev, _ts(scans, j - 2), _ts(scans, j - 1), sj.timestamp
+                )
+                prior_a, prior_b = chain_k, pred
+                noise = fe.velocity_noise
+                path = None
+                kind = CONSTANT_VELOCITY
+            step = associate(
+                pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
+                sigma_floor=self.floor, front_end=fe,
+            )  # fmt: skip
+            if step.kind != MATCH and fe.icp_fallback:
+                priors = [odometry_prior(prior_a, prior_b, noise, path=path)]
+                if kind == ODOMETRY:  # the chain's own constant-velocity prediction too
+                    pred = constant_velocity(
+                        world_prev2, world_prev, _ts(scans, j - 2), _ts(scans, j - 1),
+                        sj.timestamp,
+                    )  # fmt: skip
+                    priors.append(odometry_prior(chain_k, pred, fe.velocity_noise))
+                seeds = [p for p, _ in priors]
+                if step.pose is not None:
+                    seeds.append(step.pose)
+                alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match)
+                if alt is not None:
+                    self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
+                    step = alt
+            if step.kind in (MATCH, ICP):
+                rel, cov, base = step.pose, step.covariance, k
+                self.placed_by[j] = step.kind
+            else:
+                # placed by the prior from the previous scan (j - 1), flagged
+                if kind == ODOMETRY and scans[j - 1].odometry is not None:
+                    a, b = scans[j - 1].odometry, sj.odometry
+                else:
+                    kind = CONSTANT_VELOCITY
+                    a, b = world_prev, constant_velocity(
+                        world_prev2, world_prev, _ts(scans, j - 2), _ts(scans, j - 1),
+                        sj.timestamp,
+                    )  # fmt: skip
+                    noise = fe.velocity_noise
+                fb = prior_step(a, b, noise, kind, step.reason or "", step.verdict, step.score)
+                # edge from j-1; expressed from keyframe k for the keyframe chain
+                rel_prev = self.rel_to_kf[j - 1] if self.kf_of[j - 1] == k else Pose2.identity()
+                cov_prev = np.zeros((3, 3))
+                rel = rel_prev @ fb.pose
+                cov = compose_covariance(rel_prev, cov_prev, fb.pose, fb.covariance)
+                base = k
+                self.placed_by[j] = kind
+                self.reasons[j] = f"{step.verdict}: {step.reason}"
+                self.edges.append(Edge(j - 1, j, fb.pose, fb.covariance, kind))
+            self.chain[j] = chain_k @ rel
+            self.kf_of[j] = base
+            self.rel_to_kf[j] = rel
+            if step.kind in (MATCH, ICP):
+                self.edges.append(Edge(k, j, rel, cov, step.kind))
+            moved = math.hypot(rel.x, rel.y) >= fe.keyframe_distance or abs(rel.theta) >= (
+                fe.keyframe_angle
+            )
+            if moved or step.kind not in (MATCH, ICP) or j == n - 1:
+                lb = self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"]
+                self.add_keyframe(j, pj, rel, cov)
+                loops_before += (
+                    self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"] - lb
+                )
+                self.kf_of[j] = j
+                self.rel_to_kf[j] = Pose2.identity()
+            world_prev2, world_prev = world_prev, self.chain[j]
+            if progress is not None and (j % 50 == 0 or j == n - 1):
+                progress(j + 1, n, sum(1 for c in self.closures if c.accepted and not c.local))
+        self.flush()
+        self.seconds["front_end"] = time.perf_counter() - t_fe - loops_before
+
+    # -- step 5: the batch back end -----------------------------------------------------
+    def optimize(self) -> list[Pose2]:
+        be = self.cfg.back_end
+        g = PoseGraph()
+        for kidx in range(len(self.kf)):
+            g.add_node(kidx, self.estimate_of(kidx))
+        for i, j, Z, P, kind in self.kf_edges:
+            robust = be.robust if kind == "loop" else "none"
+            g.add_edge(i, j, Z, P, robust, be.robust_scale)
+        out = g.optimize(be.max_iterations)
+        kf_pose = {self.kf[k]: out[k] for k in range(len(self.kf))}
+        poses = []
+        for j in range(len(self.scans)):
+            if j in kf_pose:
+                poses.append(kf_pose[j])
+            else:
+                poses.append(kf_pose[self.kf_of[j]] @ self.rel_to_kf[j])
+        return poses
+
+
+def _ts(scans: Sequence[Scan], j: int) -> float | None:
+    return scans[j].timestamp if j >= 0 else None
+
+
+def map_scans(
+    scans: Sequence[Scan],
+    *,
+    use_odometry: bool | None = None,
+    config: MapConfig | None = None,
+    progress: Progress | None = None,
+) -> MapResult:
+    """Map a whole log: the pose of every scan in the frame of scan 0.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        In recording order.
+    use_odometry : bool, optional
+        None (default): use the odometry when every scan carries it. False: from the scans
+        alone (constant-velocity prior), the paper's point. True: use it where present.
+    config : MapConfig, optional
+    progress : callable (done, total, closures), optional
+        Called every 50 scans.
+
+    Returns
+    -------
+    MapResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanclique.sim import simulate_pair
+    >>> pair = simulate_pair(np.random.default_rng(0))
+    >>> r = map_scans([pair.scan_a, pair.scan_b], use_odometry=False)
+    >>> len(r.poses), r.placed_by[0]
+    (2, 'first')
+    """
+    cfg = config or MapConfig()
+    scans = list(scans)
+    for k, s in enumerate(scans):
+        if not isinstance(s, Scan):
+            raise ScanError(f"map_scans: scans[{k}] is a {type(s).__name__}, not a Scan")
+    t0 = time.perf_counter()
+    if not scans:
+        return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg)
+    if use_odometry is None:
+        use_odometry = all(s.odometry is not None for s in scans)
+    m = _Mapper(scans, bool(use_odometry), cfg)
+    m.run(progress)
+    t = time.perf_counter()
+    poses = m.optimize()
+    seconds = dict(m.seconds)
+    seconds["optimize"] = time.perf_counter() - t
+    # every edge of the keyframe graph, in scan indices, for the outputs
+    kf_edges = [
+        Edge(m.kf[i], m.kf[j], Z, P, kind if kind != "chain" else "keyframe")
+        for i, j, Z, P, kind in m.kf_edges
+        if kind != "chain"
+    ]
+    seconds["total"] = time.perf_counter() - t0
+    return MapResult(
+        poses=tuple(poses),
+        placed_by=tuple(m.placed_by),
+        reasons=dict(m.reasons),
+        keyframes=tuple(m.kf),
+        edges=tuple(m.edges) + tuple(kf_edges),
+        loop_closures=tuple(m.closures),
+        chained=tuple(m.chain),
+        used_odometry=bool(use_odometry),
+        seconds=seconds,
+        config=cfg,
+    )
