@@ -805,16 +805,18 @@ def test_solve_file_reports_omega_only_when_proven(tmp_path):
 def test_kernel_stamp_changes_with_any_kernel_source(tmp_path):
     import shutil
 
+    import scanclique
     from scanclique._kernels import kernel_sources, kernel_stamp
 
     src = kernel_sources()
     names = {p.name for p in src}
     assert {"__init__.py", "clique_search.py", "bitset.py"} <= names
     assert any(p.name.endswith("_kernels.py") and p.parent.name == "scanclique" for p in src)
+    root = Path(scanclique.__file__).resolve().parent
     pkg = tmp_path / "pkg"
-    (pkg / "_kernels").mkdir(parents=True)
     for p in src:
-        dest = pkg / "_kernels" / p.name if p.parent.name == "_kernels" else pkg / p.name
+        dest = pkg / p.resolve().relative_to(root)
+        dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(p, dest)
     copies = kernel_sources(pkg)
     assert len(copies) == len(src) and kernel_stamp(copies) == kernel_stamp()

@@ -23,12 +23,12 @@ numba caches a compiled function beside its source file and checks only that fil
 modification time: a kernel in one module that calls a kernel in another is *not*
 recompiled when the callee changes, and silently runs the old callee. :func:`ensure_cache`
 replaces the old remedy (deleting ``__pycache__`` by hand) by a mechanism: it hashes the
-source of every kernel module (this package's ``*.py`` and the remaining
-``scanclique/_*_kernels.py``) and points numba's cache at a directory named after that
-hash, so any edit of any kernel source starts a fresh cache, in which everything compiles
-against the current callees. Every kernel loader calls it before its first
-``numba.njit(cache=True)`` decoration runs (the locator of a cached function is fixed
-when it is decorated); the modules of this package call it at import.
+source of every kernel module (this package's ``*.py`` and every other ``_*kernels.py`` of
+``scanclique``, see :func:`kernel_sources`) and points numba's cache at a directory named
+after that hash, so any edit of any kernel source starts a fresh cache, in which
+everything compiles against the current callees. Every kernel loader calls it before its
+first ``numba.njit(cache=True)`` decoration runs (the locator of a cached function is
+fixed when it is decorated); the modules of this package call it at import.
 
 Where the cache goes: ``$NUMBA_CACHE_DIR/scanclique-<stamp>`` when the user set
 ``NUMBA_CACHE_DIR``; else ``scanclique/__pycache__/kernels-<stamp>`` when the package
@@ -71,15 +71,19 @@ def kernel_sources(package: str | os.PathLike | None = None) -> list[Path]:
     ----------
     package : path, optional
         The package directory (default: the installed ``scanclique``). Its
-        ``_kernels/*.py`` and its ``_*_kernels.py``.
+        ``_kernels/*.py`` and every ``_*kernels.py`` in it or its subpackages (e.g.
+        ``_match_kernels.py``, ``slam/_kernels.py``); ``__pycache__`` is not searched.
 
     Returns
     -------
     list of Path
     """
     root = Path(package) if package is not None else _PACKAGE
-    files = list((root / "_kernels").glob("*.py")) + list(root.glob("_*_kernels.py"))
-    return sorted(p for p in files if p.is_file())
+    files = list((root / "_kernels").glob("*.py"))
+    for d, dirs, names in os.walk(root):
+        dirs[:] = [x for x in dirs if x != "__pycache__" and not x.startswith(".")]
+        files += [Path(d) / f for f in names if f.startswith("_") and f.endswith("kernels.py")]
+    return sorted({p for p in files if p.is_file()})
 
 
 def kernel_stamp(sources: Iterable[str | os.PathLike] | None = None) -> str:
@@ -102,12 +106,20 @@ def kernel_stamp(sources: Iterable[str | os.PathLike] | None = None) -> str:
     16
     """
     h = hashlib.sha256()
-    files = sorted(Path(p) for p in (kernel_sources() if sources is None else sources))
-    for p in files:
-        h.update(p.name.encode() + b"\0")
+    files = [Path(p).resolve() for p in (kernel_sources() if sources is None else sources)]
+    # names relative to the package, so that a copy of the package has the same stamp
+    root = _common_root(files)
+    for p in sorted(files, key=lambda q: q.relative_to(root).as_posix()):
+        h.update(p.relative_to(root).as_posix().encode() + b"\0")
         h.update(p.read_bytes())
         h.update(b"\0")
     return h.hexdigest()[:16]
+
+
+def _common_root(files: list[Path]) -> Path:
+    if not files:
+        return Path(".")
+    return Path(os.path.commonpath([str(p.resolve().parent) for p in files]))
 
 
 def cache_dir_for(stamp: str, package: str | os.PathLike | None = None) -> Path:
