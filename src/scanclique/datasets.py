@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
-from .errors import DataNotFoundError
+from .errors import ArgumentError, DataNotFoundError
 from .io import read_scans
 from .scan import Scan
 
@@ -279,11 +279,13 @@ def resolve_log(path_or_name: str | os.PathLike) -> Path:
         If it is neither an existing file nor a registered name (or the registered file is
         missing).
     """
+    if not isinstance(path_or_name, (str, os.PathLike)):
+        raise ArgumentError(f"expected a path or a registered data set name, got {path_or_name!r}")
     if isinstance(path_or_name, str) and _canonical(path_or_name) is not None:
         if not Path(path_or_name).is_file():
             return dataset_path(path_or_name)
     p = Path(path_or_name).expanduser()
-    if p.is_file():
+    if p.exists():  # a directory, FIFO or device: the reader refuses it by name
         return p
     raise DataNotFoundError(
         f"{os.fspath(path_or_name)!r} is neither an existing file nor a registered data set "

@@ -72,3 +72,8 @@ class PlaceDatabaseError(ScanCliqueError):
     """A place database (``scanclique.places``) cannot be used: not a place database, a
     newer schema, a corrupted file or record, or a configuration incompatible with the
     one its places were prepared with. The message names the file and what was wrong."""
+
+
+class ArgumentError(ScanCliqueError, TypeError):
+    """A function of the public API was given an argument of the wrong type or kind (e.g.
+    ``read_scans(None)``); the message names the argument and what it got."""

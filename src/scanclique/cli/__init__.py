@@ -256,6 +256,25 @@ PerRadianOpt = Annotated[
 ]
 
 
+MaxRangeOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--max-range",
+        show_default=False,
+        help="Readings at or beyond this range (m) are no return (CARMEN FLASER/RLASER; "
+        "default 80, or the no-return value the log is found to use).",
+    ),
+]
+MaxBeamsOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--max-beams",
+        show_default=False,
+        help="Largest beam count accepted in one message (default 100000; guards corrupt counts).",
+    ),
+]
+
+
 def _noise(per_metre: float | None, per_radian: float | None):
     """The :class:`~scanclique.validation.OdometryNoise` of the ``--odom-*`` options
     (None: the library's default for that field)."""

@@ -10,6 +10,8 @@ import typer
 from . import (
     ConfigOpt,
     JsonOpt,
+    MaxBeamsOpt,
+    MaxRangeOpt,
     PaperOpt,
     _console,
     _guard,
@@ -30,6 +32,8 @@ def features(
     plot: Annotated[
         Path | None, typer.Option("--plot", help="Write the features figure (paper Fig. 8) here.")
     ] = None,
+    max_range: MaxRangeOpt = None,
+    max_beams: MaxBeamsOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Extract the features of one scan (paper §4): counts per kind and a table.
@@ -48,9 +52,11 @@ def features(
     """
     from ..features import extract_features
     from ..tools import feature_rows, features_to_dict, load_config, load_scan
+    from ..tools.loading import read_options
 
     cfg = _guard(lambda: load_config(config, paper))
-    scan, name, notes = _guard(lambda: load_scan(source, index))
+    opts = read_options(max_range, max_beams)
+    scan, name, notes = _guard(lambda: load_scan(source, index, **opts))
     for n in notes:
         _note(n)
     feats = extract_features(scan, cfg.features, cfg.clustering)

@@ -10,6 +10,8 @@ import typer
 from . import (
     ConfigOpt,
     JsonOpt,
+    MaxBeamsOpt,
+    MaxRangeOpt,
     PaperOpt,
     PerMetreOpt,
     PerRadianOpt,
@@ -57,6 +59,8 @@ def match(
     ] = False,
     odom_per_metre: PerMetreOpt = None,
     odom_per_radian: PerRadianOpt = None,
+    max_range: MaxRangeOpt = None,
+    max_beams: MaxBeamsOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Match scan B against scan A: feature mapping (maximum clique), pose and verdict.
@@ -84,7 +88,18 @@ def match(
 
     cfg = _guard(lambda: load_config(config, paper))
     noise = _noise(odom_per_metre, odom_per_radian)
-    run = _guard(lambda: run_match(source, a, b, cfg, odometry=odometry, noise=noise))
+    run = _guard(
+        lambda: run_match(
+            source,
+            a,
+            b,
+            cfg,
+            odometry=odometry,
+            noise=noise,
+            max_range=max_range,
+            max_beams=max_beams,
+        )
+    )
     for n in run.notes:
         _note(n)
     if save_config is not None:

@@ -10,6 +10,8 @@ import typer
 from . import (
     ConfigOpt,
     JsonOpt,
+    MaxBeamsOpt,
+    MaxRangeOpt,
     PaperOpt,
     PerMetreOpt,
     PerRadianOpt,
@@ -41,6 +43,8 @@ def validate(
     odom_per_radian: PerRadianOpt = None,
     config: ConfigOpt = None,
     paper: PaperOpt = False,
+    max_range: MaxRangeOpt = None,
+    max_beams: MaxBeamsOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Match and validate the pair sets of a log; print the confusion table.
@@ -80,6 +84,8 @@ def validate(
                 noise=noise,
                 config=cfg,
                 progress=tick,
+                max_range=max_range,
+                max_beams=max_beams,
             )
         )
     if json_out:

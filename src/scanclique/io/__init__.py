@@ -13,23 +13,32 @@ Nothing downstream of the readers parses files.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
+from ..errors import ArgumentError
 from ..scan import Scan
 from .carmen import (
     DEFAULT_MAX_BEAMS,
     FLASER_MAX_RANGE,
     KNOWN_MESSAGES,
     CarmenLog,
+    _CarmenReader,
     flaser_angles,
     interpolate_odometry,
+    iter_carmen,
     parse_carmen,
     read_carmen,
 )
 from .npz import read_scans_npz, write_scans_npz
 from .text import (
+    LineSource,
     TextLines,
     _read_bytes,
+    _TextReader,
+    check_path,
     is_gzip,
     parse_scans_text,
     read_lines,
@@ -39,6 +48,10 @@ from .text import (
 
 __all__ = [
     "read_scans",
+    "read_scans_at",
+    "ScanSelection",
+    "iter_carmen",
+    "LineSource",
     "detect_format",
     "read_carmen",
     "CarmenLog",
@@ -47,6 +60,7 @@ __all__ = [
     "read_scans_npz",
     "write_scans_npz",
     "read_lines",
+    "TextLines",
     "is_gzip",
     "flaser_angles",
     "interpolate_odometry",
@@ -57,6 +71,7 @@ __all__ = [
 _ZIP_MAGIC = b"PK\x03\x04"
 _EMPTY_ZIP_MAGIC = b"PK\x05\x06"
 _TEXT_SUFFIXES = (".txt", ".scan", ".scans")
+_DETECT_LINES = 1000  # records looked at to tell a CARMEN log from scan text
 
 
 def _head(path: str | os.PathLike, size: int = 4) -> bytes:
@@ -71,8 +86,10 @@ def _stem_suffix(path: str | os.PathLike) -> str:
     return p.suffix.lower()
 
 
-def _format_of_lines(lines: TextLines, path) -> str:
-    for line in lines.lines:
+def _format_of_lines(lines, path) -> str:
+    for k, (_, line) in enumerate(lines):
+        if k >= _DETECT_LINES:
+            break
         if line is None:
             continue
         tok = line.split(maxsplit=1)
@@ -89,15 +106,29 @@ def _format_of_lines(lines: TextLines, path) -> str:
 def detect_format(path: str | os.PathLike) -> str:
     """Which reader :func:`read_scans` uses for ``path``: ``"npz"``, ``"text"`` or ``"carmen"``.
 
+    Reads the first bytes and, for text, the lines up to the first record.
+
     Raises
     ------
     DataNotFoundError
         If there is no such file.
+    ParseError
+        Not a regular file, or unreadable.
     """
-    head = _head(path)
-    if head.startswith((_ZIP_MAGIC, _EMPTY_ZIP_MAGIC)) or _stem_suffix(path) == ".npz":
+    spath = check_path(path)
+    head = _head(spath)
+    if head.startswith((_ZIP_MAGIC, _EMPTY_ZIP_MAGIC)) or _stem_suffix(spath) == ".npz":
         return "npz"
-    return _format_of_lines(read_lines(path, strict=False), path)
+    return _format_of_lines(LineSource(spath, strict=False, comments=False), spath)
+
+
+def _check_options(strict, max_beams, max_range) -> None:
+    if not isinstance(strict, bool):
+        raise ArgumentError(f"strict must be True or False, got {strict!r}")
+    if isinstance(max_beams, bool) or not isinstance(max_beams, int) or max_beams < 1:
+        raise ArgumentError(f"max_beams must be a positive integer, got {max_beams!r}")
+    if isinstance(max_range, bool) or not isinstance(max_range, (int, float)):
+        raise ArgumentError(f"max_range must be a positive number of metres, got {max_range!r}")
 
 
 def read_scans(
@@ -109,11 +140,16 @@ def read_scans(
 ) -> list[Scan]:
     """Read every scan of a file: one :class:`~scanclique.scan.Scan` per laser message.
 
+    The file is streamed line by line (scan by scan for an ``.npz``), so memory is the
+    scans returned plus a bounded buffer (see the README's limits table); to read a few
+    scans of a large log use :func:`read_scans_at`.
+
     Parameters
     ----------
     path : str or path-like
-        A CARMEN log (plain or gzip), a scan text file, or an ``.npz`` archive; the format
-        is detected from the content (see the module docstring).
+        A CARMEN log (plain, gzip or bzip2), a scan text file, or an ``.npz`` archive; the
+        format is detected from the content (see the module docstring). Must be a regular
+        file: FIFOs and devices are refused.
     strict : bool
         If True (default) the first malformed line raises
         :class:`~scanclique.errors.ParseError`; if False malformed lines are skipped,
@@ -137,16 +173,100 @@ def read_scans(
         Naming the file, the 1-based line and the field, with what was expected and found.
     DataNotFoundError
         If there is no such file.
+    ArgumentError
+        ``path`` is not a path (``None``, a number, ...), or an option of the wrong type.
 
     See Also
     --------
     read_carmen : the CARMEN reader, also returning PARAM values and skip counts.
     """
-    head = _head(path)
-    if head.startswith((_ZIP_MAGIC, _EMPTY_ZIP_MAGIC)) or _stem_suffix(path) == ".npz":
-        return read_scans_npz(path)
-    lines = read_lines(path, strict=strict)
-    if _format_of_lines(lines, path) == "text":
+    spath = check_path(path)
+    _check_options(strict, max_beams, max_range)
+    fmt = detect_format(spath)
+    if fmt == "npz":
+        return read_scans_npz(spath, max_beams=max_beams)
+    lines = LineSource(spath, strict=strict, comments=False)
+    if fmt == "text":
         return parse_scans_text(lines, strict=strict, max_beams=max_beams)
     log = parse_carmen(lines, strict=strict, max_beams=max_beams, max_range=max_range)
     return list(log.scans)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ScanSelection:
+    """Some scans of a file, read by :func:`read_scans_at`.
+
+    Attributes
+    ----------
+    path : str
+        The file.
+    scans : Mapping[int, Scan]
+        The scans asked for that the file holds, by index.
+    n_scans : int or None
+        How many scans the file holds; None when reading stopped after the last index
+        asked for (the file holds at least that many).
+    """
+
+    path: str
+    scans: Mapping[int, Scan]
+    n_scans: int | None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "scans", MappingProxyType(dict(self.scans)))
+
+
+def read_scans_at(
+    path: str | os.PathLike,
+    indices: Iterable[int],
+    *,
+    count: bool = False,
+    strict: bool = True,
+    max_beams: int = DEFAULT_MAX_BEAMS,
+    max_range: float = FLASER_MAX_RANGE,
+) -> ScanSelection:
+    """Read only the scans of ``indices`` (0-based, file order) of a log.
+
+    With ``strict`` (default) the other laser messages are counted from their first word,
+    never parsed, and reading stops after the last index asked for (unless ``count``, or
+    an index lies beyond the end, or the log's RAWLASER scans need its ODOM messages):
+    ``scanclique match LOG 120 121`` reads 122 laser lines of the log, not all of them.
+    The scans are the same as :func:`read_scans` gives at those indices. An ``.npz`` is
+    read whole (within its size bounds) and the scans picked.
+
+    Parameters
+    ----------
+    path : str or path-like
+    indices : iterable of int
+        Non-negative indices.
+    count : bool
+        Read to the end to count the scans (:attr:`ScanSelection.n_scans`).
+    strict, max_beams, max_range
+        As for :func:`read_scans`.
+
+    Raises
+    ------
+    ArgumentError
+        A negative or non-integer index, or as :func:`read_scans`.
+    """
+    spath = check_path(path)
+    _check_options(strict, max_beams, max_range)
+    want: set[int] = set()
+    for i in indices:
+        if isinstance(i, bool) or not hasattr(i, "__index__"):
+            raise ArgumentError(f"scan indices must be integers, got {i!r}")
+        if i.__index__() < 0:
+            raise ArgumentError(f"scan indices must be non-negative, got {i!r}")
+        want.add(i.__index__())
+    fmt = detect_format(spath)
+    if fmt == "npz":
+        scans = read_scans_npz(spath, max_beams=max_beams)
+        return ScanSelection(spath, {i: scans[i] for i in want if i < len(scans)}, len(scans))
+    last = None if count or not want else max(want)
+    lines = LineSource(spath, strict=strict, comments=False)
+    if fmt == "text":
+        reader = _TextReader(lines, strict, max_beams)
+        got = dict(reader.scans(want.__contains__, last))
+    else:
+        reader = _CarmenReader(lines, strict, max_beams, max_range)
+        got = {i: scan for i, _, scan in reader.scans(want.__contains__, last)}
+    return ScanSelection(spath, got, reader.n_scans)

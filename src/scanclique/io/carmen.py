@@ -87,7 +87,7 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -96,7 +96,7 @@ import numpy as np
 from ..errors import ConfigError, ParseError, ScanError
 from ..geometry import Pose2, wrap_angle
 from ..scan import Scan, beam_angles
-from .text import TextLines, parse_count, parse_float_fields, read_lines
+from .text import LineSource, parse_count, parse_float_fields
 
 __all__ = [
     "FLASER_MAX_RANGE",
@@ -107,6 +107,7 @@ __all__ = [
     "flaser_angles",
     "interpolate_odometry",
     "parse_carmen",
+    "iter_carmen",
     "read_carmen",
 ]
 
@@ -462,62 +463,46 @@ _PARSERS: dict[str, Callable[[list[str], _Context], _Pending | None]] = {
 }
 
 
-def parse_carmen(
-    lines: TextLines,
-    *,
-    strict: bool = True,
-    max_beams: int = DEFAULT_MAX_BEAMS,
-    max_range: float = FLASER_MAX_RANGE,
-) -> CarmenLog:
-    """Parse the lines of a CARMEN log (see :func:`read_carmen` and the module docstring)."""
-    if not (isinstance(max_range, (int, float)) and math.isfinite(max_range) and max_range > 0):
-        raise ConfigError(f"max_range must be a positive number, got {max_range!r}")
-    ctx = _Context(lines.path, int(max_beams), float(max_range))
-    skipped: dict[str, int] = {}
-    if lines.truncated:
-        skipped["truncated gzip"] = 1
-    pending: list[_Pending] = []
-    n_warned = 0
+class _CarmenReader:
+    """One pass over the lines of a CARMEN log (internal).
 
-    def skip_malformed(reason: str, exc: ParseError) -> None:
-        nonlocal n_warned
-        skipped[reason] = skipped.get(reason, 0) + 1
-        n_warned += 1
-        if n_warned <= _MAX_WARNINGS:
+    :meth:`scans` yields ``(index, message type, Scan)`` in file order for the laser
+    messages whose index ``wanted`` accepts (all when None); after it is exhausted,
+    :attr:`n_scans` (None when it stopped early), :attr:`ctx` (PARAM values, ODOM poses)
+    and :attr:`skipped` are complete. In strict mode a laser message that is not wanted is
+    counted from its type token alone, never parsed; with ``strict=False`` every line is
+    parsed, since a malformed line is skipped and must not count as a scan.
+    """
+
+    def __init__(self, lines, strict: bool, max_beams: int, max_range: float):
+        if not (
+            isinstance(max_range, (int, float))
+            and not isinstance(max_range, bool)
+            and math.isfinite(max_range)
+            and max_range > 0
+        ):
+            raise ConfigError(f"max_range must be a positive number, got {max_range!r}")
+        if isinstance(max_beams, bool) or not isinstance(max_beams, (int, np.integer)):
+            raise ConfigError(f"max_beams must be a positive integer, got {max_beams!r}")
+        if max_beams < 1:
+            raise ConfigError(f"max_beams must be a positive integer, got {max_beams!r}")
+        self.lines = lines
+        self.strict = strict
+        self.ctx = _Context(lines.path, int(max_beams), float(max_range))
+        self.skipped: dict[str, int] = {}
+        self.n_scans: int | None = None
+        self._n_warned = 0
+
+    def _skip_malformed(self, reason: str, exc: ParseError) -> None:
+        self.skipped[reason] = self.skipped.get(reason, 0) + 1
+        self._n_warned += 1
+        if self._n_warned <= _MAX_WARNINGS:
             logger.warning("skipped malformed line: %s", exc)
 
-    for line_no, line in enumerate(lines.lines, start=1):
-        if line is None:  # undecodable (strict=False only)
-            ctx.line_no, ctx.kind = line_no, "line"
-            skip_malformed("undecodable", ParseError(lines.path, line_no, "undecodable bytes"))
-            continue
-        tok = line.split()
-        if not tok or tok[0][0] == "#":
-            continue
-        kind = tok[0]
-        parser = _PARSERS.get(kind)
-        if parser is None:
-            key = f"unknown:{kind[:40]}"
-            skipped[key] = skipped.get(key, 0) + 1
-            continue
-        ctx.line_no, ctx.kind = line_no, kind
-        try:
-            record = parser(tok, ctx)
-        except ParseError as exc:
-            if strict:
-                raise
-            skip_malformed(f"malformed:{kind}", exc)
-            continue
-        if record is not None:
-            pending.append(record)
-
-    odom = np.array(ctx.odom, dtype=np.float64).reshape(-1, 4)
-    scans: list[Scan] = []
-    kinds: list[str] = []
-    for p in pending:
+    def _build(self, p: _Pending, odom: np.ndarray) -> Scan | None:
         odometry = interpolate_odometry(odom, p.timestamp) if p.needs_odometry else p.odometry
         try:
-            scan = Scan(
+            return Scan(
                 p.ranges,
                 p.angles,
                 0.0,
@@ -525,23 +510,161 @@ def parse_carmen(
                 p.timestamp,
                 odometry,
                 p.reference,
-                f"{lines.name}:{p.line_no}",
+                f"{self.lines.name}:{p.line_no}",
             )
         except ScanError as exc:
-            err = ParseError(lines.path, p.line_no, f"{p.kind} {exc}")
-            if strict:
+            err = ParseError(self.lines.path, p.line_no, f"{p.kind} {exc}")
+            if self.strict:
                 raise err from None
-            skip_malformed(f"malformed:{p.kind}", err)
-            continue
-        scans.append(scan)
-        kinds.append(p.kind)
+            self._skip_malformed(f"malformed:{p.kind}", err)
+            return None
 
-    for reason, count in sorted(skipped.items()):
-        if reason.startswith("unknown:"):
-            logger.debug("%s: skipped %d %s messages (unknown type)", lines.path, count, reason[8:])
-        else:
-            logger.warning("%s: skipped %d lines (%s)", lines.path, count, reason)
-    return CarmenLog(lines.path, tuple(scans), tuple(kinds), ctx.params, skipped, odom)
+    def scans(
+        self, wanted: Callable[[int], bool] | None = None, last: int | None = None
+    ) -> Iterator[tuple[int, str, Scan]]:
+        """See the class docstring; ``last``: stop after the laser message of this index
+        (strict mode, when no scan waits for later ODOM messages)."""
+        ctx, skipped, strict = self.ctx, self.skipped, self.strict
+        index = 0  # index of the next laser message
+        waiting: list[tuple[int, _Pending]] = []  # scans that need the ODOM messages
+        stopped = False
+        for line_no, line in self.lines:
+            if line is None:  # undecodable (strict=False only)
+                ctx.line_no, ctx.kind = line_no, "line"
+                self._skip_malformed(
+                    "undecodable", ParseError(self.lines.path, line_no, "undecodable bytes")
+                )
+                continue
+            tok = line.split()
+            if not tok or tok[0][0] == "#":
+                continue
+            kind = tok[0]
+            parser = _PARSERS.get(kind)
+            if parser is None:
+                key = f"unknown:{kind[:40]}"
+                skipped[key] = skipped.get(key, 0) + 1
+                continue
+            is_laser = kind in LASER_MESSAGES
+            if is_laser and strict and wanted is not None and not wanted(index):
+                index += 1
+                if last is not None and index > last and not waiting:
+                    stopped = True
+                    break
+                continue
+            ctx.line_no, ctx.kind = line_no, kind
+            try:
+                record = parser(tok, ctx)
+            except ParseError as exc:
+                if strict:
+                    raise
+                self._skip_malformed(f"malformed:{kind}", exc)
+                continue
+            if record is None:
+                continue
+            if record.needs_odometry or waiting:
+                if wanted is None or not strict or wanted(index):
+                    waiting.append((index, record))
+                index += 1
+                continue
+            scan = self._build(record, _NO_ODOM)
+            if scan is None:
+                continue  # a lenient read does not count a refused scan
+            if wanted is None or wanted(index):
+                yield index, kind, scan
+            index += 1
+            if strict and last is not None and index > last and not waiting:
+                stopped = True
+                break
+        if self.lines.truncated:
+            skipped["truncated gzip"] = 1
+        if waiting:
+            odom = self.odom
+            shift = 0
+            for k, record in waiting:
+                scan = self._build(record, odom)
+                if scan is None:
+                    shift += 1  # lenient: later scans move up one index
+                    continue
+                if wanted is None or wanted(k - shift):
+                    yield k - shift, record.kind, scan
+            index -= shift
+        self.n_scans = None if stopped else index
+        for reason, count in sorted(skipped.items()):
+            if reason.startswith("unknown:"):
+                logger.debug(
+                    "%s: skipped %d %s messages (unknown type)", self.lines.path, count, reason[8:]
+                )
+            else:
+                logger.warning("%s: skipped %d lines (%s)", self.lines.path, count, reason)
+
+    @property
+    def odom(self) -> np.ndarray:
+        return np.array(self.ctx.odom, dtype=np.float64).reshape(-1, 4)
+
+
+_NO_ODOM = np.zeros((0, 4))
+
+
+def parse_carmen(
+    lines,
+    *,
+    strict: bool = True,
+    max_beams: int = DEFAULT_MAX_BEAMS,
+    max_range: float = FLASER_MAX_RANGE,
+) -> CarmenLog:
+    """Parse the lines of a CARMEN log (see :func:`read_carmen` and the module docstring).
+
+    ``lines`` is a :class:`~scanclique.io.text.LineSource` (streamed) or a
+    :class:`~scanclique.io.text.TextLines`.
+    """
+    reader = _CarmenReader(lines, strict, max_beams, max_range)
+    scans: list[Scan] = []
+    kinds: list[str] = []
+    for _, kind, scan in reader.scans():
+        scans.append(scan)
+        kinds.append(kind)
+    return CarmenLog(
+        lines.path, tuple(scans), tuple(kinds), reader.ctx.params, reader.skipped, reader.odom
+    )
+
+
+def iter_carmen(
+    path: str | os.PathLike,
+    *,
+    strict: bool = True,
+    max_beams: int = DEFAULT_MAX_BEAMS,
+    max_range: float = FLASER_MAX_RANGE,
+    wanted: Callable[[int], bool] | None = None,
+    last: int | None = None,
+    reader_out: list | None = None,
+) -> Iterator[tuple[int, Scan]]:
+    """Stream the scans of a CARMEN log: ``(index, Scan)`` in file order.
+
+    Memory is bounded by one line plus the scans the caller keeps (and, for RAWLASER
+    messages, which wait for the ODOM messages of the whole log, the wanted ones of them).
+
+    Parameters
+    ----------
+    path, strict, max_beams, max_range
+        As for :func:`read_carmen`.
+    wanted : callable(int) -> bool, optional
+        Only the scans of these indices are built (with ``strict``, the other laser
+        messages are not even parsed); default all.
+    last : int, optional
+        Stop reading after the laser message of this index (with ``strict``).
+    reader_out : list, optional
+        Receives the internal reader, whose ``n_scans`` (None if stopped early),
+        ``ctx.params`` and ``skipped`` are complete once the iterator is exhausted.
+    """
+    from .text import LineSource
+
+    reader = _CarmenReader(
+        LineSource(path, strict=strict, comments=False), strict, max_beams, max_range
+    )
+    if reader_out is not None:
+        reader_out.append(reader)
+    for index, _, scan in reader.scans(wanted, last):
+        yield index, scan
 
 
 def read_carmen(
@@ -581,5 +704,5 @@ def read_carmen(
     DataNotFoundError
         If there is no such file.
     """
-    lines = read_lines(path, strict=strict)
+    lines = LineSource(path, strict=strict, comments=False)
     return parse_carmen(lines, strict=strict, max_beams=max_beams, max_range=max_range)

@@ -37,7 +37,7 @@ import sys
 from pathlib import Path
 
 from ..config import MatchConfig, config_from_dict, config_to_dict
-from ..errors import ConfigError, DataNotFoundError
+from ..errors import ConfigError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -89,8 +89,15 @@ def _check_tree(data: dict, cls, source: str, prefix: str = "") -> dict:
             ok = isinstance(value, bool)
         elif isinstance(default, int):
             ok = isinstance(value, int) and not isinstance(value, bool)
+            if ok and not _INT64[0] <= value <= _INT64[1]:
+                raise ConfigError(
+                    f"{source}: {dotted!r} expects a 64-bit integer "
+                    f"({_INT64[0]}..{_INT64[1]}), got {value}"
+                )
         elif isinstance(default, float):
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if ok and isinstance(value, int) and abs(value) > 2**1023:
+                raise ConfigError(f"{source}: {dotted!r} expects a number, got {value} (too large)")
             value = float(value) if ok else value
         else:
             ok = isinstance(value, type(default))
@@ -140,6 +147,12 @@ def loads_config(
     return _from_dict(data, source, base)
 
 
+MAX_CONFIG_BYTES = 1024 * 1024
+"""Largest configuration file read (bytes)."""
+
+_INT64 = (-(2**63), 2**63 - 1)
+
+
 def read_config(path: str | os.PathLike, base: MatchConfig | None = None) -> MatchConfig:
     """Read a :class:`MatchConfig` from a TOML file; keys left out take their values from
     ``base`` (default: ``MatchConfig()``).
@@ -152,14 +165,24 @@ def read_config(path: str | os.PathLike, base: MatchConfig | None = None) -> Mat
         Unreadable or invalid TOML, an unknown key (named with its table), a value of the
         wrong type or out of range; the message starts with the file name.
     """
-    p = Path(path)
-    source = os.fspath(path)
+    from ..errors import DataNotFoundError, ParseError
+    from .text import check_path, open_regular
+
+    source = check_path(path, "the configuration path")
     try:
-        raw = p.read_bytes()
-    except FileNotFoundError:
-        raise DataNotFoundError(f"{source}: no such configuration file") from None
+        with open_regular(source, "configuration file") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
+    except DataNotFoundError:
+        raise
+    except ParseError as exc:  # a directory, FIFO or device: one ConfigError line
+        raise ConfigError(str(exc)) from None
     except OSError as exc:
         raise ConfigError(f"{source}: cannot read: {exc.strerror or exc}") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(
+            f"{source}: larger than {MAX_CONFIG_BYTES // 1024} KiB: not a scanclique "
+            "configuration (`scanclique config` writes one of about 4 KiB)"
+        )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

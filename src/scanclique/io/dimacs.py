@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import os
+from array import array
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -56,7 +57,8 @@ class DimacsGraph:
         Vertex weights from ``n v w`` lines (vertices without a line weigh 1), or None
         when the file has no ``n`` line.
     comments : tuple of str
-        The text of the ``c`` lines, in order.
+        The text of the ``c`` lines, in order (the first 1000, each cut at 1000
+        characters).
     """
 
     n: int
@@ -89,13 +91,37 @@ def _int_field(path, lineno, tok, field):
         raise ParseError(path, lineno, f"expected an integer, found {tok!r}", field) from None
 
 
-def read_dimacs(path: str | os.PathLike) -> DimacsGraph:
-    """Read a DIMACS ``.clq`` (``p edge``) file.
+MAX_VERTICES = 20_000
+"""Default bound on the vertex count ``N`` of a DIMACS file: an ``N x N`` adjacency takes
+``N**2`` bytes (400 MB at the bound); the second DIMACS challenge's largest graphs have
+4000 vertices."""
+
+
+MAX_COMMENTS = 1000
+"""``c`` lines kept in :attr:`DimacsGraph.comments` (later ones are read and dropped)."""
+MAX_COMMENT_CHARS = 1000
+
+
+def _bytes(n: float) -> str:
+    for unit, k in (("PiB", 2**50), ("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20)):
+        if n >= k:
+            return f"{n / k:.1f} {unit}"
+    return f"{int(n)} bytes"
+
+
+def read_dimacs(path: str | os.PathLike, *, max_vertices: int = MAX_VERTICES) -> DimacsGraph:
+    """Read a DIMACS ``.clq`` (``p edge``) file, streamed line by line.
+
+    Memory: the edges as two int64 columns (16 bytes per ``e`` line) and ``8 N`` bytes of
+    weights when there are ``n`` lines; ``N`` is checked against ``max_vertices`` before
+    anything is allocated, with the memory its adjacency matrix would need in the message.
 
     Parameters
     ----------
     path : str or path-like
-        The file.
+        The file (a regular file: FIFOs and devices are refused).
+    max_vertices : int
+        Largest accepted ``N`` (default :data:`MAX_VERTICES`).
 
     Returns
     -------
@@ -105,32 +131,33 @@ def read_dimacs(path: str | os.PathLike) -> DimacsGraph:
     Raises
     ------
     ParseError
-        An unknown line type, a missing or repeated ``p`` line, a non-integer field, a vertex
-        outside ``1..N`` or a self loop; the message names the file, line and field.
+        An unknown line type, a missing or repeated ``p`` line, a non-integer field, ``N``
+        above ``max_vertices``, more edge lines than ``N (N - 1)``, a vertex outside
+        ``1..N`` or a self loop; the message names the file, line and field.
     scanclique.errors.DataNotFoundError
         The file does not exist.
     """
-    from ..errors import DataNotFoundError
+    from .text import LineSource
 
-    path_s = os.fspath(path)
-    try:
-        with open(path_s, encoding="utf-8", errors="replace") as fh:
-            lines = fh.read().splitlines()
-    except FileNotFoundError:
-        raise DataNotFoundError(f"{path_s}: no such DIMACS file") from None
+    if isinstance(max_vertices, bool) or not isinstance(max_vertices, int) or max_vertices < 0:
+        raise GraphError(f"max_vertices must be a non-negative integer, got {max_vertices!r}")
+    src = LineSource(path)
+    path_s = src.path
     n = -1
     m_declared = 0
-    us: list[int] = []
-    vs: list[int] = []
+    max_lines = 0
+    us = array("q")
+    vs = array("q")
     comments: list[str] = []
     weights: np.ndarray | None = None
-    for lineno, raw in enumerate(lines, start=1):
+    for lineno, raw in src:
         line = raw.strip()
         if not line:
             continue
         tag = line[0]
         if tag == "c":
-            comments.append(line[1:].strip())
+            if len(comments) < MAX_COMMENTS:
+                comments.append(line[1:].strip()[:MAX_COMMENT_CHARS])
             continue
         toks = line.split()
         if tag == "e" and toks[0] == "e":
@@ -147,6 +174,14 @@ def read_dimacs(path: str | os.PathLike) -> DimacsGraph:
                     raise ParseError(path_s, lineno, f"vertex must be in 1..{n}, found {x}", name)
             if u == v:
                 raise ParseError(path_s, lineno, f"self loop on vertex {u}", "v")
+            if len(us) >= max_lines:
+                raise ParseError(
+                    path_s,
+                    lineno,
+                    f"more edge lines than N (N - 1) = {max_lines} (each edge at most once "
+                    "in each direction)",
+                    "e",
+                )
             us.append(u)
             vs.append(v)
         elif tag == "p" and toks[0] == "p":
@@ -158,6 +193,16 @@ def read_dimacs(path: str | os.PathLike) -> DimacsGraph:
             m_declared = _int_field(path_s, lineno, toks[3], "M")
             if n < 0 or m_declared < 0:
                 raise ParseError(path_s, lineno, "N and M must be non-negative", "p")
+            if n > max_vertices:
+                raise ParseError(
+                    path_s,
+                    lineno,
+                    f"N = {n} vertices exceeds the limit max_vertices={max_vertices} (its "
+                    f"adjacency matrix would take {_bytes(float(n) * n)}); pass a larger "
+                    "max_vertices to accept it",
+                    "N",
+                )
+            max_lines = n * (n - 1)
         elif tag == "n" and toks[0] == "n":
             if n < 0:
                 raise ParseError(path_s, lineno, "weight line before the 'p edge N M' line", "n")
@@ -181,7 +226,11 @@ def read_dimacs(path: str | os.PathLike) -> DimacsGraph:
             )
     if n < 0:
         raise ParseError(path_s, None, "no 'p edge N M' line")
-    e = np.array([us, vs], dtype=np.int64).T.reshape(-1, 2) - 1
+    e = np.empty((len(us), 2), dtype=np.int64)
+    e[:, 0] = np.frombuffer(us, dtype=np.int64) if len(us) else 0
+    e[:, 1] = np.frombuffer(vs, dtype=np.int64) if len(vs) else 0
+    e -= 1
+    del us, vs
     e.sort(axis=1)
     e = np.unique(e, axis=0) if e.shape[0] else e
     if e.shape[0] != m_declared:

@@ -45,12 +45,11 @@ import logging
 import math
 import os
 import zipfile
-import zlib
 from collections.abc import Iterable
 
 import numpy as np
 
-from ..errors import DataNotFoundError, ParseError, ScanError
+from ..errors import ParseError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
 
@@ -120,29 +119,147 @@ def write_scans_npz(path: str | os.PathLike, scans: Iterable[Scan]) -> None:
         np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
 
 
-def _load(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    spath = os.fspath(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if not isinstance(z, np.lib.npyio.NpzFile):  # pragma: no cover - np.load returns
-                raise ParseError(spath, None, "expected an .npz archive")
-            return {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise DataNotFoundError(f"{spath}: no such file") from None
-    except AttributeError:
-        # a single .npy array: np.load returned an ndarray, which has no context manager
+MAX_NPZ_ARRAY_BYTES = 2 * 2**30
+"""Largest array (decompressed bytes) read from an ``.npz``, checked against the archive's
+directory and the array's header before anything is decompressed."""
+
+MAX_NPZ_SCANS = 1_000_000
+"""Most scans in one ``.npz`` (each costs a :class:`Scan` even with no beams)."""
+
+_NPY_MAGIC = b"\x93NUMPY"
+
+
+def _head_bytes(spath: str) -> bytes:
+    from .text import _read_bytes
+
+    return _read_bytes(spath, 64)
+
+
+def _describe_non_zip(spath: str) -> str:
+    """Why a file named ``.npz`` is not an archive: what it is instead."""
+    from .text import _read_bytes
+
+    head = _read_bytes(spath, 64)
+    if head.startswith(_NPY_MAGIC):
+        return "expected an .npz archive, found a single .npy array"
+    if not head:
+        return "expected an .npz archive, found an empty file"
+    if head[:2] == b"\x1f\x8b" or head[:3] == b"BZh":
+        return "expected an .npz archive, found a gzip or bzip2 file (a compressed log?)"
+    sample = head.split(b"\n", 1)[0][:40]
+    if all(32 <= c < 127 or c in (9, 13) for c in sample):
+        return (
+            f"expected an .npz archive (a zip file), found text starting {sample.decode()!r} "
+            "(a log or scan text named .npz?)"
+        )
+    return "expected an .npz archive (a zip file), found other binary data"
+
+
+def _read_member(zf: zipfile.ZipFile, key: str, spath: str, max_bytes: int) -> np.ndarray:
+    """The array ``key`` of the archive, after checking its header: no object dtype, a
+    shape whose size agrees with the directory's uncompressed size and stays within
+    ``max_bytes``."""
+    info = zf.getinfo(key + ".npy")
+    if info.file_size > max_bytes + 4096:
         raise ParseError(
-            spath, None, "expected an .npz archive, found a single .npy array"
-        ) from None
-    except ValueError as exc:
-        if "pickle" in str(exc):
+            spath,
+            None,
+            f"array of {info.file_size} bytes exceeds the limit of {max_bytes} bytes",
+            field=key,
+        )
+    with zf.open(info) as fh:
+        try:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+            elif version in ((2, 0), (3, 0)):
+                shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+            else:  # pragma: no cover - numpy refuses other versions in read_magic
+                raise ValueError(f"unsupported .npy version {version}")
+        except ValueError as exc:
             raise ParseError(
-                spath, None, "refused: the file needs unpickling (object arrays or not an .npz)"
+                spath, None, f"not a readable .npy member ({exc})", field=key
             ) from None
-        raise ParseError(spath, None, f"not a readable .npz archive ({exc})") from None
-    except (OSError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as exc:
-        # damaged archives: truncated, bad CRC or deflate stream, unsupported zip features
-        raise ParseError(spath, None, f"not a readable .npz archive ({exc})") from None
+        if dtype.hasobject:
+            raise ParseError(
+                spath,
+                None,
+                "refused: an object array (reading it would need unpickling)",
+                field=key,
+            )
+        n_items = math.prod(shape)
+        n_bytes = n_items * dtype.itemsize
+        header = fh.tell()
+        if n_bytes != info.file_size - header:
+            raise ParseError(
+                spath,
+                None,
+                f"header says shape {shape} of {dtype} ({n_bytes} bytes) but the member holds "
+                f"{info.file_size - header} bytes",
+                field=key,
+            )
+        if n_bytes > max_bytes:
+            raise ParseError(
+                spath,
+                None,
+                f"array of {n_bytes} bytes exceeds the limit of {max_bytes} bytes",
+                field=key,
+            )
+        if len(shape) > 2:
+            why = f"expected at most 2 dimensions, found {shape}"
+            raise ParseError(spath, None, why, field=key)
+        ragged = key in ("ranges", "angles") and len(shape) == 1
+        if shape and not ragged and shape[0] > MAX_NPZ_SCANS + 1:
+            raise ParseError(
+                spath, None, f"shape {shape}: more than {MAX_NPZ_SCANS} scans", field=key
+            )
+        data = fh.read(n_bytes)
+    if len(data) != n_bytes:  # pragma: no cover - zipfile checks sizes and CRC
+        raise ParseError(spath, None, "truncated member", field=key)
+    a = np.frombuffer(data, dtype=dtype)
+    if fortran:
+        a = a.reshape(shape[::-1]).transpose()
+    else:
+        a = a.reshape(shape)
+    return a
+
+
+def _load(path: str, max_bytes: int = MAX_NPZ_ARRAY_BYTES) -> dict[str, np.ndarray]:
+    """The arrays of the archive that the reader uses (others are never decompressed)."""
+    from .text import open_regular
+
+    spath = path
+    with open_regular(spath) as fh:
+        try:
+            zf = zipfile.ZipFile(fh)
+        except zipfile.BadZipFile as exc:
+            head = _head_bytes(spath)
+            why = (
+                f"not a readable .npz archive (a damaged zip file: {exc})"
+                if head.startswith((b"PK\x03\x04", b"PK\x05\x06"))
+                else _describe_non_zip(spath)
+            )
+            raise ParseError(spath, None, why) from None
+        except Exception as exc:  # noqa: BLE001 - zipfile's many ways to fail on bad bytes
+            why = f"not a readable .npz archive ({type(exc).__name__}: {exc})"
+            raise ParseError(spath, None, why) from None
+        with zf:
+            names = zf.namelist()
+            present = {n[:-4] for n in names if n.endswith(".npy")}
+            unknown = sorted(present - _KNOWN) + sorted(n for n in names if not n.endswith(".npy"))
+            if unknown:
+                logger.debug("%s: ignoring unknown members %s", spath, unknown[:20])
+            out: dict[str, np.ndarray] = {}
+            for key in sorted(present & _KNOWN):
+                try:
+                    out[key] = _read_member(zf, key, spath, max_bytes)
+                except ParseError:
+                    raise
+                except Exception as exc:  # noqa: BLE001 - damaged members: bad CRC or
+                    # deflate stream, unsupported zip features, encrypted members
+                    why = f"not a readable .npz archive ({type(exc).__name__}: {exc})"
+                    raise ParseError(spath, None, why, field=key) from None
+            return out
 
 
 def _float_array(arrays, key, path, shape=None) -> np.ndarray:
@@ -175,13 +292,21 @@ def _poses(arrays, key, path, S) -> list[Pose2 | None]:
     return out
 
 
-def read_scans_npz(path: str | os.PathLike) -> list[Scan]:
+def read_scans_npz(
+    path: str | os.PathLike, *, max_beams: int = 100_000, max_bytes: int = MAX_NPZ_ARRAY_BYTES
+) -> list[Scan]:
     """Read scans from an ``.npz`` archive (layout in the module docstring).
 
     Parameters
     ----------
     path : str or path-like
-        The archive. Loaded with ``allow_pickle=False``.
+        The archive. Never unpickled: object arrays are refused.
+    max_beams : int
+        Largest accepted beam count of one scan.
+    max_bytes : int
+        Largest accepted array (decompressed bytes), checked against the archive's
+        directory and each array's header before it is decompressed. Only the arrays of
+        the layout are read; others are never decompressed.
 
     Returns
     -------
@@ -196,9 +321,11 @@ def read_scans_npz(path: str | os.PathLike) -> list[Scan]:
     DataNotFoundError
         If there is no such file.
     """
-    spath = os.fspath(path)
+    from .text import check_path
+
+    spath = check_path(path)
     name = os.path.basename(spath)
-    arrays = _load(path)
+    arrays = _load(spath, max_bytes)
     for key in ("ranges", "angles"):
         if key not in arrays:
             raise ParseError(
@@ -234,8 +361,17 @@ def read_scans_npz(path: str | os.PathLike) -> list[Scan]:
                 f"expected non-decreasing offsets from 0 to {ranges.size}",
                 field="offsets",
             )
+        S = off.size - 1
+        if S > MAX_NPZ_SCANS:
+            raise ParseError(spath, None, f"more than {MAX_NPZ_SCANS} scans", field="offsets")
+        if S and int(np.max(np.diff(off))) > max_beams:
+            raise ParseError(
+                spath,
+                None,
+                f"a scan of {int(np.max(np.diff(off)))} beams exceeds max_beams={max_beams}",
+                field="offsets",
+            )
         bounds = off.tolist()
-        S = len(bounds) - 1
         rows_r = [ranges[bounds[i] : bounds[i + 1]] for i in range(S)]
         rows_a = [angles[bounds[i] : bounds[i + 1]] for i in range(S)]
     else:
@@ -247,6 +383,13 @@ def read_scans_npz(path: str | os.PathLike) -> list[Scan]:
                 field="ranges",
             )
         S = ranges.shape[0]
+        if ranges.shape[1] > max_beams:
+            raise ParseError(
+                spath,
+                None,
+                f"{ranges.shape[1]} beams per scan exceed max_beams={max_beams}",
+                field="ranges",
+            )
         if angles.shape == ranges.shape:
             rows_a = list(angles)
         elif angles.ndim == 1 and angles.shape[0] == ranges.shape[1]:

@@ -64,14 +64,16 @@ import gzip
 import logging
 import math
 import os
+import re
+import stat
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import DataNotFoundError, ParseError, ScanError
+from ..errors import ArgumentError, DataNotFoundError, ParseError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan, beam_angles
 
@@ -99,9 +101,352 @@ _PathLike = str | os.PathLike
 # ---------------------------------------------------------------------------------------
 # Loading lines
 # ---------------------------------------------------------------------------------------
+MAX_LINE_BYTES = 16 * 2**20
+"""Longest accepted line (bytes): a CARMEN line of 100 000 beams and as many remissions
+is about 2.5 MB; longer lines are binary data or a corrupt file."""
+
+MAX_TEXT_BYTES = 4 * 2**30
+"""Most bytes of text read from one file (after decompression)."""
+
+MAX_EXPANSION = 200
+"""Largest accepted ratio of decompressed to compressed bytes once more than
+:data:`EXPANSION_CHECK_BYTES` are out: text logs expand 5-15 times; a file of newlines,
+comments or NUL bytes expands about 1000 times (gzip) or far more (bzip2)."""
+
+EXPANSION_CHECK_BYTES = 8 * 2**20
+
+_CHUNK = 2**20  # bytes read from the file at a time, and most bytes decompressed per step
+_NONEMPTY = re.compile(rb"[^\n]+")
+# a line holding something other than white space and not starting with "#"
+_RECORD = re.compile(rb"(?m)^[ \t\r\f\v]*[^\s#][^\n]*")
+
+
+def _file_kind(mode: int) -> str:
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def check_path(path, what: str = "path"):
+    """``path`` as a str, or :class:`~scanclique.errors.ArgumentError` when it is not a
+    str or path-like (``None``, a number, an open file, ...)."""
+    if isinstance(path, bytes):
+        return os.fsdecode(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise ArgumentError(f"{what} must be a file path (str or path-like), got {path!r}")
+    s = os.fspath(path)
+    if not isinstance(s, str):
+        s = os.fsdecode(s)
+    if "\x00" in s:
+        raise ArgumentError(f"{what} must not contain a NUL character, got {s!r}")
+    return s
+
+
+def open_regular(path: _PathLike, what: str = "file"):
+    """Open ``path`` for binary reading after checking that it is a regular file.
+
+    FIFOs, devices and sockets are refused before they are opened (opening a FIFO blocks
+    until a writer appears; ``/dev/zero`` never ends), so no reader of
+    :mod:`scanclique.io` can hang or read without end on them.
+
+    Raises
+    ------
+    DataNotFoundError
+        No such file.
+    ParseError
+        A directory, a FIFO, a device or a socket, or a file that cannot be opened.
+    """
+    spath = check_path(path)
+    try:
+        st = os.stat(spath)
+    except (FileNotFoundError, NotADirectoryError):
+        raise DataNotFoundError(f"{spath}: no such {what}") from None
+    except OSError as exc:
+        raise ParseError(spath, None, f"cannot read: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ParseError(spath, None, "is a directory, expected a file")
+    if not stat.S_ISREG(st.st_mode):
+        raise ParseError(
+            spath,
+            None,
+            f"is {_file_kind(st.st_mode)}, expected a regular file (scanclique reads only "
+            "regular files: a pipe or device could block or never end)",
+        )
+    try:
+        return open(spath, "rb")  # noqa: SIM115 - the caller closes it
+    except FileNotFoundError:
+        raise DataNotFoundError(f"{spath}: no such {what}") from None
+    except OSError as exc:
+        raise ParseError(spath, None, f"cannot read: {exc.strerror or exc}") from None
+
+
+class _StreamEnd(Exception):
+    """Bytes after the last compressed member that do not start another member."""
+
+    def __init__(self, tail: bytes):
+        self.tail = tail
+
+
+class _Decoder:
+    """Streaming decompression of concatenated gzip or bzip2 members, at most
+    :data:`_CHUNK` bytes of output per step."""
+
+    def __init__(self, kind: str):
+        self.kind = kind
+        self.magic = GZIP_MAGIC if kind == "gzip" else BZIP2_MAGIC
+        self.hold = b""  # the start of a next member's magic, cut by a chunk boundary
+        self._new()
+
+    def _new(self) -> None:
+        if self.kind == "gzip":
+            self.d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+        else:
+            self.d = bz2.BZ2Decompressor()
+        self.started = False
+
+    @property
+    def done(self) -> bool:
+        """Whether the input so far ends exactly at the end of a member."""
+        return self.d.eof and not self.hold
+
+    def _next_member(self, tail: bytes) -> bytes | None:
+        """``tail`` when it starts a new member (the decoder is reset), None when it is
+        too short to tell (held back); raises :class:`_StreamEnd` otherwise."""
+        if tail.startswith(self.magic):
+            self._new()
+            return tail
+        if self.magic.startswith(tail):
+            self.hold = tail
+            return None
+        raise _StreamEnd(tail)
+
+    def feed(self, data: bytes) -> Iterator[bytes]:
+        """Decompress ``data``, yielding the output in pieces of at most :data:`_CHUNK`."""
+        if self.hold:
+            data, self.hold = self.hold + data, b""
+        if self.d.eof and data:
+            data = self._next_member(data)
+            if data is None:
+                return
+        while True:
+            self.started = True
+            out = self.d.decompress(data, _CHUNK)
+            if self.kind == "gzip":
+                data = self.d.unconsumed_tail
+                more = bool(data) or len(out) == _CHUNK
+            else:
+                data = b""
+                more = not self.d.eof and not self.d.needs_input
+            if out:
+                yield out
+            if self.d.eof:
+                tail = self.d.unused_data
+                if not tail:
+                    return
+                data = self._next_member(tail)
+                if data is None:
+                    return
+                continue
+            if not more:
+                return
+
+
+class LineSource:
+    """The lines of a text file (plain, gzip or bzip2), read as a stream.
+
+    Iterating yields ``(line_no, line)``: 1-based line numbers and the decoded line without
+    its end-of-line characters, skipping empty lines (their numbers are counted), and with
+    ``comments=False`` also lines of white space and lines whose first other character is
+    ``#`` (skipped by a regular expression, not line by line in Python). With
+    ``strict=False`` an undecodable or over-long line is yielded as ``None``; otherwise it
+    raises :class:`~scanclique.errors.ParseError`. Memory stays bounded whatever the file
+    holds: one compressed chunk (1 MiB), one decompressed chunk (1 MiB) and one line (at
+    most :data:`MAX_LINE_BYTES`).
+
+    Attributes
+    ----------
+    path : str
+        The file as given by the caller (used in messages).
+    compressed : bool
+        Whether the file is gzip or bzip2 compressed (known once iteration started).
+    truncated : str or None
+        With ``strict=False``: why the compressed stream could not be read to its end
+        (known once iteration ended), else None.
+    """
+
+    def __init__(
+        self,
+        path: _PathLike,
+        *,
+        strict: bool = True,
+        max_line_bytes: int = MAX_LINE_BYTES,
+        max_bytes: int = MAX_TEXT_BYTES,
+        comments: bool = True,
+    ):
+        self.path = check_path(path)
+        self.strict = strict
+        self.max_line_bytes = int(max_line_bytes)
+        self.max_bytes = int(max_bytes)
+        self.compressed = False
+        self.truncated: str | None = None
+        self.lines_read = 0
+        self._pattern = _NONEMPTY if comments else _RECORD
+
+    @property
+    def name(self) -> str:
+        """The file's base name, for scan ``source`` strings."""
+        return os.path.basename(self.path)
+
+    def _fail(self, line: int | None, why: str) -> ParseError:
+        return ParseError(self.path, line, why)
+
+    def _chunks(self, fh) -> Iterator[bytes]:
+        """The file's (decompressed) bytes, chunk by chunk, with the size checks."""
+        first = fh.read(_CHUNK)
+        kind = "gzip" if first[:2] == GZIP_MAGIC else "bzip2" if first[:3] == BZIP2_MAGIC else None
+        total_out = 0
+        if kind is None:
+            data = first
+            while data:
+                total_out += len(data)
+                if total_out > self.max_bytes:
+                    raise self._fail(None, f"larger than the limit of {_size(self.max_bytes)}")
+                yield data
+                data = fh.read(_CHUNK)
+            return
+        self.compressed = True
+        dec = _Decoder(kind)
+        total_in = 0
+        data = first
+        try:
+            while data:
+                total_in += len(data)
+                for out in dec.feed(data):
+                    total_out += len(out)
+                    if total_out > self.max_bytes:
+                        raise self._fail(
+                            None,
+                            f"decompresses to more than the limit of {_size(self.max_bytes)}",
+                        )
+                    if total_out > EXPANSION_CHECK_BYTES and total_out > MAX_EXPANSION * total_in:
+                        raise self._fail(
+                            None,
+                            f"expands more than {MAX_EXPANSION}:1 ({_size(total_out)} from "
+                            f"{_size(total_in)} read so far): not a log (text logs expand "
+                            "5-15 times; a decompression bomb?)",
+                        )
+                    yield out
+                data = fh.read(_CHUNK)
+        except _StreamEnd as end:
+            tail = end.tail + fh.read(_CHUNK)
+            if tail.strip(b"\x00"):  # zero padding after the last member is harmless
+                why = f"{len(end.tail)} bytes of trailing garbage after the {kind} stream"
+                if self.strict:
+                    raise self._fail(None, why) from None
+                self.truncated = why
+            return
+        except (zlib.error, OSError, EOFError) as exc:
+            why = f"corrupt {kind} stream ({exc})"
+            if self.strict:
+                raise self._fail(None, why) from None
+            self.truncated = why
+            return
+        if not dec.done:
+            why = (
+                f"truncated {kind} stream: the compressed data end before the {kind} end "
+                "marker (incomplete download or copy?)"
+            )
+            if self.strict:
+                raise self._fail(None, why)
+            self.truncated = why
+
+    def _decode(self, line_no: int, bline: bytes) -> str | None:
+        if b"\x00" not in bline:
+            try:
+                return bline.decode("utf-8").rstrip("\r")
+            except UnicodeDecodeError:
+                pass
+        if self.strict:
+            raise self._fail(line_no, _bad_bytes_message(bline))
+        return None
+
+    def __iter__(self) -> Iterator[tuple[int, str | None]]:
+        with open_regular(self.path) as fh:
+            yield from self._lines(fh)
+        if self.truncated:
+            logger.warning("%s: %s; reading what was recovered", self.path, self.truncated)
+
+    def _too_long(self, line_no: int) -> ParseError:
+        return self._fail(
+            line_no,
+            f"line longer than {_size(self.max_line_bytes)} (binary data or a corrupt file?)",
+        )
+
+    def _lines(self, fh) -> Iterator[tuple[int, str | None]]:
+        line_no = 1  # number of the line that starts at the head of ``pending``
+        pending = b""
+        skipping = False  # discarding the rest of an over-long line (strict=False)
+        limit = self.max_line_bytes
+        for chunk in self._chunks(fh):
+            if skipping:
+                k = chunk.find(b"\n")
+                if k < 0:
+                    continue
+                chunk = chunk[k + 1 :]
+                line_no += 1
+                skipping = False
+            data = pending + chunk if pending else chunk
+            last = data.rfind(b"\n")
+            if last < 0:
+                pending = data
+                if len(pending) > limit:
+                    if self.strict:
+                        raise self._too_long(line_no)
+                    yield line_no, None
+                    pending, skipping = b"", True
+                continue
+            pos = 0
+            for m in self._pattern.finditer(data, 0, last):
+                start = m.start()
+                line_no += data.count(b"\n", pos, start)
+                bline = m.group()
+                if len(bline) > limit:
+                    if self.strict:
+                        raise self._too_long(line_no)
+                    yield line_no, None
+                else:
+                    yield line_no, self._decode(line_no, bline)
+                self.lines_read = line_no
+                pos = start
+            line_no += data.count(b"\n", pos, last + 1)
+            pending = data[last + 1 :]
+            if len(pending) > limit:
+                if self.strict:
+                    raise self._too_long(line_no)
+                yield line_no, None
+                pending, skipping = b"", True
+        if pending and not skipping and self._pattern.match(pending):
+            yield line_no, self._decode(line_no, pending)
+            self.lines_read = line_no
+
+
+def _size(n: float) -> str:
+    for unit, k in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= k:
+            return f"{n / k:.1f} {unit}"
+    return f"{int(n)} bytes"
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class TextLines:
-    """The lines of a text file, as loaded by :func:`read_lines`.
+    """The lines of a text file, loaded whole by :func:`read_lines` (small files; the
+    readers stream through :class:`LineSource` instead).
 
     Attributes
     ----------
@@ -111,7 +456,7 @@ class TextLines:
         Line ``k`` (1-based) is ``lines[k - 1]``, without its end-of-line characters.
         ``None`` marks a line that could not be decoded (only with ``strict=False``).
     truncated : str or None
-        With ``strict=False``: why the (gzip) file could not be read to its end, else None.
+        With ``strict=False``: why the (compressed) file could not be read to its end.
     compressed : bool
         Whether the file was gzip or bzip2 compressed.
     """
@@ -131,6 +476,12 @@ class TextLines:
         """How many lines could not be decoded."""
         return sum(1 for line in self.lines if line is None)
 
+    def __iter__(self) -> Iterator[tuple[int, str | None]]:
+        """``(line_no, line)`` of the non-empty lines, as :class:`LineSource` yields them."""
+        for k, line in enumerate(self.lines, start=1):
+            if line is None or line:
+                yield k, line
+
 
 def is_gzip(path: _PathLike) -> bool:
     """Whether the file starts with the gzip magic bytes ``1f 8b`` (whatever its suffix).
@@ -143,80 +494,10 @@ def is_gzip(path: _PathLike) -> bool:
     return _read_bytes(path, head=2) == GZIP_MAGIC
 
 
-def _read_bytes(path: _PathLike, head: int | None = None) -> bytes:
-    p = Path(path)
-    try:
-        with open(p, "rb") as fh:
-            return fh.read() if head is None else fh.read(head)
-    except FileNotFoundError:
-        raise DataNotFoundError(f"{os.fspath(path)}: no such file") from None
-    except IsADirectoryError:
-        raise ParseError(os.fspath(path), None, "is a directory, expected a file") from None
-
-
-def _gunzip(raw: bytes, path: str, strict: bool) -> tuple[bytes, str | None]:
-    """Decompress all gzip members of ``raw``; returns (data, why it stopped early or None)."""
-    chunks: list[bytes] = []
-    data = raw
-    while data:
-        d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
-        try:
-            chunks.append(d.decompress(data))
-        except zlib.error as exc:
-            why = f"corrupt gzip stream ({exc})"
-            if strict:
-                raise ParseError(path, None, why) from None
-            return b"".join(chunks), why
-        if not d.eof:
-            chunks.append(d.flush())
-            why = (
-                "truncated gzip stream: the compressed data end before the gzip end marker "
-                "(incomplete download or copy?)"
-            )
-            if strict:
-                raise ParseError(path, None, why)
-            return b"".join(chunks), why
-        data = d.unused_data
-        if data and not data.startswith(GZIP_MAGIC):
-            if data.strip(b"\x00"):
-                why = f"{len(data)} bytes of trailing garbage after the gzip stream"
-                if strict:
-                    raise ParseError(path, None, why)
-                return b"".join(chunks), why
-            break  # zero padding after the last member is harmless
-    return b"".join(chunks), None
-
-
-def _bunzip2(raw: bytes, path: str, strict: bool) -> tuple[bytes, str | None]:
-    """Decompress all bzip2 streams of ``raw``; returns (data, why it stopped early or None)."""
-    chunks: list[bytes] = []
-    data = raw
-    while data:
-        d = bz2.BZ2Decompressor()
-        try:
-            chunks.append(d.decompress(data))
-        except OSError as exc:
-            why = f"corrupt bzip2 stream ({exc})"
-            if strict:
-                raise ParseError(path, None, why) from None
-            return b"".join(chunks), why
-        if not d.eof:
-            why = (
-                "truncated bzip2 stream: the compressed data end before the bzip2 end marker "
-                "(incomplete download or copy?)"
-            )
-            if strict:
-                raise ParseError(path, None, why)
-            return b"".join(chunks), why
-        data = d.unused_data
-        if data and not data.startswith(BZIP2_MAGIC):
-            if data.strip(b"\x00"):
-                why = f"{len(data)} bytes of trailing garbage after the bzip2 stream"
-                if strict:
-                    raise ParseError(path, None, why)
-                return b"".join(chunks), why
-            break
-    return b"".join(chunks), None
+def _read_bytes(path: _PathLike, head: int) -> bytes:
+    """The first ``head`` bytes of a regular file (see :func:`open_regular`)."""
+    with open_regular(path) as fh:
+        return fh.read(head)
 
 
 def _bad_bytes_message(line: bytes) -> str:
@@ -235,16 +516,19 @@ def _bad_bytes_message(line: bytes) -> str:
 
 
 def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
-    """Load a text file (plain, gzip or bzip2, detected by magic bytes) as lines.
+    """Load a text file (plain, gzip or bzip2, detected by magic bytes) as lines, whole.
+
+    The readers stream through :class:`LineSource`; this keeps every line in memory and
+    is meant for small files.
 
     Parameters
     ----------
     path : str or path-like
         The file.
     strict : bool
-        If True (default) any problem raises. If False, a truncated or corrupt gzip stream
-        keeps what could be decompressed (reported in :attr:`TextLines.truncated`) and
-        undecodable lines become ``None``.
+        If True (default) any problem raises. If False, a truncated or corrupt compressed
+        stream keeps what could be decompressed (reported in :attr:`TextLines.truncated`)
+        and undecodable lines become ``None``.
 
     Returns
     -------
@@ -256,39 +540,15 @@ def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
     DataNotFoundError
         If there is no such file.
     ParseError
-        Truncated/corrupt gzip (names the file), undecodable bytes or NUL bytes (names the
-        file and the line).
+        Not a regular file, truncated/corrupt compression (names the file), undecodable
+        bytes or NUL bytes (names the file and the line).
     """
-    spath = os.fspath(path)
-    raw = _read_bytes(path)
-    truncated = None
-    compressed = raw[:2] == GZIP_MAGIC or raw[:3] == BZIP2_MAGIC
-    if raw[:2] == GZIP_MAGIC:
-        raw, truncated = _gunzip(raw, spath, strict)
-    elif raw[:3] == BZIP2_MAGIC:
-        raw, truncated = _bunzip2(raw, spath, strict)
-    if truncated:
-        logger.warning("%s: %s; reading what was recovered", spath, truncated)
+    src = LineSource(path, strict=strict)
     lines: list[str | None] = []
-    try:
-        if b"\x00" in raw:
-            raise UnicodeError("NUL byte")
-        text = raw.decode("utf-8")
-    except UnicodeError:
-        for k, bline in enumerate(raw.split(b"\n"), start=1):
-            try:
-                if b"\x00" in bline:
-                    raise UnicodeError("NUL byte")
-                lines.append(bline.decode("utf-8").rstrip("\r"))
-            except UnicodeError:
-                if strict:
-                    raise ParseError(spath, k, _bad_bytes_message(bline)) from None
-                lines.append(None)
-    else:
-        lines.extend(text.replace("\r\n", "\n").split("\n"))
-    if lines and lines[-1] == "":
-        lines.pop()
-    return TextLines(spath, tuple(lines), truncated, compressed)
+    for k, line in src:
+        lines.extend([""] * (k - 1 - len(lines)))
+        lines.append(line)
+    return TextLines(src.path, tuple(lines), src.truncated, src.compressed)
 
 
 # ---------------------------------------------------------------------------------------
@@ -459,41 +719,67 @@ def _parse_scan_line(tokens: list[str], max_beams: int, err, source: str) -> Sca
         raise err(None, str(exc)) from None
 
 
-def parse_scans_text(
-    lines: TextLines, *, strict: bool = True, max_beams: int = 100_000
-) -> list[Scan]:
-    """Scans from the lines of a scan text file (see the module docstring).
+class _TextReader:
+    """One pass over the lines of a scan text file (internal; see
+    :class:`scanclique.io.carmen._CarmenReader` for ``wanted``, ``last`` and ``n_scans``)."""
+
+    def __init__(self, lines, strict: bool, max_beams: int):
+        self.lines = lines
+        self.strict = strict
+        self.max_beams = int(max_beams)
+        self.n_scans: int | None = None
+        self.skipped = 0
+
+    def scans(self, wanted=None, last: int | None = None) -> Iterator[tuple[int, Scan]]:
+        lines, strict = self.lines, self.strict
+        index = 0
+        stopped = False
+        for line_no, line in lines:
+            if line is None:
+                self.skipped += 1
+                logger.warning("%s:%d: skipped an undecodable line", lines.path, line_no)
+                continue
+            tokens = line.split()
+            if not tokens or tokens[0].startswith("#"):
+                continue
+
+            def err(field, message, _ln=line_no):
+                return ParseError(lines.path, _ln, message, field=field)
+
+            if strict and wanted is not None and tokens[0] == "SCAN" and not wanted(index):
+                index += 1
+            else:
+                try:
+                    if tokens[0] != "SCAN":
+                        raise err(None, f"expected a SCAN record, found {tokens[0][:40]!r}")
+                    scan = _parse_scan_line(tokens, self.max_beams, err, f"{lines.name}:{line_no}")
+                except ParseError as exc:
+                    if strict:
+                        raise
+                    self.skipped += 1
+                    logger.warning("skipped malformed line: %s", exc)
+                    continue
+                if wanted is None or wanted(index):
+                    yield index, scan
+                index += 1
+            if strict and last is not None and index > last:
+                stopped = True
+                break
+        if self.skipped:
+            logger.warning(
+                "%s: skipped %d malformed or undecodable lines", lines.path, self.skipped
+            )
+        self.n_scans = None if stopped else index
+
+
+def parse_scans_text(lines, *, strict: bool = True, max_beams: int = 100_000) -> list[Scan]:
+    """Scans from the lines of a scan text file (see the module docstring): a
+    :class:`LineSource` (streamed) or :class:`TextLines`.
 
     With ``strict=False`` malformed and undecodable lines are skipped and logged at warning
     level; otherwise the first one raises :class:`~scanclique.errors.ParseError`.
     """
-    scans: list[Scan] = []
-    skipped = 0
-    name = lines.name
-    for line_no, line in enumerate(lines.lines, start=1):
-        if line is None:
-            skipped += 1
-            logger.warning("%s:%d: skipped an undecodable line", lines.path, line_no)
-            continue
-        tokens = line.split()
-        if not tokens or tokens[0].startswith("#"):
-            continue
-
-        def err(field, message, _ln=line_no):
-            return ParseError(lines.path, _ln, message, field=field)
-
-        try:
-            if tokens[0] != "SCAN":
-                raise err(None, f"expected a SCAN record, found {tokens[0][:40]!r}")
-            scans.append(_parse_scan_line(tokens, max_beams, err, f"{name}:{line_no}"))
-        except ParseError as exc:
-            if strict:
-                raise
-            skipped += 1
-            logger.warning("skipped malformed line: %s", exc)
-    if skipped:
-        logger.warning("%s: skipped %d malformed or undecodable lines", lines.path, skipped)
-    return scans
+    return [scan for _, scan in _TextReader(lines, strict, max_beams).scans()]
 
 
 def read_scans_text(
@@ -521,4 +807,5 @@ def read_scans_text(
     ParseError
         Naming the file, the 1-based line and the field, with what was expected and found.
     """
-    return parse_scans_text(read_lines(path, strict=strict), strict=strict, max_beams=max_beams)
+    lines = LineSource(path, strict=strict, comments=False)
+    return parse_scans_text(lines, strict=strict, max_beams=max_beams)

@@ -41,7 +41,7 @@ from ..validation import (
     pair_sets,
     validate_match,
 )
-from .loading import _label, load_scan_pair, odometry_path
+from .loading import _label, load_scan_pair, odometry_path, read_options
 
 __all__ = [
     "MatchRun",
@@ -161,6 +161,8 @@ def run_match(
     *,
     odometry: bool = False,
     noise: OdometryNoise | None = None,
+    max_range: float | None = None,
+    max_beams: int | None = None,
 ) -> MatchRun:
     """Load two scans (see :func:`load_scan_pair`), match B against A and validate the
     match (:func:`scanclique.validation.validate_match`): with the scans' odometry poses
@@ -173,13 +175,14 @@ def run_match(
         ``odometry`` and a scan without an odometry pose.
     """
     cfg = config or MatchConfig()
-    scan_a, scan_b, names, notes = load_scan_pair(source, a, b)
+    opts = read_options(max_range, max_beams)
+    scan_a, scan_b, names, notes = load_scan_pair(source, a, b, **opts)
     m = match_scans(scan_a, scan_b, cfg)
     if odometry:
         for scan, name in ((scan_a, names[0]), (scan_b, names[1])):
             if scan.odometry is None:
                 raise ScanError(f"{name}: the scan has no odometry pose (--odometry)")
-        path = odometry_path(source, a, b)
+        path = odometry_path(source, a, b, **opts)
         v = validate_match(m, scan_a.odometry, scan_b.odometry, noise, path=path)
     else:
         v = validate_match(m)
@@ -288,6 +291,8 @@ def run_validate(
     config: MatchConfig | None = None,
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
+    max_range: float | None = None,
+    max_beams: int | None = None,
 ) -> ValidateRun:
     """Match and validate the pair sets of a log with reference poses (what
     ``scanclique validate`` prints; :func:`scanclique.validation.pair_sets`).
@@ -316,7 +321,7 @@ def run_validate(
     """
     cfg = config or MatchConfig()
     noise = noise or OdometryNoise()
-    scans = datasets.load_log(source)
+    scans = datasets.load_log(source, **read_options(max_range, max_beams))
     if odometry:
         for k, scan in enumerate(scans):
             if scan.odometry is None:
