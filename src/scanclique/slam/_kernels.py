@@ -64,40 +64,8 @@ def _extend(S, nu, L, y, chosen, n, p):
 
 
 @njit(cache=True)
-def _rec(i, n, d2, k, S, nu, cand_start, cand, lm_of, gate, L, y, chosen, used, best, state, limit):
-    state[2] += 1
-    if state[2] > limit:
-        return
-    if i == k:
-        if n > state[0] or (n == state[0] and d2 < state[1]):
-            state[0] = n
-            state[1] = d2
-            for q in range(n):
-                best[q] = chosen[q]
-        return
-    for c in range(cand_start[i], cand_start[i + 1]):
-        p = cand[c]
-        j = lm_of[p]
-        if used[j]:
-            continue
-        inc = _extend(S, nu, L, y, chosen, n, p)
-        if inc < 0.0:
-            continue
-        if d2 + inc <= gate[n + 1]:
-            chosen[n] = p
-            used[j] = True
-            _rec(i + 1, n + 1, d2 + inc, k, S, nu, cand_start, cand, lm_of, gate, L, y,
-                 chosen, used, best, state, limit)
-            used[j] = False
-    # the null branch: observation i unpaired, only if it can still beat the best
-    if n + (k - i - 1) > state[0]:
-        _rec(i + 1, n, d2, k, S, nu, cand_start, cand, lm_of, gate, L, y, chosen, used,
-             best, state, limit)
-
-
-@njit(cache=True)
 def jcbb_search(S, nu, cand_start, cand, lm_of, n_lm, gate, limit):
-    """Largest jointly compatible hypothesis (ties: least D^2).
+    """Largest jointly compatible hypothesis (ties: least D^2), depth-first.
 
     Parameters
     ----------
@@ -117,6 +85,14 @@ def jcbb_search(S, nu, cand_start, cand, lm_of, n_lm, gate, limit):
     Returns
     -------
     (best pairs (n,) int64, D^2, nodes)
+
+    Notes
+    -----
+    Level ``i`` decides observation ``i``: each compatible candidate whose landmark is
+    free and whose joint distance stays under the gate, then the null branch (``i``
+    unpaired), taken only while ``pairs + observations left`` can beat the best
+    (Neira and Tardos 2001). Invariant: rows ``[0, 2n)`` of ``L`` are the Cholesky factor
+    of the chosen pairs' covariance, ``y[:2n] = L^-1 nu_H``, ``d2 = |y[:2n]|^2``.
     """
     k = cand_start.shape[0] - 1
     L = np.zeros((2 * k + 2, 2 * k + 2))
@@ -124,16 +100,81 @@ def jcbb_search(S, nu, cand_start, cand, lm_of, n_lm, gate, limit):
     chosen = np.zeros(k + 1, np.int64)
     best = np.zeros(k + 1, np.int64)
     used = np.zeros(n_lm, np.bool_)
-    state = np.zeros(3)
-    state[0] = 0.0
-    state[1] = 0.0
-    _rec(0, 0, 0.0, k, S, nu, cand_start, cand, lm_of, gate, L, y, chosen, used, best,
-         state, limit)
-    nb = int(state[0])
-    return best[:nb].copy(), state[1], int(state[2])
+    cursor = np.zeros(k + 1, np.int64)
+    null_done = np.zeros(k + 1, np.bool_)
+    taken = np.full(k + 1, -1, np.int64)
+    n_at = np.zeros(k + 1, np.int64)
+    d2_at = np.zeros(k + 1)
+    best_n = 0
+    best_d2 = 0.0
+    nodes = 0
+    i = 0
+    n = 0
+    d2 = 0.0
+    cursor[0] = cand_start[0]
+    null_done[0] = False
+    while i >= 0:
+        if i == k:
+            if n > best_n or (n == best_n and d2 < best_d2):
+                best_n = n
+                best_d2 = d2
+                for q in range(n):
+                    best[q] = chosen[q]
+            i -= 1
+            if i >= 0:
+                if taken[i] >= 0:
+                    used[lm_of[taken[i]]] = False
+                n = n_at[i]
+                d2 = d2_at[i]
+            continue
+        descended = False
+        if nodes < limit:
+            while cursor[i] < cand_start[i + 1]:
+                p = cand[cursor[i]]
+                cursor[i] += 1
+                j = lm_of[p]
+                if used[j]:
+                    continue
+                inc = _extend(S, nu, L, y, chosen, n, p)
+                if inc < 0.0 or d2 + inc > gate[n + 1]:
+                    continue
+                nodes += 1
+                taken[i] = p
+                n_at[i] = n
+                d2_at[i] = d2
+                chosen[n] = p
+                used[j] = True
+                n += 1
+                d2 += inc
+                i += 1
+                cursor[i] = cand_start[i] if i < k else 0
+                null_done[i] = False
+                descended = True
+                break
+            if not descended and not null_done[i]:
+                null_done[i] = True
+                if n + (k - i - 1) > best_n:
+                    nodes += 1
+                    taken[i] = -1
+                    n_at[i] = n
+                    d2_at[i] = d2
+                    i += 1
+                    cursor[i] = cand_start[i] if i < k else 0
+                    null_done[i] = False
+                    descended = True
+        if descended:
+            continue
+        # level i exhausted: back to its parent and undo the parent's choice
+        i -= 1
+        if i >= 0:
+            if taken[i] >= 0:
+                used[lm_of[taken[i]]] = False
+            n = n_at[i]
+            d2 = d2_at[i]
+    return best[:best_n].copy(), best_d2, nodes
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def sym_update(P, d, K, Mt):
     """``P[:d, :d] += K Mt^T + Mt K^T`` (K, Mt: (d, r)), upper triangle computed and
     mirrored: the covariance update of the filter in O(d^2 r), on one core."""
@@ -146,3 +187,70 @@ def sym_update(P, d, K, Mt):
             v = P[i, j] + s
             P[i, j] = v
             P[j, i] = v
+
+
+@njit(cache=True)
+def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, qadd, poses, covs, out0):
+    """Integrate the vehicle over consecutive controls (one Euler step each).
+
+    ``kind`` 0: Ackermann, params (L, H, sigma_v, sigma_v_rel, sigma_steer); 1: unicycle,
+    params (sigma_v, sigma_v_rel, sigma_omega). Updates ``x`` (3,), ``Pvv`` (3, 3) and the
+    accumulated Jacobian ``Fcum`` (3, 3) in place; writes the pose and covariance after
+    step ``q`` to ``poses[out0 + q]``, ``covs[out0 + q]``. ``qadd`` (3,): additive process
+    noise per second while moving."""
+    F = np.eye(3)
+    G = np.zeros((3, 2))
+    Q = np.zeros((2, 2))
+    for q in range(dts.shape[0]):
+        dt = dts[q]
+        if dt > 0.0 and not np.isnan(controls[q, 0]):
+            th = x[2]
+            c = np.cos(th)
+            s = np.sin(th)
+            v0 = controls[q, 0]
+            u1 = controls[q, 1]
+            if kind == 0:
+                L = params[0]
+                H = params[1]
+                ta = np.tan(u1)
+                den = 1.0 - ta * H / L
+                vc = v0 / den
+                sec2 = 1.0 + ta * ta
+                dvc_dve = 1.0 / den
+                dvc_dal = v0 * (H / L) * sec2 / (den * den)
+                G[0, 0] = dt * c * dvc_dve
+                G[0, 1] = dt * c * dvc_dal
+                G[1, 0] = dt * s * dvc_dve
+                G[1, 1] = dt * s * dvc_dal
+                G[2, 0] = dt * ta / L * dvc_dve
+                G[2, 1] = dt / L * (dvc_dal * ta + vc * sec2)
+                w = vc * ta / L
+                sv = params[2] + params[3] * abs(v0)
+                Q[0, 0] = sv * sv
+                Q[1, 1] = params[4] * params[4]
+            else:
+                vc = v0
+                w = u1
+                G[0, 0] = dt * c
+                G[0, 1] = 0.0
+                G[1, 0] = dt * s
+                G[1, 1] = 0.0
+                G[2, 0] = 0.0
+                G[2, 1] = dt
+                sv = params[0] + params[1] * abs(v0)
+                Q[0, 0] = sv * sv
+                Q[1, 1] = params[2] * params[2]
+            F[0, 2] = -dt * vc * s
+            F[1, 2] = dt * vc * c
+            x[0] += dt * vc * c
+            x[1] += dt * vc * s
+            a = x[2] + dt * w
+            x[2] = (a + np.pi) % (2.0 * np.pi) - np.pi
+            Pn = F @ Pvv @ F.T + G @ Q @ G.T
+            if abs(v0) > 1e-6:
+                for r in range(3):
+                    Pn[r, r] += qadd[r] * dt
+            Pvv[:, :] = Pn
+            Fcum[:, :] = F @ Fcum
+        poses[out0 + q, :] = x
+        covs[out0 + q, :, :] = Pvv

@@ -279,34 +279,55 @@ def ekf_slam(
     f = _Filter(np.asarray(initial_pose, float), np.diag(np.square(cfg.initial_sigma)))
     sx, sy = motion_model.sensor_x, motion_model.sensor_y
     N = len(steps)
-    times = np.empty(N)
+    times = np.array([s.time for s in steps], float)
     poses = np.empty((N, 3))
     pcovs = np.empty((N, 3, 3))
+    # the control holding over (t[k-1], t[k]] is the last one given at or before t[k-1]
+    ctrl = np.full((N, 2), np.nan)
+    last = np.full(2, np.nan)
+    for k, s in enumerate(steps):
+        if s.control is not None:
+            last = s.control
+        ctrl[k] = last
+    held = np.vstack([np.full((1, 2), np.nan), ctrl[:-1]]) if N else ctrl
+    dts = np.diff(times, prepend=times[0] if N else 0.0)
+    obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     obs_t, assoc_out, assoc_sec, jd2, jdof, amb = [], [], [], [], [], []
-    control = None
-    t_prev = steps[0].time if N else 0.0
     Pvv = f.P[:3, :3].copy()
     Fcum = np.eye(3)
     half_fov = 0.5 * cfg.sensor_fov
-    qxy, qth = cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2
-    every = max(1, N // 200)
-    for s_i, step in enumerate(steps):
-        # 1. predict the vehicle over [t_prev, t] with the control that held
-        dt = step.time - t_prev
-        if dt > 0 and control is not None:
-            xv, F, G = motion_model.predict(f.x[:3], control, dt)
-            Qu = motion_model.control_covariance(control)
-            Pvv = F @ Pvv @ F.T + G @ Qu @ G.T
-            moving = abs(control[0]) > 1e-6
-            if moving:
-                Pvv[0, 0] += qxy * dt
-                Pvv[1, 1] += qxy * dt
-                Pvv[2, 2] += qth * dt
-            f.x[:3] = xv
-            Fcum = F @ Fcum
-        t_prev = step.time
-        if step.control is not None:
-            control = step.control
+    qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
+    kern = motion_model.kernel()
+    done = 0  # steps [0, done) predicted
+    every = max(1, len(obs_steps) // 200)
+
+    def predict_to(k_end):
+        """1. predict the vehicle through steps [done, k_end]."""
+        nonlocal done, Pvv, Fcum
+        a, b = done, k_end + 1
+        if b <= a:
+            return
+        xv = f.x[:3].copy()
+        if kern is not None:
+            from ._kernels import predict_segment
+
+            predict_segment(kern[0], kern[1], xv, Pvv, Fcum, dts[a:b], held[a:b], qadd, poses, pcovs, a)
+        else:
+            for k in range(a, b):
+                if dts[k] > 0 and not np.isnan(held[k, 0]):
+                    xv, F, G = motion_model.predict(xv, held[k], dts[k])
+                    Pvv = F @ Pvv @ F.T + G @ motion_model.control_covariance(held[k]) @ G.T
+                    if abs(held[k, 0]) > 1e-6:
+                        Pvv[np.diag_indices(3)] += qadd * dts[k]
+                    Fcum = F @ Fcum
+                poses[k] = xv
+                pcovs[k] = Pvv
+        f.x[:3] = xv
+        done = b
+
+    for o_i, s_i in enumerate(obs_steps):
+        step = steps[s_i]
+        predict_to(s_i)
         z = step.observations
         if len(z):
             att = step.attributes
@@ -383,11 +404,13 @@ def ekf_slam(
             jd2.append(D2)
             jdof.append(dof)
             amb.append(ambiguous)
-        times[s_i] = step.time
         poses[s_i] = f.x[:3]
         pcovs[s_i] = Pvv
-        if progress is not None and (s_i % every == 0 or s_i == N - 1):
+        if progress is not None and (o_i % every == 0):
             progress(s_i + 1, N)
+    predict_to(N - 1)
+    if progress is not None:
+        progress(N, N)
     # the final map: permanent landmarks only
     f.remove(np.flatnonzero(f.hits[: f.n] < cfg.confirm_hits))
     d = f.dim

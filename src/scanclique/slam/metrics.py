@@ -7,9 +7,9 @@ Nebot the tracked point is the laser's, and the GPS fixes are compared with it.
 Two alignments of the estimate's frame to the GPS frame (the filter starts at the
 origin, heading along x):
 
-* **start**: the rotation and translation that put the estimated position at the first fix
-  onto that fix and the estimated direction of travel over the first ``start_distance``
-  metres of the GPS track onto the GPS's;
+* **start**: the least-squares rigid alignment of the start of the run only: the fixes
+  until the GPS track has gone ``start_distance`` metres (50 m) from its first fix; the
+  error is then measured at every fix (the drift of the whole run from its start);
 * **best**: the least-squares rigid (SE(2)) alignment over all fixes (Kabsch / Umeyama
   without scale).
 """
@@ -72,7 +72,7 @@ def gps_outliers(gps, max_speed: float = 15.0) -> np.ndarray:
     return out
 
 
-def gps_error(times, positions, gps, *, start_distance: float = 20.0) -> GpsError:
+def gps_error(times, positions, gps, *, start_distance: float = 50.0) -> GpsError:
     """Position error of a trajectory at the GPS fixes.
 
     Parameters
@@ -97,11 +97,8 @@ def gps_error(times, positions, gps, *, start_distance: float = 20.0) -> GpsErro
     # start alignment
     far = np.flatnonzero(np.hypot(*(ref - ref[0]).T) >= start_distance)
     k = int(far[0]) if len(far) else len(ref) - 1
-    de, dg = est[k] - est[0], ref[k] - ref[0]
-    ang = math.atan2(dg[1], dg[0]) - math.atan2(de[1], de[0])
-    c, s = math.cos(ang), math.sin(ang)
-    Rm = np.array([[c, -s], [s, c]])
-    a = (est - est[0]) @ Rm.T + ref[0]
+    Rs, ts, _ = align_se2(est[: k + 1], ref[: k + 1])
+    a = est @ Rs.T + ts
     e_start = np.hypot(*(a - ref).T)
     Rb, tb, angb = align_se2(est, ref)
     e_best = np.hypot(*((est @ Rb.T + tb) - ref).T)

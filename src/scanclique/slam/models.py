@@ -59,6 +59,10 @@ class MotionModel:
     def control_covariance(self, control) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def kernel(self):
+        """``(kind, params)`` of the compiled prediction, or None (Python steps)."""
+        return None
+
     def observe(self, state, landmarks):
         """See :func:`observe` (with this model's sensor offset)."""
         return observe(state, landmarks, self.sensor_x, self.sensor_y)
@@ -174,6 +178,14 @@ class Ackermann(MotionModel):
         sv = self.sigma_speed + self.sigma_speed_rel * abs(float(control[0]))
         return np.diag([sv * sv, self.sigma_steering**2])
 
+    def kernel(self):
+        if type(self) is not Ackermann:
+            return None
+        return 0, np.array(
+            [self.wheelbase, self.encoder_offset, self.sigma_speed, self.sigma_speed_rel,
+             self.sigma_steering]
+        )
+
 
 @dataclass(frozen=True, slots=True)
 class Unicycle(MotionModel):
@@ -213,6 +225,11 @@ class Unicycle(MotionModel):
     def control_covariance(self, control) -> np.ndarray:
         sv = self.sigma_v + self.sigma_v_rel * abs(float(control[0]))
         return np.diag([sv * sv, self.sigma_omega**2])
+
+    def kernel(self):
+        if type(self) is not Unicycle:
+            return None
+        return 1, np.array([self.sigma_v, self.sigma_v_rel, self.sigma_omega])
 
 
 def observe(state, landmarks, sensor_x: float = 0.0, sensor_y: float = 0.0):

@@ -1,0 +1,187 @@
+"""Association methods of scanclique.slam against brute force on small random problems."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from scanclique import slam
+from scanclique.slam import association as A
+from scanclique.slam.models import observe
+
+
+def _problem(seed, n_lm=6, n_obs=5, clutter=1, pose_sigma=0.3, exact=False):
+    """A random map, a noisy pose, observations of some landmarks plus clutter."""
+    rng = np.random.default_rng(seed)
+    lm = rng.uniform(-15, 15, (n_lm, 2)) + [20.0, 0.0]
+    true_pose = np.array([0.0, 0.0, 0.0])
+    pose = true_pose + rng.normal(0, [pose_sigma, pose_sigma, 0.02]) * (not exact)
+    pose_cov = np.diag([pose_sigma**2, pose_sigma**2, 0.02**2])
+    seen = rng.choice(n_lm, size=min(n_obs, n_lm), replace=False)
+    R = np.diag([0.2, math.radians(1.0)]) ** 2
+    z, _, _ = observe(true_pose, lm[seen])
+    z = z + rng.multivariate_normal(np.zeros(2), R, len(z))
+    if clutter:
+        zc = np.column_stack([rng.uniform(3, 40, clutter), rng.uniform(-1.5, 1.5, clutter)])
+        z = np.vstack([z, zc])
+    map_cov = np.tile(np.eye(2) * 0.05**2, (n_lm, 1, 1))
+    truth = np.r_[seen, np.full(clutter, -1)]
+    return z, R, lm, map_cov, pose, pose_cov, truth
+
+
+def _parts(z, R, lm, map_cov, pose, pose_cov):
+    n = len(lm)
+    P = np.zeros((3 + 2 * n, 3 + 2 * n))
+    P[:3, :3] = pose_cov
+    for j in range(n):
+        P[3 + 2 * j : 5 + 2 * j, 3 + 2 * j : 5 + 2 * j] = map_cov[j]
+    state = np.r_[pose, lm.reshape(-1)]
+    pred = A.predict_map(state, P, slam.Unicycle())
+    Rk = np.broadcast_to(R, (len(z), 2, 2))
+    nu = A._innovations(np.asarray(z), pred.z)
+    d2 = A._individual_d2(nu, pred.Sz, Rk)
+    return pred, Rk, nu, d2
+
+
+def _hypotheses(cands, k):
+    """All one-to-one hypotheses over per-observation candidate lists (None = unpaired)."""
+    def rec(i, used):
+        if i == k:
+            yield ()
+            return
+        for tail in rec(i + 1, used):
+            yield (None,) + tail
+        for j in cands[i]:
+            if j not in used:
+                for tail in rec(i + 1, used | {j}):
+                    yield (j,) + tail
+    # materialise lazily but correctly: recursive generator
+    return rec(0, frozenset())
+
+
+SEEDS = range(12)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_jcbb_is_largest_jointly_compatible(seed):
+    z, R, lm, mc, pose, pc, _ = _problem(seed)
+    pred, Rk, nu, d2 = _parts(z, R, lm, mc, pose, pc)
+    cfg = A.AssociationConfig()
+    gate1 = A.chi2_bound(2, cfg.gate_probability)
+    cands = [list(np.flatnonzero(d2[i] <= gate1)) for i in range(len(z))]
+    best = 0
+    for h in _hypotheses(cands, len(z)):
+        pairs = [(i, j) for i, j in enumerate(h) if j is not None]
+        if len(pairs) <= best:
+            continue
+        D2 = A.joint_distance(np.array(pairs), nu, pred.Sz, Rk)
+        if D2 <= A.chi2_bound(2 * len(pairs), cfg.gate_probability):
+            best = len(pairs)
+    a = slam.associate(z, R, lm, mc, pose, pc, method="jcbb")
+    assert a.n_pairs == best
+    if a.n_pairs:
+        assert a.joint_d2 <= A.chi2_bound(a.dof, cfg.gate_probability)
+        assert len(set(a.pairs[:, 1])) == a.n_pairs  # one-to-one
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_nn_against_slow_reference(seed):
+    z, R, lm, mc, pose, pc, _ = _problem(seed)
+    pred, Rk, nu, d2 = _parts(z, R, lm, mc, pose, pc)
+    gate = A.chi2_bound(2, 0.99)
+    # slow reference: repeatedly take the globally closest free compatible pair
+    ref = {}
+    free_o, free_l = set(range(len(z))), set(range(len(lm)))
+    while True:
+        best = None
+        for i in free_o:
+            for j in free_l:
+                if d2[i, j] <= gate and (best is None or d2[i, j] < d2[best]):
+                    best = (i, j)
+        if best is None:
+            break
+        ref[best[0]] = best[1]
+        free_o.discard(best[0])
+        free_l.discard(best[1])
+    a = slam.associate(z, R, lm, mc, pose, pc, method="nn")
+    assert {int(i): int(j) for i, j in a.pairs} == ref
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_clique_is_maximum_consistent_set(seed):
+    """The clique size equals brute force over all subsets of candidate pairs that are
+    pairwise consistent; the kept pairs pass the joint gate."""
+    z, R, lm, mc, pose, pc, _ = _problem(seed, n_lm=5, n_obs=4, clutter=1)
+    pred, Rk, nu, d2 = _parts(z, R, lm, mc, pose, pc)
+    cfg = A.AssociationConfig()
+    ok = d2 <= A.chi2_bound(2, cfg.clique_probability)
+    oi, lj = np.nonzero(ok)
+    pts, pcov = A._observation_points(np.asarray(z), Rk)
+    Do, Vo = A.point_distance_invariants(pts, pcov)
+    Dm, Vm = A.point_distance_invariants(pred.positions, pred.Pm)
+
+    def consistent(a, b):
+        i, j, k, l = oi[a], lj[a], oi[b], lj[b]
+        if i == k or j == l:
+            return False
+        return (Do[i, k] - Dm[j, l]) ** 2 <= cfg.invariant_sigmas**2 * (Vo[i, k] + Vm[j, l])
+
+    best = 0
+    C = len(oi)
+    for size in range(C, 0, -1):
+        if any(
+            all(consistent(a, b) for a, b in itertools.combinations(sub, 2))
+            for sub in itertools.combinations(range(C), size)
+        ):
+            best = size
+            break
+    a = slam.associate(z, R, lm, mc, pose, pc, method="clique")
+    assert a.clique_size == best
+    if a.n_pairs:
+        assert a.joint_d2 <= A.chi2_bound(a.dof, cfg.gate_probability)
+
+
+def test_clique_survives_a_pose_error_that_breaks_nn():
+    """The pose is 1.5 m off and two landmarks have a neighbour exactly where the shifted
+    prediction puts them: NN takes the neighbours, the relative geometry does not."""
+    lm = np.array([[10.0, 0.0], [14.0, 6.0], [18.0, -5.0], [25.0, 3.0]])
+    distract = lm[:2] + [1.5, 0.05]
+    world = np.vstack([lm, distract])
+    z, _, _ = observe(np.zeros(3), lm)
+    R = np.diag([0.1, math.radians(0.5)]) ** 2
+    mc = np.tile(np.eye(2) * 0.01, (len(world), 1, 1))
+    pose = np.array([1.5, 0.0, 0.0])
+    pc = np.diag([1.0, 1.0, 0.001])
+    nn = slam.associate(z, R, world, mc, pose, pc, method="nn")
+    cl = slam.associate(z, R, world, mc, pose, pc, method="clique")
+    assert nn.landmarks[:2].tolist() == [4, 5]
+    assert cl.landmarks.tolist() == [0, 1, 2, 3] and cl.clique_size == 4
+
+
+def test_truth_recovered_on_easy_problems():
+    for seed in range(5):
+        z, R, lm, mc, pose, pc, truth = _problem(seed, pose_sigma=0.05, clutter=0, exact=True)
+        for m in A.METHODS:
+            a = slam.associate(z, R, lm, mc, pose, pc, method=m)
+            assert a.landmarks.tolist() == truth.tolist(), (seed, m)
+
+
+def test_unknown_method():
+    z, R, lm, mc, pose, pc, _ = _problem(0)
+    with pytest.raises(ValueError, match="nn"):
+        slam.associate(z, R, lm, mc, pose, pc, method="magic")
+
+
+def test_point_distance_invariants_variance():
+    """First-order variance of a distance against sampling."""
+    rng = np.random.default_rng(0)
+    p = np.array([[0.0, 0.0], [10.0, 2.0]])
+    C = np.array([[[0.04, 0.01], [0.01, 0.02]], [[0.03, 0.0], [0.0, 0.05]]])
+    D, V = A.point_distance_invariants(p, C)
+    s = np.stack([rng.multivariate_normal(p[i], C[i], 20000) for i in range(2)], 1)
+    d = np.hypot(*(s[:, 0] - s[:, 1]).T)
+    assert abs(D[0, 1] - np.hypot(10, 2)) < 1e-12
+    assert abs(V[0, 1] - d.var()) / d.var() < 0.05

@@ -1,0 +1,97 @@
+"""Victoria Park reader: steps, frames, missing files and malformed rows."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scanclique import datasets, slam
+from scanclique.errors import DataNotFoundError, ParseError
+from scanclique.slam.reader import read_table
+
+
+def _write(d: Path, meas: str, inputs: str, gps: str = "0.0 0.0 0.0\n") -> Path:
+    d.mkdir(parents=True, exist_ok=True)
+    (d / "measurements.dat").write_text(meas)
+    (d / "inputs.dat").write_text(inputs)
+    (d / "gps.dat").write_text(gps)
+    return d
+
+
+def test_steps_merge_and_bearing_frame(tmp_path):
+    d = _write(
+        tmp_path / "vp",
+        "0.5 10.0 1.5707963 0.3\n0.5 20.0 0.0 0.2\n1.0 5.0 3.1415926 0.1\n",
+        "0.0 1.0 0.0\n0.5 1.5 0.1\n0.75 1.5 0.1\n",
+    )
+    steps = slam.read_victoria_park(d)
+    assert [s.time for s in steps] == [0.0, 0.5, 0.75, 1.0]
+    s = steps[1]
+    assert s.control is not None and s.control.tolist() == [1.5, 0.1]
+    assert s.observations.shape == (2, 2)
+    # file bearing pi/2 (straight ahead) -> 0; 0 (scanner's right) -> -pi/2
+    np.testing.assert_allclose(s.observations[:, 1], [0.0, -math.pi / 2], atol=1e-6)
+    np.testing.assert_allclose(s.attributes, [0.3, 0.2])
+    assert steps[3].control is None and abs(steps[3].observations[0, 1] - math.pi / 2) < 1e-6
+    assert steps[2].n_observations == 0
+    with pytest.raises(ValueError):
+        s.observations[0, 0] = 1.0  # read-only
+
+
+@pytest.mark.parametrize(
+    "text, line, field",
+    [
+        ("0.5 10.0 1.0 0.3\n0.6 10.0 abc 0.3\n", 2, "bearing"),
+        ("0.5 10.0 1.0 0.3\n\n0.6 10.0 1.0\n", 3, None),
+        ("0.5 10.0 1.0 0.3\n0.4 10.0 1.0 0.3\n", 2, "time"),
+        ("0.5 nan 1.0 0.3\n", 1, "range"),
+    ],
+)
+def test_malformed_rows_name_file_and_line(tmp_path, text, line, field):
+    d = _write(tmp_path / "vp", text, "0.0 1.0 0.0\n")
+    with pytest.raises(ParseError) as ei:
+        slam.read_victoria_park(d)
+    e = ei.value
+    assert e.path.endswith("measurements.dat") and e.line == line and e.field == field
+    assert f"measurements.dat:{line}:" in str(e)
+
+
+def test_negative_range_is_named(tmp_path):
+    d = _write(tmp_path / "vp", "0.5 10.0 1.0 0.3\n# c\n0.6 -1.0 1.0 0.3\n", "0.0 1.0 0.0\n")
+    with pytest.raises(ParseError) as ei:
+        slam.read_victoria_park(d)
+    assert ei.value.line == 3 and ei.value.field == "range"
+
+
+def test_missing_files(tmp_path, monkeypatch):
+    with pytest.raises(DataNotFoundError, match="nowhere"):
+        slam.read_victoria_park(tmp_path / "nowhere")
+    d = tmp_path / "half"
+    d.mkdir()
+    (d / "inputs.dat").write_text("0 0 0\n")
+    with pytest.raises(DataNotFoundError, match="measurements.dat"):
+        slam.read_victoria_park(d)
+    monkeypatch.setenv(datasets.ENV_VAR, str(tmp_path / "empty"))
+    with pytest.raises(DataNotFoundError, match="victoria-park"):
+        slam.read_victoria_park("victoria-park")
+
+
+def test_read_table_skips_comments(tmp_path):
+    p = tmp_path / "t.dat"
+    p.write_text("# time x y\n0 1 2\n\n1 2 3\n")
+    np.testing.assert_array_equal(read_table(p, ("time", "x", "y")), [[0, 1, 2], [1, 2, 3]])
+
+
+@pytest.mark.realdata
+def test_real_victoria_park(data_dir):
+    if not (data_dir / "victoria-park").is_dir():
+        pytest.skip(f"real data not found: {data_dir / 'victoria-park'}")
+    steps = slam.read_victoria_park("victoria-park")
+    obs = [s for s in steps if s.n_observations]
+    assert len(obs) == 7230
+    assert max(s.n_observations for s in obs) == 18 or max(s.n_observations for s in obs) > 10
+    b = np.concatenate([s.observations[:, 1] for s in obs])
+    assert b.min() >= -math.pi / 2 - 1e-6 and b.max() <= math.pi / 2 + 1e-6
