@@ -216,6 +216,8 @@ def _main(
     if not any(getattr(h, "_scanclique", False) for h in root.handlers):
         h = logging.StreamHandler(sys.stderr)
         h.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+        # records the commands print themselves as a "note:" line (read_scans' no-return)
+        h.addFilter(lambda r: not getattr(r, "user_note", False))
         h._scanclique = True  # type: ignore[attr-defined]
         root.addHandler(h)
 

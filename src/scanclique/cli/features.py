@@ -61,12 +61,21 @@ def features(
         _note(n)
     feats = extract_features(scan, cfg.features, cfg.clustering)
     if json_out:
-        _print_json({"scan": name, "source": scan.source, **features_to_dict(feats)})
+        _print_json(
+            {
+                "scan": name,
+                "source": scan.source,
+                "range_max": scan.range_max,
+                "notes": notes,
+                **features_to_dict(feats),
+            }
+        )
     else:
         con = _console()
         counts = [(k.replace("_", " "), str(v)) for k, v in feats.counts().items()]
         counts.append(("total", str(len(feats))))
         counts.append(("valid beams", f"{scan.n_valid}/{scan.n_beams}"))
+        counts.append(("no return at or beyond", f"{scan.range_max:g} m"))
         con.print(_table(counts, f"features of {name}", ("Kind", "Count")))
         if len(feats):
             con.print(

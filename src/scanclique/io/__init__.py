@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from dataclasses import field as _field
 from pathlib import Path
 from types import MappingProxyType
 
@@ -127,7 +128,9 @@ def _check_options(strict, max_beams, max_range) -> None:
         raise ArgumentError(f"strict must be True or False, got {strict!r}")
     if isinstance(max_beams, bool) or not isinstance(max_beams, int) or max_beams < 1:
         raise ArgumentError(f"max_beams must be a positive integer, got {max_beams!r}")
-    if isinstance(max_range, bool) or not isinstance(max_range, (int, float)):
+    if max_range is not None and (
+        isinstance(max_range, bool) or not isinstance(max_range, (int, float))
+    ):
         raise ArgumentError(f"max_range must be a positive number of metres, got {max_range!r}")
 
 
@@ -136,7 +139,7 @@ def read_scans(
     *,
     strict: bool = True,
     max_beams: int = DEFAULT_MAX_BEAMS,
-    max_range: float = FLASER_MAX_RANGE,
+    max_range: float | None = None,
 ) -> list[Scan]:
     """Read every scan of a file: one :class:`~scanclique.scan.Scan` per laser message.
 
@@ -157,10 +160,13 @@ def read_scans(
         nothing).
     max_beams : int
         Largest accepted beam count in one message or record (guards corrupt counts).
-    max_range : float
+    max_range : float, optional
         CARMEN only: ``Scan.range_max`` (metres) for messages without a maximum range
-        (FLASER, RLASER); readings at or beyond it are no return. Default 80 m, right for
-        the SICK logs of the shared data (no return logged as 81.83 or 81.91).
+        (FLASER, RLASER); readings at or beyond it are no return. Default: 80 m (right for
+        the SICK logs of the shared data, which log no return as 81.83 or 81.91), or the
+        log's own no-return value when it marks no return below 80 m (found in its first
+        200 FLASER/RLASER messages by :func:`~scanclique.io.carmen.detect_no_return`,
+        logged at warning level, and then the ``range_max`` of those scans).
 
     Returns
     -------
@@ -205,14 +211,28 @@ class ScanSelection:
     n_scans : int or None
         How many scans the file holds; None when reading stopped after the last index
         asked for (the file holds at least that many).
+    no_return : Mapping[str, float]
+        CARMEN: message type -> the no-return value found below 80 m (see
+        :func:`read_scans`), empty when none.
     """
 
     path: str
     scans: Mapping[int, Scan]
     n_scans: int | None
+    no_return: Mapping[str, float] = _field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "scans", MappingProxyType(dict(self.scans)))
+        object.__setattr__(self, "no_return", MappingProxyType(dict(self.no_return)))
+
+    def notes(self) -> list[str]:
+        """Messages for the user: the no-return values found."""
+        name = os.path.basename(self.path)
+        return [
+            f"{name} marks no return with {v:g} m in its {k} messages: readings at or "
+            f"beyond {v:g} m are masked (--max-range to override)"
+            for k, v in sorted(self.no_return.items())
+        ]
 
 
 def read_scans_at(
@@ -222,7 +242,7 @@ def read_scans_at(
     count: bool = False,
     strict: bool = True,
     max_beams: int = DEFAULT_MAX_BEAMS,
-    max_range: float = FLASER_MAX_RANGE,
+    max_range: float | None = None,
 ) -> ScanSelection:
     """Read only the scans of ``indices`` (0-based, file order) of a log.
 
@@ -266,7 +286,7 @@ def read_scans_at(
     if fmt == "text":
         reader = _TextReader(lines, strict, max_beams)
         got = dict(reader.scans(want.__contains__, last))
-    else:
-        reader = _CarmenReader(lines, strict, max_beams, max_range)
-        got = {i: scan for i, _, scan in reader.scans(want.__contains__, last)}
-    return ScanSelection(spath, got, reader.n_scans)
+        return ScanSelection(spath, got, reader.n_scans)
+    creader = _CarmenReader(lines, strict, max_beams, max_range)
+    got = {i: scan for i, _, scan in creader.scans(want.__contains__, last)}
+    return ScanSelection(spath, got, creader.n_scans, creader.no_return)

@@ -30,9 +30,12 @@ Conventions
   beyond it are masked as invalid (they are kept as logged). The shared logs mark no return
   with 81.83 (Intel) and 81.91 (CSAIL, Freiburg 079), while their largest genuine readings
   are about 25.4, 35.1 and 36.6 m, so 80 m separates the two in all three; a SICK LMS
-  cannot measure beyond about 80 m anyway. Pass a smaller ``max_range`` for logs that mark
-  no return with a smaller value (some use 50): a reading exactly equal to ``max_range`` is
-  invalid.
+  cannot measure beyond about 80 m anyway. Logs that mark no return with a smaller value
+  (some use 50) are recognised: the value repeats exactly across many beams at the top of
+  the range distribution of the first 200 FLASER/RLASER messages
+  (:func:`detect_no_return`); it then becomes those scans' ``range_max`` (a reading
+  exactly equal to ``range_max`` is invalid), is recorded in :attr:`CarmenLog.no_return`
+  and logged. Passing ``max_range`` turns the detection off.
 * **ROBOTLASER1**: angles ``start_angle + i * angular_res``; ``Scan.range_max`` is the
   message's ``max_range`` (the reader's ``max_range`` when that is not positive).
   ``Scan.odometry`` is the *laser* pose ``laser_x laser_y laser_theta`` (the pose of the
@@ -89,6 +92,7 @@ import math
 import os
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from dataclasses import field as _field
 from types import MappingProxyType
 
 import numpy as np
@@ -105,6 +109,7 @@ __all__ = [
     "KNOWN_MESSAGES",
     "CarmenLog",
     "flaser_angles",
+    "detect_no_return",
     "interpolate_odometry",
     "parse_carmen",
     "iter_carmen",
@@ -126,6 +131,14 @@ LASER_MESSAGES = frozenset(
 
 KNOWN_MESSAGES = LASER_MESSAGES | {"ODOM", "PARAM"}
 """CARMEN message types this reader interprets (others are skipped and counted)."""
+
+_FLASER_KINDS = frozenset({"FLASER", "RLASER"})
+
+NO_RETURN_PROBE_SCANS = 200
+"""FLASER/RLASER messages at the head of a log looked at to find its no-return value."""
+
+NO_RETURN_MIN_COUNT = 10
+"""Readings that must sit exactly at a value for it to be taken as the no-return mark."""
 
 _MAX_WARNINGS = 10  # malformed lines logged one by one; the rest are summarised
 
@@ -177,6 +190,10 @@ class CarmenLog:
         with ``strict=False``). Comments and blank lines are not counted.
     odom : ndarray, shape (M, 4)
         The ODOM messages in file order, columns ``timestamp, x, y, theta``.
+    no_return : Mapping[str, float]
+        Message type -> the no-return value found in the log below 80 m
+        (:func:`detect_no_return`), which became those scans' ``range_max``; empty when
+        none was found or ``max_range`` was given.
     """
 
     path: str
@@ -185,12 +202,14 @@ class CarmenLog:
     params: Mapping[str, str]
     skipped: Mapping[str, int]
     odom: np.ndarray
+    no_return: Mapping[str, float] = _field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "scans", tuple(self.scans))
         object.__setattr__(self, "message_types", tuple(self.message_types))
         object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
         object.__setattr__(self, "skipped", MappingProxyType(dict(self.skipped)))
+        object.__setattr__(self, "no_return", MappingProxyType(dict(self.no_return)))
         odom = np.array(self.odom, dtype=np.float64).reshape(-1, 4)
         odom.setflags(write=False)
         object.__setattr__(self, "odom", odom)
@@ -205,6 +224,59 @@ class CarmenLog:
             f"CarmenLog({os.path.basename(self.path)!r}, scans={len(self.scans)}, "
             f"params={len(self.params)}, odom={len(self.odom)}, skipped={dict(self.skipped)})"
         )
+
+
+def detect_no_return(rows, max_range: float = FLASER_MAX_RANGE) -> tuple[float, int, int] | None:
+    """The value a log writes for "no return", when it is below ``max_range``.
+
+    Some CARMEN logs mark a beam without return by a fixed value well below the sensor's
+    80 m (50 m is in use); taken as a hit it makes phantom features tens of metres out.
+    Such a value repeats *exactly* across many beams at the very top of the range
+    distribution, while genuine long readings vary from beam to beam. The rule: among the
+    finite readings below ``max_range``, take the most frequent exact value of the top 2 %;
+    it is the no-return mark when it occurs at least :data:`NO_RETURN_MIN_COUNT` times in
+    at least 3 scans, at most a tenth as many readings lie above it, and no more readings
+    lie within 5 % below it than at it exactly.
+
+    Parameters
+    ----------
+    rows : sequence of 1-D arrays
+        Ranges (metres) of some scans of one laser.
+    max_range : float
+        Readings at or beyond it are no return already (80 m by default).
+
+    Returns
+    -------
+    (value, count, n_scans) or None
+        The mark, how many readings sit at it and in how many scans; None when no value
+        qualifies (the logs that mark no return at 80 m or more, such as the shared ones).
+
+    >>> rng = np.random.default_rng(0)
+    >>> rows = [np.where(rng.random(180) < 0.2, 50.0, rng.uniform(0.5, 20, 180))
+    ...         for _ in range(20)]
+    >>> detect_no_return(rows)[0]
+    50.0
+    >>> detect_no_return([rng.uniform(0.5, 20, 180) for _ in range(20)]) is None
+    True
+    """
+    if not len(rows):
+        return None
+    r = np.concatenate([np.asarray(x, dtype=np.float64).ravel() for x in rows])
+    r = r[np.isfinite(r) & (r > 0) & (r < max_range)]
+    if r.size < NO_RETURN_MIN_COUNT:
+        return None
+    top = r[r >= np.quantile(r, 0.98)]
+    values, counts = np.unique(top, return_counts=True)
+    k = int(np.argmax(counts))
+    value, count = float(values[k]), int(counts[k])
+    if count < NO_RETURN_MIN_COUNT:
+        return None
+    above = int(np.count_nonzero(r > value))
+    near = int(np.count_nonzero((r >= 0.95 * value) & (r < value)))
+    n_rows = sum(1 for x in rows if np.any(np.asarray(x) == value))
+    if above * 10 > count or near > count or n_rows < 3:
+        return None
+    return value, count, n_rows
 
 
 def flaser_angles(n: int) -> np.ndarray:
@@ -474,7 +546,10 @@ class _CarmenReader:
     parsed, since a malformed line is skipped and must not count as a scan.
     """
 
-    def __init__(self, lines, strict: bool, max_beams: int, max_range: float):
+    def __init__(self, lines, strict: bool, max_beams: int, max_range: float | None):
+        detect = max_range is None
+        if detect:
+            max_range = FLASER_MAX_RANGE
         if not (
             isinstance(max_range, (int, float))
             and not isinstance(max_range, bool)
@@ -492,6 +567,11 @@ class _CarmenReader:
         self.skipped: dict[str, int] = {}
         self.n_scans: int | None = None
         self._n_warned = 0
+        #: message type -> the no-return value detected (FLASER/RLASER, below max_range)
+        self.no_return: dict[str, float] = {}
+        self._probing = detect
+        self._sample: dict[str, list[np.ndarray]] = {}
+        self._n_sampled = 0
 
     def _skip_malformed(self, reason: str, exc: ParseError) -> None:
         self.skipped[reason] = self.skipped.get(reason, 0) + 1
@@ -501,12 +581,13 @@ class _CarmenReader:
 
     def _build(self, p: _Pending, odom: np.ndarray) -> Scan | None:
         odometry = interpolate_odometry(odom, p.timestamp) if p.needs_odometry else p.odometry
+        range_max = self.no_return.get(p.kind, p.range_max)
         try:
             return Scan(
                 p.ranges,
                 p.angles,
                 0.0,
-                p.range_max,
+                range_max,
                 p.timestamp,
                 odometry,
                 p.reference,
@@ -519,14 +600,60 @@ class _CarmenReader:
             self._skip_malformed(f"malformed:{p.kind}", err)
             return None
 
+    def _flush(self, waiting, odom, wanted) -> Iterator[tuple[int, str, Scan]]:
+        """Build and yield the deferred records; returns (via StopIteration) how many a
+        lenient read refused (later indices move up by that many)."""
+        shift = 0
+        for k, record in waiting:
+            scan = self._build(record, odom)
+            if scan is None:
+                shift += 1  # lenient: later scans move up one index
+                continue
+            if wanted is None or wanted(k - shift):
+                yield k - shift, record.kind, scan
+        waiting.clear()
+        return shift
+
+    def _probe(self, record: _Pending) -> None:
+        """Add a FLASER/RLASER message to the no-return sample; decide when it is full."""
+        self._sample.setdefault(record.kind, []).append(record.ranges)
+        self._n_sampled += 1
+        if self._n_sampled >= NO_RETURN_PROBE_SCANS:
+            self._decide()
+
+    def _decide(self) -> None:
+        self._probing = False
+        for kind, rows in self._sample.items():
+            found = detect_no_return(rows, self.ctx.max_range)
+            if found is None:
+                continue
+            value, count, n_rows = found
+            self.no_return[kind] = value
+            logger.warning(
+                "%s: %s marks no return with %g m (%d readings in %d of the first %d scans "
+                "sit exactly there, at the top of the ranges): readings at or beyond %g m "
+                "are masked as no return (pass max_range to override)",
+                self.lines.path,
+                kind,
+                value,
+                count,
+                n_rows,
+                len(rows),
+                value,
+                extra={"user_note": True},  # the CLI prints it as a note instead
+            )
+        self._sample = {}
+
     def scans(
         self, wanted: Callable[[int], bool] | None = None, last: int | None = None
     ) -> Iterator[tuple[int, str, Scan]]:
         """See the class docstring; ``last``: stop after the laser message of this index
-        (strict mode, when no scan waits for later ODOM messages)."""
+        (strict mode, when no scan waits for later ODOM messages or for the no-return
+        probe of the first :data:`NO_RETURN_PROBE_SCANS` FLASER/RLASER messages)."""
         ctx, skipped, strict = self.ctx, self.skipped, self.strict
         index = 0  # index of the next laser message
-        waiting: list[tuple[int, _Pending]] = []  # scans that need the ODOM messages
+        waiting: list[tuple[int, _Pending]] = []  # deferred: need ODOM, or the probe
+        needs_odom = False
         stopped = False
         for line_no, line in self.lines:
             if line is None:  # undecodable (strict=False only)
@@ -545,7 +672,8 @@ class _CarmenReader:
                 skipped[key] = skipped.get(key, 0) + 1
                 continue
             is_laser = kind in LASER_MESSAGES
-            if is_laser and strict and wanted is not None and not wanted(index):
+            probing = self._probing and kind in _FLASER_KINDS
+            if is_laser and strict and wanted is not None and not wanted(index) and not probing:
                 index += 1
                 if last is not None and index > last and not waiting:
                     stopped = True
@@ -561,10 +689,18 @@ class _CarmenReader:
                 continue
             if record is None:
                 continue
-            if record.needs_odometry or waiting:
+            if probing:
+                self._probe(record)
+            if record.needs_odometry or waiting or self._probing:
                 if wanted is None or not strict or wanted(index):
                     waiting.append((index, record))
+                    needs_odom = needs_odom or record.needs_odometry
                 index += 1
+                if not self._probing and not needs_odom:
+                    index -= yield from self._flush(waiting, _NO_ODOM, wanted)
+                if strict and last is not None and index > last and not waiting:
+                    stopped = True
+                    break
                 continue
             scan = self._build(record, _NO_ODOM)
             if scan is None:
@@ -577,17 +713,10 @@ class _CarmenReader:
                 break
         if self.lines.truncated:
             skipped["truncated gzip"] = 1
+        if self._probing:
+            self._decide()
         if waiting:
-            odom = self.odom
-            shift = 0
-            for k, record in waiting:
-                scan = self._build(record, odom)
-                if scan is None:
-                    shift += 1  # lenient: later scans move up one index
-                    continue
-                if wanted is None or wanted(k - shift):
-                    yield k - shift, record.kind, scan
-            index -= shift
+            index -= yield from self._flush(waiting, self.odom, wanted)
         self.n_scans = None if stopped else index
         for reason, count in sorted(skipped.items()):
             if reason.startswith("unknown:"):
@@ -610,7 +739,7 @@ def parse_carmen(
     *,
     strict: bool = True,
     max_beams: int = DEFAULT_MAX_BEAMS,
-    max_range: float = FLASER_MAX_RANGE,
+    max_range: float | None = None,
 ) -> CarmenLog:
     """Parse the lines of a CARMEN log (see :func:`read_carmen` and the module docstring).
 
@@ -633,7 +762,7 @@ def iter_carmen(
     *,
     strict: bool = True,
     max_beams: int = DEFAULT_MAX_BEAMS,
-    max_range: float = FLASER_MAX_RANGE,
+    max_range: float | None = None,
     wanted: Callable[[int], bool] | None = None,
     last: int | None = None,
     reader_out: list | None = None,
@@ -672,7 +801,7 @@ def read_carmen(
     *,
     strict: bool = True,
     max_beams: int = DEFAULT_MAX_BEAMS,
-    max_range: float = FLASER_MAX_RANGE,
+    max_range: float | None = None,
 ) -> CarmenLog:
     """Read a CARMEN log (plain or gzip, detected by magic bytes).
 
@@ -686,9 +815,12 @@ def read_carmen(
         and logged at warning level; a truncated gzip keeps what could be read.
     max_beams : int
         Largest accepted beam or remission count in one message.
-    max_range : float
+    max_range : float, optional
         ``Scan.range_max`` (metres) for messages that carry no maximum range (FLASER,
         RLASER) or a non-positive one; readings at or beyond it are masked as no return.
+        Default 80 m, or for FLASER/RLASER the log's own no-return value when it marks no
+        return below 80 m (:func:`detect_no_return` on its first 200 such messages;
+        recorded in :attr:`CarmenLog.no_return` and logged at warning level).
 
     Returns
     -------

@@ -65,11 +65,16 @@ def _check_source(source) -> None:
         raise ArgumentError(f"source must be a path or a registered data set name, got {source!r}")
 
 
-def _read(source, indices: list[int], count: bool, options: dict) -> tuple[dict, int | None]:
-    """Scans of ``indices`` (all non-negative) and the scan count (None if unknown)."""
+def _read(
+    source, indices: list[int], count: bool, options: dict, notes: list | None = None
+) -> tuple[dict, int | None]:
+    """Scans of ``indices`` (all non-negative) and the scan count (None if unknown); the
+    reader's notes (a no-return value found) are appended to ``notes``."""
     _check_source(source)
     path = datasets.resolve_log(source)
     sel = read_scans_at(path, indices, count=count, **options)
+    if notes is not None:
+        notes.extend(sel.notes())
     return dict(sel.scans), sel.n_scans
 
 
@@ -105,7 +110,7 @@ def load_scan(
     label = _label(source) if isinstance(source, (str, os.PathLike)) else str(source)
     notes: list[str] = []
     if index is None:
-        got, n = _read(source, [0], True, options)
+        got, n = _read(source, [0], True, options, notes)
         if not got:
             raise ScanIndexError(f"{os.fspath(source)}: holds no scan")
         if n is not None and n > 1:
@@ -115,7 +120,7 @@ def load_scan(
     if index < 0:
         _, n = _read(source, [], True, options)
         raise _out_of_range(source, index, n or 0)
-    got, n = _read(source, [index], False, options)
+    got, n = _read(source, [index], False, options, notes)
     if index not in got:
         raise _out_of_range(source, index, n or 0)
     return got[index], f"{label}:{index}", notes
@@ -145,11 +150,12 @@ def load_scan_pair(
         if bad:
             _, n = _read(source, [], True, options)
             raise _out_of_range(source, bad[0], n or 0)
-        got, n = _read(source, [ia, ib], False, options)
+        notes: list[str] = []
+        got, n = _read(source, [ia, ib], False, options, notes)
         for i in (ia, ib):
             if i not in got:
                 raise _out_of_range(source, i, n or 0)
-        return got[ia], got[ib], (f"{label}:{ia}", f"{label}:{ib}"), []
+        return got[ia], got[ib], (f"{label}:{ia}", f"{label}:{ib}"), notes
     if a is None:
         raise ScanIndexError(
             "need two scans: SOURCE A B (a log and two scan indices) or A B (two scan files)"
@@ -162,7 +168,8 @@ def load_scan_pair(
         )
     scan_a, name_a, notes_a = load_scan(source, **options)
     scan_b, name_b, notes_b = load_scan(second, **options)
-    return scan_a, scan_b, (name_a, name_b), notes_a + notes_b
+    notes = notes_a + [n for n in notes_b if n not in notes_a]
+    return scan_a, scan_b, (name_a, name_b), notes
 
 
 def load_config(path: str | os.PathLike | None = None, paper: bool = False) -> MatchConfig:
