@@ -1,0 +1,215 @@
+"""EKF-SLAM on Victoria Park: nearest neighbour vs JCBB vs clique association, one run.
+
+For each method and each clutter level (spurious detections injected per scan): GPS error
+of the laser's position at every fix (RMS and max; aligned by the start of the run and by
+the best SE(2) alignment), landmarks in the final map, landmarks in pairs closer than 1 m
+(duplicates), median and 95th-percentile association time per step (CPU), whole-run time
+(CPU and wall). A figure of the three maps over the GPS track. Then the filter's NEES of
+the vehicle pose on simulated tree parks (known truth, the same noise as the filter's).
+
+    python benchmarks/slam.py                 # full: clutter 0, 5, 10; 5 simulated parks
+    python benchmarks/slam.py --clutter 0 --sims 2 --jobs 2
+
+Writes benchmarks/results/slam-2026-12-01.json, .md and .png (the maps).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one core per run
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import RESULTS, git_state, machine  # noqa: E402
+
+DATE = "2026-12-01"
+METHODS = ("nn", "jcbb", "clique")
+
+
+def _vp_worker(args):
+    method, clutter, seed = args
+    from scanclique.slam import read_gps, read_victoria_park
+    from scanclique.slam.ekf import SlamConfig, ekf_slam
+    from scanclique.slam.metrics import sensor_positions
+    from scanclique.slam.run import inject_clutter, summarise, victoria_park_model
+
+    cfg = SlamConfig()
+    steps = read_victoria_park("victoria-park")
+    gps = read_gps("victoria-park")
+    if clutter:
+        steps = inject_clutter(steps, clutter, max_range=cfg.max_range or 30.0, seed=seed)
+    model = victoria_park_model()
+    r = ekf_slam(steps, model, association=method, config=cfg)
+    g, m, (Rm, t) = summarise(r, model, gps, clutter)
+    pos = sensor_positions(r.poses, model.sensor_x, model.sensor_y)
+    keep = slice(None, None, 10)
+    return {
+        "method": method,
+        "clutter": clutter,
+        "metrics": {k: v for k, (v, _u) in m.items()},
+        "units": {k: u for k, (_v, u) in m.items()},
+        "_plot": (pos[keep].tolist(), r.landmarks.tolist(), r.landmark_covariances.tolist(),
+                  Rm.tolist(), t.tolist()),
+    }
+
+
+def _nees_worker(args):
+    method, seed = args
+    from scanclique.slam import Ackermann, SlamConfig, ekf_slam, wrap
+    from scanclique.slam.metrics import nees
+    from scanclique.slam.sim import simulate_park
+
+    cfg = SlamConfig()
+    run = simulate_park(seed, config=cfg, max_range=cfg.max_range or 20.0)
+    r = ekf_slam(run.steps, Ackermann(), association=method, config=cfg)
+    e = r.poses - run.poses
+    e[:, 2] = wrap(e[:, 2])
+    n = nees(e, r.pose_covariances)
+    # association accuracy against the truth: each landmark's majority tree
+    obs_ids = [a for a in r.associations]
+    pairs_ok = pairs_all = 0
+    votes: dict[int, dict[int, int]] = {}
+    for a, tr in zip(obs_ids, run.truth):
+        for lid, tree in zip(a.tolist(), tr.tolist()):
+            if lid >= 0:
+                votes.setdefault(lid, {}).setdefault(tree, 0)
+                votes[lid][tree] += 1
+    for lid, v in votes.items():
+        pairs_all += sum(v.values())
+        pairs_ok += max(v.values())
+    idx = np.flatnonzero(np.array([s.n_observations > 0 for s in run.steps]))
+    return {
+        "method": method, "seed": seed, "nees_obs_steps": n[idx].tolist(),
+        "pos_rmse": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1)))),
+        "landmarks": len(r.landmarks), "trees": len(run.trees),
+        "pair_consistency": pairs_ok / max(pairs_all, 1),
+    }
+
+
+def _nees_summary(records, M):
+    from scipy.stats import chi2
+
+    a = np.array([r["nees_obs_steps"] for r in records])  # (M, T)
+    mean_t = a.mean(0)
+    lo, hi = chi2.ppf(0.025, 3 * M) / M, chi2.ppf(0.975, 3 * M) / M
+    inside = float(np.mean((mean_t >= lo) & (mean_t <= hi)))
+    return {
+        "runs": M, "band": [lo, hi], "anees": float(mean_t.mean()),
+        "fraction_inside": inside,
+        "pos_rmse": float(np.mean([r["pos_rmse"] for r in records])),
+        "pair_consistency": float(np.mean([r["pair_consistency"] for r in records])),
+        "landmarks": float(np.mean([r["landmarks"] for r in records])),
+    }
+
+
+def _fmt(v):
+    return f"{v:.2f}" if isinstance(v, float) else str(v)
+
+
+COLUMNS = [
+    ("GPS RMSE (start alignment)", "RMSE start [m]"),
+    ("GPS max (start alignment)", "max start [m]"),
+    ("GPS RMSE (best SE(2) alignment)", "RMSE SE(2) [m]"),
+    ("GPS max (best SE(2) alignment)", "max SE(2) [m]"),
+    ("landmarks", "landmarks"),
+    ("landmarks in duplicate pairs", "dup [%]"),
+    ("association median", "assoc med [ms]"),
+    ("association p95", "assoc p95 [ms]"),
+    ("ambiguous steps", "ambiguous"),
+    ("run time (CPU)", "run CPU [s]"),
+    ("run time (wall)", "run wall [s]"),
+]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--clutter", default="0,5,10", help="clutter levels, comma-separated")
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--sims", type=int, default=5, help="simulated parks for the NEES")
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--out", default=str(RESULTS / f"slam-{DATE}"))
+    args = ap.parse_args(argv)
+    clutters = [int(c) for c in args.clutter.split(",") if c != ""]
+    methods = [m for m in args.methods.split(",") if m]
+    t0 = time.perf_counter()
+    tasks = [(m, c, 0) for c in clutters for m in methods]
+    nees_tasks = [(m, s) for m in methods for s in range(args.sims)]
+    with ProcessPoolExecutor(args.jobs) as ex:
+        vp = list(ex.map(_vp_worker, tasks))
+        sims = list(ex.map(_nees_worker, nees_tasks))
+    lines = []
+    head = "| clutter | method | " + " | ".join(c[1] for c in COLUMNS) + " |"
+    lines += [head, "|" + "---|" * (len(COLUMNS) + 2)]
+    for r in vp:
+        lines.append(f"| {r['clutter']} | {r['method']} | "
+                     + " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in COLUMNS) + " |")
+    # ratios: clique against the best of the others, per clutter level
+    ratio_lines = []
+    for c in clutters:
+        rs = {r["method"]: r["metrics"] for r in vp if r["clutter"] == c}
+        if "clique" in rs and len(rs) > 1:
+            for key in ("GPS RMSE (best SE(2) alignment)", "GPS RMSE (start alignment)"):
+                others = [rs[m][key] for m in rs if m != "clique"]
+                ratio_lines.append(f"clutter {c}: {key} clique / best other = "
+                                   f"{rs['clique'][key] / min(others):.3f}")
+    nees = {}
+    for m in methods:
+        recs = [s for s in sims if s["method"] == m]
+        if recs:
+            nees[m] = _nees_summary(recs, len(recs))
+    nees_lines = ["| method | runs | ANEES | 95 % band | fraction of steps inside | pos RMSE [m] | pair consistency | landmarks |",
+                  "|---|---|---|---|---|---|---|---|"]
+    for m, s in nees.items():
+        nees_lines.append(
+            f"| {m} | {s['runs']} | {s['anees']:.2f} | [{s['band'][0]:.2f}, {s['band'][1]:.2f}] | "
+            f"{100 * s['fraction_inside']:.1f} % | {s['pos_rmse']:.2f} | "
+            f"{100 * s['pair_consistency']:.2f} % | {s['landmarks']:.0f} |")
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # the figure: the maps at the lowest clutter level
+    try:
+        from scanclique.slam import read_gps
+        from scanclique.slam.outputs import plot_maps
+
+        c0 = min(clutters)
+        runs = []
+        for r in vp:
+            if r["clutter"] == c0:
+                pos, lm, lc, Rm, t = r["_plot"]
+                runs.append((f"{r['method']} (clutter {c0})", np.array(pos),
+                             np.array(lm).reshape(-1, 2), np.array(lc).reshape(-1, 2, 2),
+                             (np.array(Rm), np.array(t))))
+        plot_maps(out.with_suffix(".png"), runs, np.asarray(read_gps("victoria-park")),
+                  title="EKF-SLAM on Victoria Park: NN, JCBB, clique association")
+    except Exception as exc:  # pragma: no cover - plotting optional
+        print(f"figure not written: {exc}", file=sys.stderr)
+    for r in vp:
+        r.pop("_plot")
+    result = {
+        "date": DATE, "git": git_state(), "machine": machine(detailed=True),
+        "seconds": time.perf_counter() - t0, "victoria_park": vp, "nees": nees,
+        "nees_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in sims],
+    }
+    out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    md = ["# EKF-SLAM on Victoria Park (benchmarks/slam.py)", "", *lines, "", *ratio_lines, "",
+          "## NEES of the vehicle pose on simulated tree parks", "", *nees_lines, ""]
+    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+    print("\n".join(lines))
+    print()
+    print("\n".join(ratio_lines))
+    print()
+    print("\n".join(nees_lines))
+    print(f"\nwrote {out.with_suffix('.json')}, .md, .png in {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

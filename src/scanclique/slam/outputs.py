@@ -1,0 +1,109 @@
+"""Files of a SLAM run: ``trajectory.tum``, ``landmarks.csv``, ``report.json``, ``map.png``.
+
+* ``trajectory.tum``: ``time x y z qx qy qz qw`` per step (TUM RGB-D format; z = 0, the
+  quaternion of the heading about z): the vehicle's reference point in the filter's frame.
+* ``landmarks.csv``: ``id,x,y,var_x,cov_xy,var_y,hits`` of the final map.
+* ``report.json``: the run's metrics and configuration (see :func:`report_dict`).
+* ``map.png``: landmarks with 3-sigma covariance ellipses, the trajectory and the GPS
+  fixes (matplotlib, imported only here).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["write_tum", "write_landmarks", "write_report", "plot_maps"]
+
+
+def write_tum(path, times, poses) -> Path:
+    """Write poses (N, 3) at ``times`` (N,) in TUM format; returns the path."""
+    p = Path(path)
+    th = np.asarray(poses)[:, 2]
+    rows = np.column_stack(
+        [times, poses[:, 0], poses[:, 1], np.zeros(len(th)), np.zeros(len(th)),
+         np.zeros(len(th)), np.sin(th / 2), np.cos(th / 2)]
+    )
+    np.savetxt(p, rows, fmt="%.6f", header="time x y z qx qy qz qw", comments="# ")
+    return p
+
+
+def write_landmarks(path, ids, landmarks, covariances, hits) -> Path:
+    p = Path(path)
+    with open(p, "w") as fh:
+        fh.write("id,x,y,var_x,cov_xy,var_y,hits\n")
+        for i, m, c, h in zip(ids, landmarks, covariances, hits):
+            fh.write(f"{int(i)},{m[0]:.4f},{m[1]:.4f},{c[0, 0]:.6g},{c[0, 1]:.6g},{c[1, 1]:.6g},{int(h)}\n")
+    return p
+
+
+def _plain(obj):
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return {k: _plain(v) for k, v in asdict(obj).items()}
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def write_report(path, report: dict) -> Path:
+    p = Path(path)
+    p.write_text(json.dumps(_plain(report), indent=2, allow_nan=False) + "\n")
+    return p
+
+
+def _ellipse(ax, m, c, color, nsig=3.0):
+    w, v = np.linalg.eigh(c)
+    w = np.maximum(w, 0)
+    t = np.linspace(0, 2 * math.pi, 24)
+    pts = (v @ (np.sqrt(w)[:, None] * nsig * np.vstack([np.cos(t), np.sin(t)]))).T + m
+    ax.plot(pts[:, 0], pts[:, 1], color=color, lw=0.5)
+
+
+def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park"):
+    """One panel per run: GPS fixes, trajectory and landmarks (3-sigma ellipses), all
+    in the GPS frame.
+
+    Parameters
+    ----------
+    runs : list of (label, positions (N, 2), landmarks (n, 2), covariances (n, 2, 2),
+        (Rm, t) alignment estimate -> GPS)
+    gps : (G, 3) array, optional
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(runs)
+    fig, axes = plt.subplots(1, n, figsize=(6 * n, 6), squeeze=False)
+    for ax, (label, pos, lms, covs, (Rm, t)) in zip(axes[0], runs):
+        if gps is not None:
+            ax.plot(gps[:, 1], gps[:, 2], ".", color="0.6", ms=1.5, label="GPS")
+        p = pos @ Rm.T + t
+        ax.plot(p[:, 0], p[:, 1], "-", color="tab:blue", lw=0.7, label="estimate")
+        lm = lms @ Rm.T + t
+        ax.plot(lm[:, 0], lm[:, 1], "+", color="tab:green", ms=4, label=f"{len(lm)} landmarks")
+        for m, c in zip(lm, covs):
+            _ellipse(ax, m, Rm @ c @ Rm.T, "tab:green")
+        ax.set_title(label)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.legend(loc="upper left", fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

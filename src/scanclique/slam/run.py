@@ -1,0 +1,184 @@
+"""One SLAM run on a data set, with its metrics and files: what ``scanclique slam`` does.
+
+>>> # run = run_slam("victoria-park", association="clique", out="runs/vp")  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .ekf import SlamConfig, SlamResult, ekf_slam
+from .metrics import GpsError, align_se2, duplicate_pairs, gps_error, gps_outliers, sensor_positions
+from .models import Ackermann
+from .reader import Step, read_gps, read_victoria_park
+
+__all__ = ["SlamRun", "run_slam", "inject_clutter", "victoria_park_model"]
+
+log = logging.getLogger(__name__)
+
+
+def victoria_park_model() -> Ackermann:
+    """The Victoria Park vehicle (data/README.md): L = 2.83, H = 0.76, laser a = 3.78,
+    b = 0.5 m."""
+    return Ackermann(wheelbase=2.83, encoder_offset=0.76, laser_a=3.78, laser_b=0.5)
+
+
+def inject_clutter(steps, n: int, *, max_range: float, fov: float = math.pi, seed: int = 0,
+                   attribute_range=(0.05, 0.6)) -> list[Step]:
+    """The steps with ``n`` spurious detections added to every batch observation, uniform
+    in the sensor's field of view (range uniform in [1 m, ``max_range``], bearing in
+    [-fov/2, fov/2]), attributes uniform in ``attribute_range``; their order shuffled."""
+    if n <= 0:
+        return list(steps)
+    rng = np.random.default_rng(seed)
+    out = []
+    for s in steps:
+        if not s.n_observations:
+            out.append(s)
+            continue
+        zc = np.column_stack([rng.uniform(1.0, max_range, n), rng.uniform(-fov / 2, fov / 2, n)])
+        z = np.vstack([s.observations, zc])
+        att = None
+        if s.attributes is not None:
+            att = np.r_[s.attributes, rng.uniform(*attribute_range, n)]
+        order = rng.permutation(len(z))
+        out.append(Step(s.time, s.control, z[order], None if att is None else att[order]))
+    return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SlamRun:
+    """A run and what it measured.
+
+    Attributes
+    ----------
+    result : SlamResult
+    gps : GpsError or None
+        Error of the laser's position at the GPS fixes (None without GPS).
+    metrics : dict
+        Name -> (value, units) of the run (the CLI's table).
+    files : dict
+        Name -> path of the files written.
+    alignment : (Rm (2, 2), t (2,))
+        Best SE(2) alignment of the estimate to the GPS frame (identity without GPS).
+    """
+
+    result: SlamResult
+    gps: GpsError | None
+    metrics: dict
+    files: dict = field(default_factory=dict)
+    alignment: tuple = (np.eye(2), np.zeros(2))
+
+    def to_dict(self) -> dict:
+        r = self.result
+        return {
+            "method": r.method,
+            "metrics": {k: {"value": v, "units": u} for k, (v, u) in self.metrics.items()},
+            "gps": None if self.gps is None else {
+                "rmse_start": self.gps.rmse_start, "max_start": self.gps.max_start,
+                "rmse_best": self.gps.rmse_best, "max_best": self.gps.max_best,
+                "fixes": self.gps.fixes,
+            },
+            "ambiguous_times": r.observation_times[r.ambiguous].tolist(),
+            "files": {k: str(v) for k, v in self.files.items()},
+            "config": r.config,
+        }
+
+
+def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0):
+    """``(GpsError or None, metrics dict, alignment)`` of a run."""
+    pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
+    g = None
+    align = (np.eye(2), np.zeros(2))
+    if gps_fixes is not None and len(gps_fixes):
+        g = gps_error(result.times, pos, gps_fixes)
+        ok = gps_fixes[~gps_outliers(gps_fixes)]
+        ok = ok[(ok[:, 0] >= result.times[0]) & (ok[:, 0] <= result.times[-1])]
+        est = np.column_stack([np.interp(ok[:, 0], result.times, pos[:, 0]),
+                               np.interp(ok[:, 0], result.times, pos[:, 1])])
+        Rm, t, _ = align_se2(est, ok[:, 1:])
+        align = (Rm, t)
+    pairs, members = duplicate_pairs(result.landmarks, 1.0)
+    n = len(result.landmarks)
+    sec = result.association_seconds
+    m = {}
+    if g is not None:
+        m["GPS RMSE (start alignment)"] = (g.rmse_start, "m")
+        m["GPS max (start alignment)"] = (g.max_start, "m")
+        m["GPS RMSE (best SE(2) alignment)"] = (g.rmse_best, "m")
+        m["GPS max (best SE(2) alignment)"] = (g.max_best, "m")
+        m["GPS fixes"] = (g.fixes, "")
+    m["landmarks"] = (n, "")
+    m["duplicate pairs (< 1 m)"] = (pairs, "")
+    m["landmarks in duplicate pairs"] = (100.0 * members / max(n, 1), "%")
+    m["association median"] = (1e3 * float(np.median(sec)) if len(sec) else 0.0, "ms/step")
+    m["association p95"] = (1e3 * float(np.percentile(sec, 95)) if len(sec) else 0.0, "ms/step")
+    m["ambiguous steps"] = (int(result.ambiguous.sum()), "")
+    m["observation steps"] = (len(result.observation_times), "")
+    m["clutter per scan"] = (clutter, "")
+    m["run time (CPU)"] = (result.cpu_seconds, "s")
+    m["run time (wall)"] = (result.seconds, "s")
+    return g, m, align
+
+
+def run_slam(
+    source: str | os.PathLike = "victoria-park",
+    *,
+    association: str = "clique",
+    out: str | os.PathLike | None = None,
+    clutter: int = 0,
+    seed: int = 0,
+    config: SlamConfig | None = None,
+    progress=None,
+    plot: bool = False,
+) -> SlamRun:
+    """Run EKF-SLAM on the Victoria Park data (a name or a directory) and measure it.
+
+    Parameters
+    ----------
+    association : {"clique", "jcbb", "nn"}
+    out : path, optional
+        Directory for ``trajectory.tum``, ``landmarks.csv``, ``report.json`` (and
+        ``map.png`` with ``plot``).
+    clutter : int
+        Spurious detections injected per scan (:func:`inject_clutter`).
+    """
+    cfg = config or SlamConfig()
+    steps = read_victoria_park(source)
+    gps = read_gps(source)
+    if clutter:
+        steps = inject_clutter(steps, clutter, max_range=cfg.max_range or 30.0,
+                               fov=cfg.sensor_fov, seed=seed)
+    model = victoria_park_model()
+    result = ekf_slam(steps, model, association=association, config=cfg, progress=progress)
+    g, m, align = summarise(result, model, gps, clutter)
+    run = SlamRun(result, g, m, {}, align)
+    if out is not None:
+        d = Path(out)
+        d.mkdir(parents=True, exist_ok=True)
+        from .outputs import plot_maps, write_landmarks, write_report, write_tum
+
+        files = {
+            "trajectory": write_tum(d / "trajectory.tum", result.times, result.poses),
+            "landmarks": write_landmarks(d / "landmarks.csv", result.landmark_ids,
+                                         result.landmarks, result.landmark_covariances,
+                                         result.landmark_hits),
+        }
+        if plot:
+            pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
+            files["map"] = plot_maps(
+                d / "map.png",
+                [(f"{association}", pos, result.landmarks, result.landmark_covariances, align)],
+                gps, title=f"EKF-SLAM ({association}) on Victoria Park",
+            )
+        run.files.update(files)
+        run.files["report"] = d / "report.json"
+        write_report(d / "report.json", run.to_dict())
+    return run
