@@ -1,0 +1,91 @@
+"""Place recognition end to end on simulated scans (PlaceDB.query, find_loops)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import scanclique as sc
+from scanclique.errors import ConfigError
+from scanclique.places import ACCEPTED, REJECTED, PlaceDB, PlaceHit
+from scanclique.places.loops import find_loops
+
+
+@pytest.fixture(scope="module")
+def worlds():
+    """Three short drives, each through its own simulated office."""
+    rng = np.random.default_rng(11)
+    out = []
+    for _ in range(3):
+        world = sc.sim.office_world(rng)
+        out.append(sc.sim.simulate_trajectory(rng, world, 6, step=0.25))
+    return out
+
+
+def test_query_recognises_the_place_and_its_pose(tmp_path, worlds):
+    with PlaceDB(tmp_path / "p.db") as db:
+        for w, traj in enumerate(worlds):
+            for k in (0, 2, 4):
+                db.add(traj[k], name=f"w{w}s{k}")
+        assert len(db) == 9
+        for w, traj in enumerate(worlds):
+            q = traj[3]  # between two stored places of its world
+            hits = db.query(q, k=3, candidates=5)
+            assert all(isinstance(h, PlaceHit) for h in hits) and len(hits) == 3
+            best = hits[0]
+            assert best.verdict == ACCEPTED and best.name.startswith(f"w{w}")
+            place = db.get(best.place_id).scan
+            # the hit's pose composed with the place's reference gives the query's
+            t_err, r_err = (place.reference @ best.pose).distance_to(q.reference)
+            assert t_err < 0.1 and r_err < 0.02
+            for h in hits:
+                assert (h.pose is None) == (h.verdict == REJECTED)
+                if h.verdict == ACCEPTED:  # precision: every accepted hit is right
+                    ref = db.get(h.place_id).scan.reference
+                    assert (ref @ h.pose).distance_to(q.reference)[0] < 0.2
+            # ranked: verdict first, then score
+            keys = [({"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict], -h.score)
+                    for h in hits]
+            assert keys == sorted(keys)
+
+
+def test_exclude_and_candidates(tmp_path, worlds):
+    traj = worlds[0]
+    with PlaceDB(tmp_path / "p.db") as db:
+        ids = [db.add(s) for s in traj]
+        got, d = db.candidates(traj[2], n=2)
+        assert got[0] == ids[2] and d[0] < 1e-6
+        got, _ = db.candidates(traj[2], n=6, exclude=[ids[2]])
+        assert ids[2] not in got.tolist() and len(got) == 5
+        assert db.best(traj[2]).place_id == ids[2]
+
+
+def test_find_loops_backends_identical(worlds):
+    scans = [s for traj in worlds for s in traj]
+    serial = find_loops(scans, candidates=2, min_gap=3)
+    assert serial.backend == "serial" and len(serial.loops) > 0
+    assert [(lp.i, lp.j) for lp in serial.loops] == sorted((lp.i, lp.j) for lp in serial.loops)
+    assert all(lp.j <= lp.i - 3 for lp in serial.loops)
+    local = find_loops(scans, candidates=2, min_gap=3, workers=2)
+    assert local.backend == "processes" and local.keys() == serial.keys()
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as cluster:
+        d = find_loops(scans, candidates=2, min_gap=3, scheduler=cluster.scheduler_address)
+    assert d.backend == "dask" and d.keys() == serial.keys()
+    # accepted loops within one world's drive: the pose is right (across worlds the
+    # reference frames are unrelated: simulated offices repeat their geometry)
+    same = [lp for lp in serial.accepted if lp.i // 6 == lp.j // 6]
+    assert same
+    for lp in same:
+        t_err, _ = (scans[lp.j].reference @ lp.pose).distance_to(scans[lp.i].reference)
+        assert t_err < 0.2
+
+
+def test_find_loops_bad_arguments():
+    with pytest.raises(ConfigError):
+        find_loops([], candidates=0)
+    with pytest.raises(ConfigError):
+        find_loops([], workers=-1)
+    assert find_loops([], min_gap=1).loops == ()
