@@ -33,7 +33,9 @@ to back for 0.2 s and the mean taken.
 Our compiled kernels are loaded before the fork; their one-off cost (compilation into an
 empty cache, and loading from the cache) is measured separately, in fresh processes. A
 final check runs our solver with a time limit on a graph it cannot finish (1000 vertices,
-density 0.9) and reports the overshoot. Ratios are ours / peer: below 1 we are faster.
+density 0.9) and reports the overshoot, and then with node limits (the budget that decides
+results): each run twice, the two results must be identical. Ratios are ours / peer:
+below 1 we are faster.
 
 Output: the report on stdout and in ``benchmarks/results/clique-<date>.md``, all numbers
 with the machine, versions and load average in ``clique-<date>.json``.
@@ -377,6 +379,42 @@ def time_limit_check(limits=(0.1, 1.0, 10.0), n: int = 1000, p: float = 0.9) -> 
                 "optimal": r.optimal,
                 "valid": valid,
                 "nodes": r.nodes,
+                "reason": r.reason,
+            }
+        )
+    return out
+
+
+def node_limit_check(limits=(10_000, 100_000), n: int = 1000, p: float = 0.9) -> list[dict]:
+    """Our solver with a node limit on a graph it cannot finish, twice per limit: the
+    clique, the node count and the reason must be the same both times (they do not depend
+    on the machine's speed); the wall time is reported."""
+    out = []
+    for k, limit in enumerate(limits):
+        adj = random_graph(n, p, 200 + k)
+        runs, walls = [], []
+        for _ in range(2):
+            t = time.perf_counter()
+            runs.append(max_clique(adj, node_limit=limit))
+            walls.append(time.perf_counter() - t)
+        a, b = runs
+        v = a.vertices
+        out.append(
+            {
+                "n": n,
+                "density": p,
+                "node_limit": limit,
+                "walls": walls,
+                "size": a.size,
+                "nodes": a.nodes,
+                "optimal": a.optimal,
+                "reason": a.reason,
+                "identical": bool(
+                    np.array_equal(a.vertices, b.vertices)
+                    and a.nodes == b.nodes
+                    and a.reason == b.reason
+                ),
+                "valid": bool((adj[np.ix_(v, v)] | np.eye(len(v), dtype=bool)).all()),
             }
         )
     return out
@@ -585,6 +623,7 @@ def main(argv=None) -> int:
         if rows:
             sections["correspondence"] = {"rows": [], "summary": summarise(rows, peers)}
     checks = [] if args.no_limit_check else time_limit_check()
+    node_checks = [] if args.no_limit_check else node_limit_check()
 
     date = _dt.date.today().isoformat()
     doc = {
@@ -599,6 +638,7 @@ def main(argv=None) -> int:
         "notes": notes,
         "first_call": first,
         "time_limit_check": checks,
+        "node_limit_check": node_checks,
         "sections": sections,
         "wall_seconds": time.perf_counter() - t_start,
         "settings": {"pairs_per_set": args.pairs, "large": args.large, "loose": args.loose},
@@ -677,7 +717,16 @@ def report(doc: dict) -> str:
                 f"- n={c['n']}, density {c['density']}, limit {c['limit']:g} s: call returned "
                 f"after {c['wall']:.3f} s wall (overshoot {100 * c['overshoot']:+.1f} %), "
                 f"clique of {c['size']} vertices, valid={c['valid']}, optimal={c['optimal']}, "
-                f"{c['nodes']} nodes"
+                f"{c['nodes']} nodes, reason {c.get('reason')}"
+            )
+    if doc.get("node_limit_check"):
+        out += ["", "## Node limit on a graph that cannot be finished (twice each)", ""]
+        for c in doc["node_limit_check"]:
+            out.append(
+                f"- n={c['n']}, density {c['density']}, node_limit {c['node_limit']}: clique "
+                f"of {c['size']} vertices after {c['nodes']} nodes, reason {c['reason']}, "
+                f"valid={c['valid']}, identical both runs={c['identical']}, wall "
+                f"{c['walls'][0]:.3f} s and {c['walls'][1]:.3f} s"
             )
     return "\n".join(out)
 

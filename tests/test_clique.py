@@ -911,3 +911,35 @@ def test_without_the_stamp_the_trap_is_real(tmp_path):
     _kernel_package(tmp_path, stamped=False)
     assert _run_caller(tmp_path, 1) == 20
     assert _run_caller(tmp_path, 2) == 20
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SLOW, reason="compiles every kernel (a minute); SCANCLIQUE_SLOW_TESTS=1")
+def test_compilation_does_not_count_against_the_time_limit(tmp_path):
+    # an empty cache: the first call compiles for tens of seconds, yet a 1 s limit on a
+    # graph that takes milliseconds ends in the same proven clique as in a warm process
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np\n"
+        "from scanclique.clique import max_clique\n"
+        "rng = np.random.default_rng(7)\n"
+        "a = np.triu(rng.random((100, 100)) < 0.5, 1)\n"
+        "r = max_clique(a | a.T, time_limit=1.0)\n"
+        "print(r.optimal, r.reason, ' '.join(map(str, r.vertices)))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "SCANCLIQUE_KERNEL_CACHE"}
+    env["NUMBA_CACHE_DIR"] = str(tmp_path)
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1] / "src")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr[-2000:]
+    warm = max_clique(random_graph_like_child(), time_limit=1.0)
+    assert r.stdout.split() == ["True", "None", *map(str, warm.vertices.tolist())]
+    assert list(tmp_path.glob("scanclique-*")), "the cache went to the stamped directory"
+
+
+def random_graph_like_child() -> np.ndarray:
+    rng = np.random.default_rng(7)
+    a = np.triu(rng.random((100, 100)) < 0.5, 1)
+    return a | a.T
