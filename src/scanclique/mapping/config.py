@@ -64,6 +64,8 @@ class FrontEndConfig:
         prior and from the rejected match's pose, accepted when the raw scans agree
         (score, fitness) and it lies within ``icp_gate`` sigma of the prior
         (:func:`scanclique.mapping.frontend.icp_fallback`); only then the prior itself.
+        Without odometry, an ICP pose scoring at least ``icp_ungated_score`` is accepted
+        whatever the constant-velocity prediction says.
     """
 
     keyframe_distance: float = 0.30
@@ -91,6 +93,7 @@ class FrontEndConfig:
     icp_min_score: float = 0.5
     icp_min_fitness: float = 0.6
     icp_gate: float = 4.0
+    icp_ungated_score: float = 0.75
 
     def __post_init__(self) -> None:
         _positive(

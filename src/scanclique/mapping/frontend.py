@@ -19,7 +19,7 @@ from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
 from ..refine import icp_point_to_line
-from ..validation import OdometryNoise, odometry_prior, validate_match
+from ..validation import AMBIGUOUS, OdometryNoise, odometry_prior, validate_match
 
 __all__ = [
     "MATCH",
@@ -116,16 +116,29 @@ def associate(
     path: list[Pose2] | None = None,
     sigma_floor: tuple[float, float] = (0.01, math.radians(0.25)),
     front_end=None,
+    weak_prior: bool = False,
 ) -> Step:
     """Match scan ``j`` against keyframe ``k`` and validate it against the prior (the two
     scans' odometry poses, or predicted poses, ``prior_a``, ``prior_b``).
+
+    With ``weak_prior`` (a constant-velocity prediction, not odometry) the match is
+    validated on its own evidence first (no rival, enough well-placed features), and the
+    prior only chooses among the hypotheses of an ambiguous match: a robot may turn
+    sharply between two scans, which no velocity model predicts.
 
     Returns the accepted :class:`Step` (kind ``"match"``; the pose the validation chose,
     its feature covariance plus ``sigma_floor``), or a Step of kind ``"rejected"`` whose
     ``verdict``/``reason`` say why (the caller then places the scan by its prior).
     """
     m = match_prepared(pk, pj, config)
-    v = validate_match(m, prior_a, prior_b, noise, path=path)
+    if weak_prior:
+        # no odometry (the paper's setting): the match validates itself (§7: enough
+        # features that fix the pose, no rival); the prediction only breaks a tie
+        v = validate_match(m)
+        if v.verdict == AMBIGUOUS:
+            v = validate_match(m, prior_a, prior_b, noise, path=path)
+    else:
+        v = validate_match(m, prior_a, prior_b, noise, path=path)
     if v.accepted and v.pose is not None:
         cov = v.covariance if v.covariance is not None else m.covariance
         pose = v.pose if front_end is None else refine_pose(pk, pj, v.pose, front_end)
@@ -142,6 +155,7 @@ def icp_fallback(
     priors: list[tuple[Pose2, np.ndarray]],
     fe,
     config: MatchConfig,
+    ungated: float | None = None,
 ) -> Step | None:
     """When the feature match fails: point-to-line ICP of all of scan ``j``'s points onto
     keyframe ``k``'s cloud from each seed (the priors, a rejected match's pose), the one
@@ -151,7 +165,8 @@ def icp_fallback(
     (per coordinate) of at least one of the ``priors`` (wheel odometry and the
     constant-velocity prediction of the chain: two independent motion estimates, so that
     a wheel slip or a reversing robot whose odometry disagrees with the scans does not
-    break the chain); its covariance is ``2 x`` the floor plus a hundredth of the
+    break the chain), or scores at least ``ungated`` (without odometry: a turn no velocity
+    model predicts, that the raw scans confirm); its covariance is ``2 x`` the floor plus a hundredth of the
     first prior's. None otherwise."""
     best = None
     for seed in seeds:
@@ -177,7 +192,7 @@ def icp_fallback(
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         if np.all(np.abs(d) <= fe.icp_gate * np.sqrt(np.diag(prior_cov))):
             inside = True
-    if not inside:
+    if not inside and not (ungated is not None and score >= ungated):
         return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
     return Step(pose, cov, ICP, "icp", float(score))

@@ -364,7 +364,7 @@ class _Mapper:
                 kind = CONSTANT_VELOCITY
             step = associate(
                 pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
-                sigma_floor=self.floor, front_end=fe,
+                sigma_floor=self.floor, front_end=fe, weak_prior=kind == CONSTANT_VELOCITY,
             )  # fmt: skip
             if step.kind != MATCH and fe.icp_fallback:
                 priors = [odometry_prior(prior_a, prior_b, noise, path=path)]
@@ -377,7 +377,8 @@ class _Mapper:
                 seeds = [p for p, _ in priors]
                 if step.pose is not None:
                     seeds.append(step.pose)
-                alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match)
+                ungated = fe.icp_ungated_score if kind == CONSTANT_VELOCITY else None
+                alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match, ungated)
                 if alt is not None:
                     self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
                     step = alt

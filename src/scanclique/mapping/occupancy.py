@@ -1,0 +1,156 @@
+"""Occupancy grid by log-odds ray casting (issue 12, part 4).
+
+Every beam of every cast scan walks the cells from the sensor to its end point (Bresenham's
+line, Bresenham 1965): the cells it passes are evidence of free space (``log_odds_miss``
+added), the end cell of a valid return evidence of an obstacle (``log_odds_hit``); the sum
+is clamped to ``[-clamp, clamp]`` (Thrun, Burgard and Fox, *Probabilistic Robotics*, §9.2,
+the inverse sensor model in log-odds form). A beam with no return (max range) or longer
+than ``max_range`` marks free space only, up to ``max_range``.
+
+The kernel is compiled with numba on first use (``@njit(cache=True)``), never at import.
+The grid's cell ``(row, col)`` covers ``x in [x0 + col r, x0 + (col + 1) r)`` and
+``y in [y0 + row r, ...)``: row 0 is the *lowest* y (the images are flipped when written,
+as ROS ``map_server`` expects the top row first).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import Pose2
+from ..scan import Scan
+from .config import OccupancyConfig
+
+__all__ = ["OccupancyGrid", "occupancy_grid", "probabilities"]
+
+_KERNEL = None
+
+
+def _kernel():
+    """The compiled ray-casting kernel (loaded lazily: numba compiles or loads it on first
+    use)."""
+    global _KERNEL
+    if _KERNEL is None:
+        from numba import njit  # noqa: PLC0415
+
+        @njit(cache=True)
+        def cast(grid, ox, oy, ex, ey, hit, l_hit, l_miss, clamp):  # pragma: no cover
+            rows, cols = grid.shape
+            for b in range(ox.shape[0]):
+                x0, y0, x1, y1 = ox[b], oy[b], ex[b], ey[b]
+                dx = abs(x1 - x0)
+                dy = -abs(y1 - y0)
+                sx = 1 if x0 < x1 else -1
+                sy = 1 if y0 < y1 else -1
+                err = dx + dy
+                x, y = x0, y0
+                while True:
+                    if x == x1 and y == y1:
+                        break
+                    if 0 <= x < cols and 0 <= y < rows:
+                        v = grid[y, x] + l_miss
+                        grid[y, x] = v if v > -clamp else -clamp
+                    e2 = 2 * err
+                    if e2 >= dy:
+                        err += dy
+                        x += sx
+                    if e2 <= dx:
+                        err += dx
+                        y += sy
+                if 0 <= x1 < cols and 0 <= y1 < rows:
+                    if hit[b]:
+                        v = grid[y1, x1] + l_hit
+                        grid[y1, x1] = v if v < clamp else clamp
+                    else:
+                        v = grid[y1, x1] + l_miss
+                        grid[y1, x1] = v if v > -clamp else -clamp
+            return grid
+
+        _KERNEL = cast
+    return _KERNEL
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class OccupancyGrid:
+    """A log-odds occupancy grid.
+
+    ``log_odds`` ``(rows, cols)`` float32 (0: unknown), row 0 at the lowest y;
+    ``resolution`` metres per cell; ``origin`` ``(x, y)`` of the lower-left corner of cell
+    ``(0, 0)`` in the map frame (metres)."""
+
+    log_odds: np.ndarray
+    resolution: float
+    origin: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        self.log_odds.setflags(write=False)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.log_odds.shape
+
+
+def probabilities(log_odds: np.ndarray) -> np.ndarray:
+    """Occupancy probability of each cell, ``1 - 1 / (1 + exp(l))``."""
+    return 1.0 - 1.0 / (1.0 + np.exp(log_odds.astype(float)))
+
+
+def occupancy_grid(
+    scans: Sequence[Scan],
+    poses: Sequence[Pose2 | None],
+    config: OccupancyConfig | None = None,
+) -> OccupancyGrid:
+    """Cast every ``config.scan_stride``-th placed scan into a log-odds grid.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    poses : sequence of Pose2 or None
+        Pose of each scan's sensor in the map frame (maps sensor points into the map);
+        scans with None are skipped.
+    config : OccupancyConfig, optional
+
+    Returns
+    -------
+    OccupancyGrid
+    """
+    cfg = config or OccupancyConfig()
+    r = cfg.resolution
+    idx = [k for k in range(0, len(scans), cfg.scan_stride) if poses[k] is not None]
+    if not idx:
+        return OccupancyGrid(np.zeros((1, 1), np.float32), r, (0.0, 0.0))
+    # beam end points in the map frame, first to size the grid
+    starts, ends, hits = [], [], []
+    for k in idx:
+        s, p = scans[k], poses[k]
+        rng = np.where(s.valid, s.ranges, cfg.max_range)
+        hit = s.valid & (rng <= cfg.max_range)
+        rng = np.minimum(rng, cfg.max_range)
+        pts = np.column_stack((rng * np.cos(s.angles), rng * np.sin(s.angles)))
+        ends.append(p.transform(pts))
+        starts.append(np.repeat([[p.x, p.y]], len(pts), axis=0))
+        hits.append(hit)
+    E = np.vstack(ends)
+    S = np.vstack(starts)
+    H = np.concatenate(hits)
+    # size the grid on the hits and the sensor positions (free-only beams are clipped)
+    pts = np.vstack([E[H], S[:1]]) if H.any() else S
+    lo = pts.min(axis=0) - cfg.margin
+    hi = pts.max(axis=0) + cfg.margin
+    cols = int(math.ceil((hi[0] - lo[0]) / r)) + 1
+    rows = int(math.ceil((hi[1] - lo[1]) / r)) + 1
+    grid = np.zeros((rows, cols), dtype=np.float32)
+
+    def cell(P):
+        return np.floor((P - lo) / r).astype(np.int64)
+
+    cs, ce = cell(S), cell(E)
+    _kernel()(
+        grid, cs[:, 0].copy(), cs[:, 1].copy(), ce[:, 0].copy(), ce[:, 1].copy(), H,
+        np.float32(cfg.log_odds_hit), np.float32(cfg.log_odds_miss), np.float32(cfg.clamp),
+    )  # fmt: skip
+    return OccupancyGrid(grid, r, (float(lo[0]), float(lo[1])))

@@ -1,0 +1,183 @@
+"""``run_map``: read a log, map it, write the outputs (the work of ``scanclique map``).
+
+A plain function a script calls the same way as the command does.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .. import datasets
+from ..errors import ScanCliqueError
+from ..geometry import Pose2
+from ..scan import Scan
+from .config import MapConfig
+from .pipeline import MapResult, map_scans
+
+__all__ = ["MapRun", "load_map_log", "relation_summary", "run_map", "is_bag"]
+
+log = logging.getLogger(__name__)
+
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+
+
+def is_bag(path: str | os.PathLike) -> bool:
+    """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a directory with ``metadata.yaml``,
+    or a ``.db3`` / ``.mcap`` file)."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return p.suffix in BAG_SUFFIXES
+
+
+def load_map_log(log_or_name: str | os.PathLike, topic: str | None = None) -> tuple[list[Scan], str]:
+    """The scans of a CARMEN log, a registered data set name or a ROS bag, and a label."""
+    s = str(log_or_name)
+    if is_bag(s):
+        from ..io.rosbag import read_bag  # noqa: PLC0415
+
+        return read_bag(s, topic=topic), Path(s).name
+    if topic is not None:
+        raise ScanCliqueError(f"--topic applies to ROS bags only; {s} is not a bag")
+    return datasets.load_log(s), Path(s).name
+
+
+def _relations_for(log_or_name: str) -> tuple[Path | None, Pose2 | None]:
+    """The relations file of a registered raw benchmark log (by name or by its path), and
+    the mounting of the frame they refer to (see :func:`relation_summary`)."""
+    name = datasets._canonical(log_or_name) if hasattr(datasets, "_canonical") else None
+    p = Path(log_or_name)
+    for key, ds in datasets.DATASETS.items():
+        if name == key or p.name == Path(ds.relpath).name:
+            if ds.relations is None:
+                return None, None
+            path = datasets.data_dir() / ds.relations
+            return (path if path.is_file() else None), None
+    return None, None
+
+
+def relation_summary(result: MapResult, scans, relations_path, mounting=None) -> dict | None:
+    """The relation metric (:mod:`scanclique.eval.relations`) of the result's poses."""
+    if relations_path is None:
+        return None
+    from ..eval import read_relations, relation_metrics  # noqa: PLC0415
+
+    rels = read_relations(relations_path)
+    ts = [s.timestamp for s in scans]
+    m = relation_metrics(rels, list(result.poses), ts, mounting=mounting)
+    return {"relations": str(relations_path), **m.to_dict()}
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MapRun:
+    """What :func:`run_map` did: the result, the files written, the relation metric (when
+    the log is a registered benchmark log) and wall times."""
+
+    label: str
+    result: MapResult
+    files: dict
+    metrics: dict | None
+    seconds: dict = field(default_factory=dict)
+
+    def rows(self) -> list[tuple[str, str, str]]:
+        """Metric / Value / Units rows for the command's table."""
+        c = self.result.counts()
+        s = self.seconds
+        n = c["scans"]
+        rows = [
+            ("scans", str(n), ""),
+            ("keyframes", str(c["keyframes"]), ""),
+            ("placed by match", str(c["placed_by"].get("match", 0)), "scans"),
+            ("placed by ICP fallback", str(c["placed_by"].get("icp", 0)), "scans"),
+            ("placed by odometry", str(c["placed_by"].get("odometry", 0)), "scans"),
+            ("placed by constant velocity", str(c["placed_by"].get("constant_velocity", 0)), "scans"),
+            ("loop candidates verified", str(c["loop_candidates"]), ""),
+            ("loop closures accepted", str(c["loop_closures_accepted"]), ""),
+            ("odometry used", "yes" if self.result.used_odometry else "no", ""),
+            ("mapping time", f"{self.result.seconds.get('total', math.nan):.1f}", "s"),
+            ("total time", f"{s.get('total', math.nan):.1f}", "s"),
+            ("scans per second", f"{n / max(s.get('total', math.nan), 1e-9):.1f}", "1/s"),
+        ]
+        if self.metrics:
+            a = self.metrics["all"]
+            rows += [
+                ("relations", str(a["n"]), ""),
+                ("relation error (translation)", f"{a['translation_mean']:.4f} ± {a['translation_std']:.4f}", "m"),
+                ("relation error (rotation)", f"{a['rotation_mean']:.3f} ± {a['rotation_std']:.3f}", "deg"),
+            ]  # fmt: skip
+        for k, v in self.files.items():
+            rows.append((k, str(v), "file"))
+        return rows
+
+
+def run_map(
+    log_or_name: str | os.PathLike,
+    out: str | os.PathLike,
+    *,
+    use_odometry: bool | None = None,
+    topic: str | None = None,
+    plot: bool = True,
+    config: MapConfig | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
+    workers: int | None = None,
+) -> MapRun:
+    """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
+    ``report.json`` (and ``map.png`` when ``plot``) into ``out``.
+
+    ``workers``: accepted for the command line; loop verification runs in this process
+    (see the note in the report).
+    """
+    from . import outputs  # noqa: PLC0415
+    from .occupancy import occupancy_grid  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    cfg = config or MapConfig()
+    scans, label = load_map_log(log_or_name, topic)
+    t_read = time.perf_counter() - t0
+    if not scans:
+        raise ScanCliqueError(f"{log_or_name}: the log holds no laser scans")
+    result = map_scans(scans, use_odometry=use_odometry, config=cfg, progress=progress)
+    outdir = Path(out)
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ScanCliqueError(f"cannot create output directory {outdir}: {exc}") from None
+    t = time.perf_counter()
+    files = {}
+    ts = [s.timestamp for s in scans]
+    outputs.write_tum(outdir / "trajectory.tum", result.poses, ts)
+    files["trajectory"] = outdir / "trajectory.tum"
+    outputs.write_g2o(outdir / "graph.g2o", result.poses, result.edges)
+    files["graph"] = outdir / "graph.g2o"
+    grid = occupancy_grid(scans, result.poses, cfg.occupancy)
+    outputs.write_map(outdir / "map.pgm", outdir / "map.yaml", grid)
+    files["map"] = outdir / "map.pgm"
+    files["map_yaml"] = outdir / "map.yaml"
+    if plot:
+        outputs.write_png(outdir / "map.png", grid, result.poses, result.accepted_closures, label)
+        files["image"] = outdir / "map.png"
+    t_out = time.perf_counter() - t
+    rel_path, mounting = _relations_for(str(log_or_name))
+    metrics = relation_summary(result, scans, rel_path, mounting)
+    seconds = {"read": t_read, "map": result.seconds.get("total", 0.0), "outputs": t_out}
+    seconds["total"] = time.perf_counter() - t0
+    report = {
+        "log": str(log_or_name),
+        "config": outputs.map_config_dict(cfg),
+        "used_odometry": result.used_odometry,
+        "counts": result.counts(),
+        "seconds": {**result.seconds, **seconds},
+        "metrics": metrics,
+        "unplaced_or_flagged": {str(k): v for k, v in result.reasons.items()},
+        "loop_closures": [c.to_dict() for c in result.loop_closures if not c.local],
+        "files": {k: str(v) for k, v in files.items()},
+    }
+    outputs.write_report(outdir / "report.json", report)
+    files["report"] = outdir / "report.json"
+    return MapRun(label, result, {k: str(v) for k, v in files.items()}, metrics, seconds)

@@ -1,0 +1,185 @@
+"""Mapping a whole log (scanclique.mapping): end to end on simulated drives with known
+truth, and the degenerate logs (one scan, no features, a gap)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from scanclique.geometry import Pose2
+from scanclique.mapping import MapConfig, map_scans
+from scanclique.scan import Scan
+from scanclique.sim import office_world, room_world, simulate_scan, simulate_trajectory
+
+
+def _relative_errors(result, scans, step=1):
+    """Errors of the relative poses of scans ``k`` and ``k + step`` against the truth."""
+    t, r = [], []
+    for k in range(len(scans) - step):
+        a, b = result.poses[k], result.poses[k + step]
+        est = a.inverse() @ b
+        ref = scans[k].reference.inverse() @ scans[k + step].reference
+        dt, dr = est.distance_to(ref)
+        t.append(dt)
+        r.append(dr)
+    return np.array(t), np.array(r)
+
+
+def _aligned_errors(result, scans):
+    """Position errors after expressing the truth in the frame of scan 0."""
+    r0 = scans[0].reference.inverse()
+    return np.array(
+        [p.distance_to(r0 @ s.reference)[0] for p, s in zip(result.poses, scans, strict=True)]
+    )
+
+
+@pytest.fixture(scope="module")
+def office_drive():
+    rng = np.random.default_rng(11)
+    world = office_world(rng, length=16.0)
+    scans = simulate_trajectory(rng, world, 40, step=0.25, n_beams=361)
+    return scans
+
+
+def test_drive_with_odometry(office_drive):
+    scans = office_drive
+    r = map_scans(scans)
+    assert r.used_odometry
+    assert len(r.poses) == len(scans) and all(p is not None for p in r.poses)
+    assert r.poses[0].distance_to(Pose2.identity()) == pytest.approx((0.0, 0.0), abs=1e-6)
+    assert r.placed_by[0] == "first"
+    assert sum(k in ("match", "icp") for k in r.placed_by) >= 0.9 * (len(scans) - 1)
+    t, rot = _relative_errors(r, scans)
+    assert np.median(t) < 0.02 and np.median(rot) < math.radians(0.5)
+    # better than the simulated odometry over the whole drive
+    odo = [s.odometry for s in scans]
+    o0 = odo[0].inverse()
+    r0 = scans[0].reference.inverse()
+    odo_err = np.array([(o0 @ o).distance_to(r0 @ s.reference)[0] for o, s in zip(odo, scans)])
+    assert _aligned_errors(r, scans).max() < max(0.15, 0.5 * odo_err.max())
+    c = r.counts()
+    assert c["scans"] == 40 and c["keyframes"] >= 2
+
+
+def test_drive_without_odometry(office_drive):
+    # the simulated drive turns up to 80 degrees between two scans, where a scan with two
+    # usable features cannot be placed from the scans alone: the chain is placed, and
+    # right step by step, but not free of a wrong step
+    r = map_scans(office_drive, use_odometry=False)
+    assert not r.used_odometry
+    assert all(p is not None for p in r.poses)
+    t, _ = _relative_errors(r, office_drive)
+    assert np.median(t) < 0.02 and np.mean(t < 0.05) > 0.9
+
+
+def test_smooth_drive_without_odometry():
+    rng = np.random.default_rng(3)
+    scans = _circle_scans(rng, laps=1, n_per_lap=36)
+    r = map_scans(scans, use_odometry=False)
+    assert r.placed_by.count("match") + r.placed_by.count("icp") >= 30
+    assert _aligned_errors(r, scans).max() < 0.1
+
+
+def _circle_scans(rng, laps=2, n_per_lap=36, people=False):
+    """A drive around a circle of radius 1.5 m in a room, ``laps`` times: the later laps
+    revisit the first (loop closures), odometry drifts."""
+    world = room_world(8.0, 7.0, rng=rng, pillars=0, clutter=6)
+    cx = (4.0, 3.5)
+    scans = []
+    odo = Pose2.identity()
+    prev = None
+    for k in range(laps * n_per_lap):
+        a = 2 * math.pi * k / n_per_lap
+        ref = Pose2(cx[0] + 1.5 * math.cos(a), cx[1] + 1.5 * math.sin(a), a + math.pi / 2)
+        if prev is not None:
+            u = prev.inverse() @ ref
+            odo = odo @ Pose2(u.x * 1.03, u.y + 0.01, u.theta * 1.04 + 0.003)
+        prev = ref
+        crowd = None
+        if people:
+            crowd = (np.array([[cx[0] + 2.6 * math.cos(0.3 * k), cx[1] + 0.4]]), np.array([0.2]))
+        scans.append(
+            simulate_scan(world, ref, rng=rng, timestamp=0.2 * k, odometry=odo, people=crowd,
+                          source=f"circle:{k}")
+        )  # fmt: skip
+    return scans
+
+
+def test_loop_closures_on_a_circle():
+    rng = np.random.default_rng(5)
+    scans = _circle_scans(rng)
+    r = map_scans(scans)
+    closures = r.accepted_closures
+    assert len(closures) >= 3
+    # every accepted closure agrees with the truth
+    for c in closures:
+        ref = scans[c.i].reference.inverse() @ scans[c.j].reference
+        dt, dr = c.pose.distance_to(ref)
+        assert dt < 0.1 and dr < math.radians(2.0)
+    assert _aligned_errors(r, scans).max() < 0.15
+
+
+def test_moving_people_do_not_break_the_chain():
+    rng = np.random.default_rng(9)
+    scans = _circle_scans(rng, laps=1, n_per_lap=30, people=True)
+    r = map_scans(scans, use_odometry=False)
+    t, _ = _relative_errors(r, scans)
+    assert np.median(t) < 0.03
+
+
+def test_one_scan_and_empty():
+    rng = np.random.default_rng(1)
+    world = office_world(rng, length=12.0)
+    s = simulate_scan(world, Pose2(2.0, 1.0, 0.0), rng=rng, timestamp=0.0)
+    r = map_scans([s])
+    assert len(r.poses) == 1 and r.poses[0].distance_to(Pose2.identity())[0] == 0.0
+    assert r.placed_by == ("first",)
+    e = map_scans([])
+    assert e.poses == () and e.edges == ()
+
+
+def test_scans_that_never_match_give_odometry_poses_and_reasons():
+    # every beam is a no-return: no features, no points; odometry moves 0.2 m per scan
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 181)
+    scans = [
+        Scan(np.full(181, 80.0), angles, range_max=80.0, timestamp=0.1 * k,
+             odometry=Pose2(0.2 * k, 0.0, 0.0), source=f"blind:{k}")
+        for k in range(6)
+    ]  # fmt: skip
+    r = map_scans(scans)
+    assert r.placed_by[1:] == ("odometry",) * 5
+    assert set(r.reasons) == {1, 2, 3, 4, 5}
+    for k, p in enumerate(r.poses):
+        assert p.distance_to(Pose2(0.2 * k, 0.0, 0.0))[0] < 1e-6
+    # without odometry: constant velocity (here: standing still), flagged
+    r2 = map_scans(scans, use_odometry=False)
+    assert r2.placed_by[1:] == ("constant_velocity",) * 5
+    assert all(p is not None for p in r2.poses)
+
+
+def test_a_gap_in_the_log(office_drive):
+    scans = office_drive[:12] + office_drive[22:]  # 2.5 m missing
+    r = map_scans(scans)
+    assert all(p is not None for p in r.poses)
+    # the scans after the gap are still placed consistently among themselves
+    t, _ = _relative_errors(r, scans)
+    assert np.median(t) < 0.03
+
+
+def test_bad_input():
+    from scanclique.errors import ScanError
+
+    with pytest.raises(ScanError, match=r"scans\[0\]"):
+        map_scans([object()])
+
+
+def test_chained_only_config(office_drive):
+    import dataclasses
+
+    cfg = MapConfig()
+    cfg = dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, enabled=False))
+    r = map_scans(office_drive, config=cfg)
+    assert r.loop_closures == ()
+    assert all(e.kind in ("match", "icp", "odometry", "constant_velocity") for e in r.edges)
