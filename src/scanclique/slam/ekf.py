@@ -336,8 +336,10 @@ def ekf_slam(
         z = step.observations
         if len(z):
             att = step.attributes
+            n_all = len(z)
+            keep = np.arange(n_all)
             if cfg.max_range is not None:
-                keep = z[:, 0] <= cfg.max_range
+                keep = np.flatnonzero(z[:, 0] <= cfg.max_range)
                 z = z[keep]
                 att = None if att is None else att[keep]
             # bring the cross-covariance up to date
@@ -348,7 +350,7 @@ def ekf_slam(
                 P[3:d, :3] = P[:3, 3:d].T
             P[:3, :3] = Pvv
             Fcum = np.eye(3)
-            a_out = np.full(len(z), REJECTED, np.int64)
+            a_used = np.full(len(z), REJECTED, np.int64)
             sec = 0.0
             D2, dof, ambiguous = 0.0, 0, False
             if len(z):
@@ -379,7 +381,7 @@ def ekf_slam(
                     f.misses[glob] = 0
                     if att is not None:
                         f.att[glob] += (att[paired] - f.att[glob]) / np.minimum(f.hits[glob], 20)
-                    a_out[paired] = f.ids[glob]
+                    a_used[paired] = f.ids[glob]
                 # tentative landmarks expected in view but unseen
                 if len(J):
                     seen = np.zeros(len(J), bool)
@@ -395,7 +397,7 @@ def ekf_slam(
                     m, Gx, Gz = inverse_observe(f.x[:3], z[new], sx, sy)
                     for q, i in enumerate(new):
                         lid = f.add(m[q], Gx[q], Gz[q], R, att[i] if att is not None else 0.0)
-                        a_out[i] = NEW
+                        a_used[i] = NEW
                         _ = lid
                 drop = np.flatnonzero(
                     (f.hits[: f.n] < cfg.confirm_hits) & (f.misses[: f.n] >= cfg.max_misses)
@@ -404,6 +406,8 @@ def ekf_slam(
                     f.remove(drop)
             Pvv = f.P[:3, :3].copy()
             obs_t.append(step.time)
+            a_out = np.full(n_all, REJECTED, np.int64)  # beyond max_range: rejected
+            a_out[keep] = a_used
             assoc_out.append(_ro(a_out))
             assoc_sec.append(sec)
             jd2.append(D2)

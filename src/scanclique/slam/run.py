@@ -77,6 +77,10 @@ class SlamRun:
     alignment: tuple = (np.eye(2), np.zeros(2))
 
     def to_dict(self) -> dict:
+        """JSON-ready: method, metrics (value, units), GPS errors, ambiguous steps' times,
+        files and the configuration."""
+        from .outputs import _plain
+
         r = self.result
         return {
             "method": r.method,
@@ -88,7 +92,7 @@ class SlamRun:
             },
             "ambiguous_times": r.observation_times[r.ambiguous].tolist(),
             "files": {k: str(v) for k, v in self.files.items()},
-            "config": r.config,
+            "config": _plain(r.config),
         }
 
 

@@ -39,7 +39,8 @@ class ParkRun:
     trees : (T, 2) ndarray
         True tree positions.
     truth : list of (k,) int64 ndarrays
-        Per observation step, the tree index of each observation (-1: clutter).
+        Per step with observations (scans that see nothing are left out), the tree index
+        of each observation (-1: clutter).
     """
 
     steps: list
@@ -153,6 +154,8 @@ def simulate_park(
                 )
                 zt = np.vstack([zt, zc])
                 ids = np.r_[ids, np.full(clutter, -1, np.int64)]
+            if len(zt) == 0:
+                continue
             order = rng.permutation(len(zt))
             steps.append(Step(t, None, zt[order]))
             times.append(t)

@@ -1,0 +1,177 @@
+"""EKF-SLAM end to end on the simulated tree park; the update against a dense reference;
+outputs and the ``scanclique slam`` command on a small simulated data directory."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from scanclique import slam
+from scanclique.slam import ekf as E
+from scanclique.slam.metrics import align_se2, duplicate_pairs, gps_error, gps_outliers, nees
+from scanclique.slam.models import inverse_observe, observe
+from scanclique.slam.sim import simulate_park
+
+CFG = slam.SlamConfig(max_range=20.0)
+
+
+@pytest.fixture(scope="module")
+def park():
+    return simulate_park(1, laps=1, length=50.0, width=30.0, n_trees=70, config=CFG)
+
+
+@pytest.mark.parametrize("method", slam.METHODS)
+def test_simulated_park_end_to_end(park, method):
+    r = slam.ekf_slam(park.steps, slam.Ackermann(), association=method, config=CFG)
+    assert r.poses.shape == (len(park.steps), 3)
+    e = r.poses - park.poses
+    e[:, 2] = slam.wrap(e[:, 2])
+    assert np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1))) < 1.5
+    # every landmark is one tree: the map's landmarks lie near distinct trees
+    d = np.hypot(*(r.landmarks[:, None, :] - park.trees[None]).transpose(2, 0, 1))
+    near = d.argmin(1)
+    assert np.median(d.min(1)) < 1.0
+    assert len(set(near.tolist())) >= 0.95 * len(near)
+    # associations agree with the truth for nearly every pair
+    votes = {}
+    for a, tr in zip(r.associations, park.truth):
+        for lid, tree in zip(a.tolist(), tr.tolist()):
+            if lid >= 0:
+                votes.setdefault(lid, []).append(tree)
+    agree = sum(max(v.count(t) for t in set(v)) for v in votes.values())
+    total = sum(len(v) for v in votes.values())
+    assert agree / total > 0.98
+    # the joint distance of each step passes its own gate (the validation record)
+    from scanclique.slam.association import chi2_bound
+
+    for d2, dof in zip(r.joint_d2, r.dof):
+        if dof:
+            assert d2 <= chi2_bound(int(dof), CFG.association.gate_probability) + 1e-9
+    assert np.all(np.linalg.eigvalsh(r.pose_covariances[-1]) > 0)
+
+
+def test_nees_is_plausible(park):
+    r = slam.ekf_slam(park.steps, slam.Ackermann(), association="jcbb", config=CFG)
+    e = r.poses - park.poses
+    e[:, 2] = slam.wrap(e[:, 2])
+    n = nees(e[200:], r.pose_covariances[200:])
+    assert 0.3 < n.mean() < 12.0
+
+
+def _dense_update(x, P, z, glob, R, sx, sy):
+    """Textbook EKF update with the full H and the Joseph form (slow reference)."""
+    d = len(x)
+    m = len(glob)
+    H = np.zeros((2 * m, d))
+    lm = np.array([x[3 + 2 * g : 5 + 2 * g] for g in glob])
+    zhat, Hx, Hm = observe(x[:3], lm, sx, sy)
+    for q, g in enumerate(glob):
+        H[2 * q : 2 * q + 2, :3] = Hx[q]
+        H[2 * q : 2 * q + 2, 3 + 2 * g : 5 + 2 * g] = Hm[q]
+    Rb = np.kron(np.eye(m), R)
+    S = H @ P @ H.T + Rb
+    K = P @ H.T @ np.linalg.inv(S)
+    nu = z - zhat
+    nu[:, 1] = slam.wrap(nu[:, 1])
+    xn = x + K @ nu.reshape(-1)
+    xn[2] = slam.wrap(xn[2])
+    I_KH = np.eye(d) - K @ H
+    return xn, I_KH @ P @ I_KH.T + K @ Rb @ K.T
+
+
+def test_update_matches_dense_joseph_form():
+    rng = np.random.default_rng(4)
+    f = E._Filter(np.array([1.0, 2.0, 0.3]), np.diag([0.2, 0.3, 0.01]), cap=2)
+    R = np.diag([0.3, 0.02]) ** 2
+    for _ in range(5):  # grows past the capacity
+        z = np.array([[rng.uniform(5, 20), rng.uniform(-1.2, 1.2)]])
+        m, Gx, Gz = inverse_observe(f.x[:3], z, 3.78, 0.5)
+        f.add(m[0], Gx[0], Gz[0], R, 0.0)
+    d = f.dim
+    x0, P0 = f.x[:d].copy(), f.P[:d, :d].copy()
+    glob = np.array([3, 0, 4])
+    lm = np.array([x0[3 + 2 * g : 5 + 2 * g] for g in glob])
+    z = observe(x0[:3], lm, 3.78, 0.5)[0] + rng.normal(0, [0.3, 0.02], (3, 2))
+    xr, Pr = _dense_update(x0, P0, z, glob, R, 3.78, 0.5)
+    E._update(f, z, glob, R, 3.78, 0.5)
+    np.testing.assert_allclose(f.x[:d], xr, atol=1e-9)
+    np.testing.assert_allclose(f.P[:d, :d], Pr, atol=1e-9)
+    assert np.allclose(f.P[:d, :d], f.P[:d, :d].T)
+    # removing a landmark keeps the others' blocks
+    keep = [0, 1, 3, 4]
+    blocks = [f.P[3 + 2 * j : 5 + 2 * j, 3 + 2 * j : 5 + 2 * j].copy() for j in keep]
+    ids = f.ids[keep].copy()
+    f.remove([2])
+    assert f.n == 4 and f.ids[:4].tolist() == ids.tolist()
+    for q, b in enumerate(blocks):
+        np.testing.assert_allclose(f.P[3 + 2 * q : 5 + 2 * q, 3 + 2 * q : 5 + 2 * q], b)
+
+
+def test_landmarks_seen_once_are_removed():
+    """A spurious detection seen once never enters the final map."""
+    steps = [slam.Step(0.0, np.array([0.0, 0.0]), np.zeros((0, 2)))]
+    lm = np.array([[10.0, 3.0], [12.0, -4.0], [15.0, 1.0]])
+    for k in range(1, 20):
+        z = observe(np.zeros(3), lm)[0]
+        if k == 5:
+            z = np.vstack([z, [[7.0, 0.5]]])
+        steps.append(slam.Step(0.2 * k, None, z))
+    r = slam.ekf_slam(steps, slam.Unicycle(), association="clique", config=CFG)
+    assert len(r.landmarks) == 3
+    np.testing.assert_allclose(np.sort(r.landmarks[:, 0]), [10.0, 12.0, 15.0], atol=0.05)
+    assert r.associations[4].tolist()[-1] == slam.NEW
+
+
+def test_metrics():
+    t = np.linspace(0, 100, 501)
+    pos = np.column_stack([t, np.sin(t / 10)])
+    ang = 0.3
+    Rm = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
+    g = np.column_stack([t[::5], pos[::5] @ Rm.T + [5.0, -2.0]])
+    g[40, 1:] += 200.0  # a receiver jump
+    assert np.flatnonzero(gps_outliers(g)).tolist() == [40]
+    e = gps_error(t, pos, g)
+    assert e.rmse_best < 1e-9 and e.rmse_start < 1e-6 and e.fixes == len(g) - 1
+    R2, t2, a2 = align_se2(pos, pos @ Rm.T + [5.0, -2.0])
+    assert abs(a2 - ang) < 1e-12
+    assert duplicate_pairs(np.array([[0, 0], [0.5, 0], [5, 5]])) == (1, 2)
+
+
+def _write_vp(d, run, gps_every=5):
+    d.mkdir(parents=True, exist_ok=True)
+    with open(d / "inputs.dat", "w") as fi, open(d / "measurements.dat", "w") as fm:
+        for s in run.steps:
+            if s.control is not None:
+                fi.write(f"{s.time:.3f} {s.control[0]:.5f} {s.control[1]:.5f}\n")
+            for r, b in s.observations:
+                fm.write(f"{s.time:.3f} {r:.5f} {b + math.pi / 2:.5f} 0.3\n")
+    laser = slam.Ackermann()
+    pos = np.array([laser.sensor_pose(p)[:2] for p in run.poses[::gps_every * 8]])
+    with open(d / "gps.dat", "w") as fg:
+        for t, (x, y) in zip(run.times[::gps_every * 8], pos):
+            fg.write(f"{t:.3f} {x:.4f} {y:.4f}\n")
+
+
+def test_cli_slam_on_simulated_directory(tmp_path, park):
+    from scanclique.cli import app
+
+    d = tmp_path / "vp"
+    _write_vp(d, park)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["slam", str(d), "--association", "clique", "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    rep = json.loads(res.stdout)
+    assert rep["method"] == "clique"
+    assert rep["metrics"]["GPS RMSE (best SE(2) alignment)"]["value"] < 1.5
+    for f in ("trajectory.tum", "landmarks.csv", "report.json"):
+        assert (out / f).is_file()
+    tum = np.loadtxt(out / "trajectory.tum")
+    assert tum.shape[1] == 8
+    res = CliRunner().invoke(app, ["slam", str(tmp_path / "missing")])
+    assert res.exit_code == 2 and "error:" in res.output
+    res = CliRunner().invoke(app, ["slam", str(d), "--association", "magic"])
+    assert res.exit_code == 2
