@@ -19,7 +19,18 @@ from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
 from ..refine import icp_point_to_line
-from ..validation import AMBIGUOUS, OdometryNoise, odometry_prior, validate_match
+from ..validation import (
+    AMBIGUOUS,
+    GATE_99,
+    OdometryNoise,
+    ValidationConfig,
+    constellation_std,
+    mahalanobis_sq,
+    odometry_prior,
+    validate_match,
+)
+
+_VALIDATION = ValidationConfig()
 
 __all__ = [
     "MATCH",
@@ -105,6 +116,27 @@ def refine_pose(pa: PreparedScan, pb: PreparedScan, pose: Pose2, fe) -> Pose2:
     return icp.pose
 
 
+def _quick_accept(m, prior_a, prior_b, noise, path) -> Pose2 | None:
+    """The common case of the §7 test, cheaply: the match is not ambiguous, maps at least
+    ``ValidationConfig.min_features`` features, its own covariance fixes the pose within
+    the validation's limits, and it lies inside the chi-square gate of the odometry prior.
+    Then :func:`~scanclique.validation.validate_match` would accept it too (it re-estimates
+    the covariance from the agreeing features and looks for rivals, which the odometry
+    gate settles here); anything else goes to the full validation."""
+    if m.pose is None or m.ambiguous or m.covariance is None:
+        return None
+    vc = _VALIDATION
+    if len(m.pairs) < vc.min_features or not np.all(np.isfinite(m.covariance)):
+        return None
+    s_xy, s_th = constellation_std(m.covariance)
+    if s_xy > vc.max_std_metres or s_th > vc.max_std_radians:
+        return None
+    prior, prior_cov = odometry_prior(prior_a, prior_b, noise, path=path)
+    if mahalanobis_sq(m.pose, m.covariance, prior, prior_cov) > GATE_99:
+        return None
+    return m.pose
+
+
 def associate(
     pk: PreparedScan,
     pj: PreparedScan,
@@ -131,6 +163,10 @@ def associate(
     ``verdict``/``reason`` say why (the caller then places the scan by its prior).
     """
     m = match_prepared(pk, pj, config)
+    quick = None if weak_prior else _quick_accept(m, prior_a, prior_b, noise, path)
+    if quick is not None:
+        pose = quick if front_end is None else refine_pose(pk, pj, quick, front_end)
+        return Step(pose, floored(m.covariance, *sigma_floor), MATCH, "accepted", float(m.score))
     if weak_prior:
         # no odometry (the paper's setting): the match validates itself (§7: enough
         # features that fix the pose, no rival); the prediction only breaks a tie

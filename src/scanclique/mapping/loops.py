@@ -29,7 +29,7 @@ from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared
 from ..validation import OdometryNoise, validate_match
 from .config import LoopConfig
-from .frontend import floored, refine_pose
+from .frontend import _quick_accept, floored, refine_pose
 
 __all__ = [
     "LoopClosure",
@@ -160,15 +160,25 @@ def verify(
     config: MatchConfig,
     sigma_floor: tuple[float, float],
     front_end=None,
+    quick: bool = False,
 ) -> tuple[Pose2 | None, np.ndarray | None, str, float, str]:
     """Match scan ``j`` against scan ``i`` and validate the match (§7) against the current
     estimate ``est_i^-1 est_j`` with standard deviations ``sigma`` (m, rad).
+
+    ``quick``: accept through the cheap form of the test first
+    (:func:`scanclique.mapping.frontend._quick_accept`; for the local neighbours, whose
+    prior is the well-known chain).
 
     Returns ``(pose, covariance, verdict, score, reason)``; pose and covariance are None
     unless the verdict is ``accepted``.
     """
     m = match_prepared(pi, pj, config)
     noise = OdometryNoise(0.0, 0.0, 0.0, sigma[0], sigma[1])
+    if quick:
+        q = _quick_accept(m, est_i, est_j, noise, None)
+        if q is not None:
+            pose = q if front_end is None else refine_pose(pi, pj, q, front_end)
+            return pose, floored(m.covariance, *sigma_floor), "accepted", float(m.score), ""
     v = validate_match(m, est_i, est_j, noise)
     reason = "; ".join(v.reasons)
     if v.accepted and v.pose is not None:

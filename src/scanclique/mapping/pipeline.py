@@ -275,7 +275,7 @@ class _Mapper:
                 sigma = (1e3, math.pi)  # the estimate says nothing: appearance only
             pose, cov, verdict, score, reason = _loops.verify(
                 self.kf_prep[i], self.kf_prep[kidx], est_i, est_j, sigma, self.cfg.match,
-                self.floor, self.fe,
+                self.floor, self.fe, quick=local,
             )  # fmt: skip
             if pose is None:
                 self.closures.append(

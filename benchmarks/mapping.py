@@ -1,0 +1,305 @@
+"""Mapping benchmark (issue 12): the SLAM benchmark of Kümmerle et al. 2009 on the raw logs.
+
+One command::
+
+    python benchmarks/mapping.py                      # fr079 and Intel, every row
+    python benchmarks/mapping.py --logs fr079-raw --rows chain,full
+
+Rows per log: raw odometry; chained consecutive matching only (no loop closures); the
+full system with odometry; the full system without odometry (the paper's point: no prior
+pose); the paper's matcher configuration (``paper_config()``) in the full system. Columns:
+the relation metric (mean ± std of |translation| in m and |angle| in deg over all
+relations, and the means over relations spanning <= 10 s and > 10 s), loop closures
+accepted, their precision, wall time and scans per second. Also CSAIL
+(``csail-odometry.log.gz``) against relations made from its corrected poses (every
+consecutive pair and the revisit pairs of ``scanclique.pairsets``), stated as such.
+
+Precision of closures: there is no per-scan reference in the raw logs, so a closure counts
+as right when the *optimised* poses agree with it within 0.20 m and 1 deg (it is
+consistent with the final map), and on CSAIL when it agrees with the corrected reference
+poses within 0.20 m and 1 deg.
+
+The relations of fr079 refer to the robot frame (the ``odom_*`` poses), the scans to the
+laser, mounted 0.04 m behind it: the log's FLASER line carries both poses, and their
+constant offset (``x_laser^-1 x_robot = (0.04, 0, 0)`` on every line) is the mounting the
+metric is computed with. Both figures (with and without it) are in the JSON.
+
+Results: ``benchmarks/results/mapping-2026-12-01.json`` and ``.md``. Wall times include
+reading the log; numba kernels are warmed up on a simulated drive first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import git_state, machine, versions  # noqa: E402
+
+from scanclique import datasets  # noqa: E402
+from scanclique.config import paper_config  # noqa: E402
+from scanclique.eval import Relation, read_relations, relation_metrics  # noqa: E402
+from scanclique.geometry import Pose2  # noqa: E402
+from scanclique.mapping import MapConfig, map_scans  # noqa: E402
+
+DATE = "2026-12-01"
+ROWS = ("odometry", "chain", "full", "no-odometry", "paper")
+LOGS = ("fr079-raw", "intel-raw")
+
+#: published figures on exactly this metric (Hess et al. 2016, Table II; Kümmerle 2009)
+ANCHORS = {
+    "fr079-raw": [
+        ("Cartographer (Hess et al. 2016)", "0.0452 ± 0.0354", "0.538 ± 0.718"),
+        ("graph mapping (Kümmerle et al. 2009)", "0.056", "0.6"),
+        ("Graph FLIRT", "0.06", "0.8"),
+        ("scan matching", "0.258", ""),
+    ],
+    "intel-raw": [
+        ("Cartographer (Hess et al. 2016)", "0.0229 ± 0.0239", "0.453 ± 1.335"),
+        ("graph mapping (Kümmerle et al. 2009)", "0.031", "1.3"),
+        ("Graph FLIRT", "0.02", "0.3"),
+        ("incremental scan matching", "0.220", ""),
+        ("RBPF", "0.070", ""),
+    ],
+}
+
+
+def _mounting(scans) -> Pose2 | None:
+    """The constant pose of the robot frame in the laser frame, when the log's FLASER
+    lines carry both (``Scan.reference`` = laser odometry pose, ``Scan.odometry`` = robot
+    odometry pose in the raw fr079 log); None when they coincide or vary."""
+    offs = [
+        s.reference.inverse() @ s.odometry
+        for s in scans[:: max(1, len(scans) // 50)]
+        if s.reference is not None and s.odometry is not None
+    ]
+    if not offs:
+        return None
+    a = np.array([o.as_array() for o in offs])
+    if np.ptp(a, axis=0).max() > 1e-3 or np.abs(a.mean(axis=0)).max() < 1e-4:
+        return None
+    return Pose2.from_array(a.mean(axis=0))
+
+
+def _precision_self(result) -> tuple[int, int]:
+    right = 0
+    cl = result.accepted_closures
+    for c in cl:
+        est = result.poses[c.i].inverse() @ result.poses[c.j]
+        t, r = est.distance_to(c.pose)
+        right += t <= 0.20 and r <= math.radians(1.0)
+    return right, len(cl)
+
+
+def _config(row: str) -> tuple[MapConfig, bool | None]:
+    cfg = MapConfig()
+    if row == "chain":
+        return dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, enabled=False)), None
+    if row == "no-odometry":
+        return cfg, False
+    if row == "paper":
+        return dataclasses.replace(cfg, match=paper_config()), None
+    return cfg, None
+
+
+def _metric_dict(m) -> dict:
+    return m.to_dict()
+
+
+def run_row(name: str, row: str, scans, rels, mounting, t_read: float) -> dict:
+    ts = [s.timestamp for s in scans]
+    if row == "odometry":
+        poses = [s.odometry for s in scans]
+        m = relation_metrics(rels, poses, ts, mounting=mounting)
+        return {"log": name, "row": row, "metrics": _metric_dict(m), "seconds": 0.0}
+    cfg, use_odo = _config(row)
+    t0 = time.perf_counter()
+    res = map_scans(scans, use_odometry=use_odo, config=cfg)
+    wall = time.perf_counter() - t0 + t_read
+    m = relation_metrics(rels, list(res.poses), ts, mounting=mounting)
+    m0 = relation_metrics(rels, list(res.poses), ts, mounting=None)
+    right, n = _precision_self(res)
+    return {
+        "log": name,
+        "row": row,
+        "metrics": _metric_dict(m),
+        "metrics_without_mounting": _metric_dict(m0),
+        "closures": n,
+        "closures_right": right,
+        "closures_per_scan": n / len(scans),
+        "seconds": wall,
+        "seconds_by_stage": res.seconds,
+        "scans_per_second": len(scans) / wall,
+        "counts": res.counts(),
+    }
+
+
+def run_csail() -> dict | None:
+    """CSAIL against relations from its corrected poses (consecutive and revisit pairs)."""
+    from scanclique.pairsets import consecutive_pairs, revisit_pairs  # noqa: PLC0415
+
+    try:
+        scans = datasets.load_log("csail")
+    except Exception as exc:  # noqa: BLE001
+        return {"log": "csail", "skipped": str(exc)}
+    pairs = consecutive_pairs(len(scans)) + revisit_pairs(scans)
+    rels = [
+        Relation(float(i), float(j), scans[i].reference.inverse() @ scans[j].reference)
+        for i, j in pairs
+    ]
+    t0 = time.perf_counter()
+    res = map_scans(scans)
+    wall = time.perf_counter() - t0
+    poses = {float(k): p for k, p in enumerate(res.poses)}
+    m = relation_metrics(rels, poses, short_seconds=0.5 + 1.0)  # "short": consecutive
+    right = 0
+    for c in res.accepted_closures:
+        ref = scans[c.i].reference.inverse() @ scans[c.j].reference
+        t, r = c.pose.distance_to(ref)
+        right += t <= 0.20 and r <= math.radians(1.0)
+    return {
+        "log": "csail",
+        "row": "full",
+        "relations": f"{len(pairs)} made from the corrected poses ({len(scans) - 1} consecutive, "
+        f"{len(pairs) - len(scans) + 1} revisit pairs)",
+        "metrics": m.to_dict(),
+        "closures": len(res.accepted_closures),
+        "closures_right": right,
+        "seconds": wall,
+        "scans_per_second": len(scans) / wall,
+        "counts": res.counts(),
+    }
+
+
+def _warm_up() -> float:
+    from scanclique.sim import office_world, simulate_trajectory  # noqa: PLC0415
+
+    t = time.perf_counter()
+    rng = np.random.default_rng(0)
+    scans = simulate_trajectory(rng, office_world(rng, length=14.0), 30, step=0.25)
+    map_scans(scans)
+    return time.perf_counter() - t
+
+
+def _fmt(v, f=".4f"):
+    return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, f)
+
+
+def table(results: list[dict]) -> list[str]:
+    head = (
+        "| log | row | relations | translation (m) | rotation (deg) | ≤10 s (m) | >10 s (m) "
+        "| closures | precision | closures/scan | wall (s) | scans/s |"
+    )
+    lines = [head, "|" + "---|" * 12]
+    for r in results:
+        if "skipped" in r:
+            lines.append(f"| {r['log']} | skipped: {r['skipped']} |")
+            continue
+        a, s, lg = r["metrics"]["all"], r["metrics"]["short"], r["metrics"]["long"]
+        n = r.get("closures")
+        prec = "" if not n else f"{100 * r['closures_right'] / n:.1f} %"
+        lines.append(
+            f"| {r['log']} | {r['row']} | {a['n']} | {_fmt(a['translation_mean'])} ± "
+            f"{_fmt(a['translation_std'])} | {_fmt(a['rotation_mean'], '.3f')} ± "
+            f"{_fmt(a['rotation_std'], '.3f')} | {_fmt(s['translation_mean'])} | "
+            f"{_fmt(lg['translation_mean'])} | {'' if n is None else n} | {prec} | "
+            f"{_fmt(r.get('closures_per_scan'), '.3f')} | {_fmt(r.get('seconds'), '.1f')} | "
+            f"{_fmt(r.get('scans_per_second'), '.1f')} |"
+        )
+    return lines
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--logs", default=",".join(LOGS))
+    ap.add_argument("--rows", default=",".join(ROWS))
+    ap.add_argument("--csail", action=argparse.BooleanOptionalAction, default=True)
+    ap.add_argument("--limit", type=int, default=None, help="first N scans only (a quick look)")
+    ap.add_argument("--out", default=None, help="results stem (default benchmarks/results/mapping-DATE)")
+    args = ap.parse_args(argv)
+    stem = Path(args.out) if args.out else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
+    warm = _warm_up()
+    print(f"warm-up (numba kernels, a simulated drive): {warm:.1f} s", flush=True)
+    results: list[dict] = []
+    previous = {}
+    js = stem.with_suffix(".json")
+    if js.is_file():  # keep rows of other logs/rows measured earlier (one file per date)
+        try:
+            for r in json.loads(js.read_text()).get("results", []):
+                previous[(r["log"], r["row"])] = r
+        except (ValueError, KeyError):
+            previous = {}
+    for name in args.logs.split(","):
+        t = time.perf_counter()
+        scans = datasets.load_log(name)
+        if args.limit:
+            scans = scans[: args.limit]
+        t_read = time.perf_counter() - t
+        rels = read_relations(datasets.data_dir() / datasets.DATASETS[name].relations)
+        mounting = _mounting(scans)
+        for row in args.rows.split(","):
+            r = run_row(name, row, scans, rels, mounting, t_read)
+            r["mounting"] = None if mounting is None else mounting.as_array().tolist()
+            r["limit"] = args.limit
+            results.append(r)
+            previous.pop((name, row), None)
+            print("\n".join(table([r])[2:]), flush=True)
+    if args.csail:
+        r = run_csail()
+        if r is not None:
+            results.append(r)
+            previous.pop(("csail", "full"), None)
+            print("\n".join(table([r])[2:]), flush=True)
+    allres = list(previous.values()) + results
+    order = {k: i for i, k in enumerate(("fr079-raw", "intel-raw", "csail"))}
+    allres.sort(key=lambda r: (order.get(r["log"], 9), ROWS.index(r["row"]) if r["row"] in ROWS else 9))
+    lines = table(allres)
+    print()
+    print("\n".join(lines))
+    ratios = []
+    for name in LOGS:
+        by = {r["row"]: r for r in allres if r["log"] == name and "metrics" in r}
+        if "odometry" in by and "full" in by:
+            o, f = by["odometry"]["metrics"]["all"], by["full"]["metrics"]["all"]
+            ratios.append(f"{name}: full / raw odometry translation error = "
+                          f"{f['translation_mean'] / o['translation_mean']:.4f}")  # fmt: skip
+        if "chain" in by and "full" in by:
+            c, f = by["chain"]["metrics"]["all"], by["full"]["metrics"]["all"]
+            ratios.append(f"{name}: full / chained translation error = "
+                          f"{f['translation_mean'] / c['translation_mean']:.3f}")  # fmt: skip
+    print("\n".join(ratios))
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    js.write_text(
+        json.dumps(
+            {
+                "date": DATE,
+                "machine": machine(detailed=True),
+                "versions": versions(("numpy", "numba", "gtsam", "scipy")),
+                "git": git_state(),
+                "warm_up_seconds": warm,
+                "results": allres,
+                "anchors": ANCHORS,
+            },
+            indent=2,
+            default=lambda o: None,
+        )
+        + "\n"
+    )
+    md = ["# Mapping benchmark " + DATE, "", *lines, "", *ratios, "", "Published anchors (same metric):", ""]
+    for name, rows in ANCHORS.items():
+        for who, t, r in rows:
+            md.append(f"- {name}: {who}: {t} m, {r} deg")
+    stem.with_suffix(".md").write_text("\n".join(md) + "\n")
+    print(f"wrote {js} and {stem.with_suffix('.md')}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
