@@ -171,6 +171,7 @@ def test_round_trip_dict(cfg):
         "clique",
         "pose",
         "refine",
+        "validation",
     }
     back = config_from_dict(d)
     assert back == cfg
@@ -214,3 +215,36 @@ def test_from_dict_checks_values():
 def test_from_dict_single_section():
     c = config_from_dict({"c1": 0.2}, ClusterConfig)
     assert c == ClusterConfig(c1=0.2)
+
+
+@pytest.mark.parametrize(
+    "cls, kwargs, match",
+    [
+        (RefineConfig, {"min_score": math.nan}, "min_score must be a number, got nan"),
+        (RefineConfig, {"min_score": math.inf}, "min_score must be below inf"),
+        (CliqueConfig, {"max_hypotheses": 2**63}, "must fit in 64 bits"),
+        (CorrespondenceConfig, {"max_nodes": -(2**70)}, "must fit in 64 bits"),
+        (PoseConfig, {"outlier_mahalanobis": 0.0}, "outlier_mahalanobis must be a positive"),
+        (RefineConfig, {"search_cell": math.nan}, "search_cell must be a number, got nan"),
+    ],
+)
+def test_nan_and_overflowing_values_are_refused(cls, kwargs, match):
+    with pytest.raises(ConfigError, match=match):
+        cls(**kwargs)
+
+
+def test_match_config_sections_must_be_their_classes():
+    with pytest.raises(ConfigError, match="MatchConfig.clique must be a CliqueConfig, got dict"):
+        MatchConfig(clique={"time_limit": 1.0})
+
+
+def test_the_former_module_constants_are_config_fields_with_their_old_values():
+    r, p = RefineConfig(), PoseConfig()
+    assert (r.conflict_margin, r.conflict_ratio, r.quick_exact) == (0.2, 0.02, 1)
+    assert (r.distinct_metres, r.distinct_radians, r.ambiguous_score) == (
+        0.3,
+        math.radians(5),
+        0.9,
+    )
+    assert (r.search_bins, r.search_peaks, r.search_top, r.search_cell) == (180, 6, 3, 0.25)
+    assert (r.search_icp, r.search_stride, p.outlier_mahalanobis) == (4, 2, 3.5)

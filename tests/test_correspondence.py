@@ -281,3 +281,45 @@ def test_adjacency_read_only():
     cg = build(make_features([[0, 0], [3, 0]]), make_features([[0, 0], [3, 0]]))
     with pytest.raises(ValueError):
         cg.adjacency[0, 0] = True
+
+
+def test_graphs_of_other_tolerances_are_refused():
+    from scanclique.config import CorrespondenceConfig
+    from scanclique.errors import ConfigError
+    from scanclique.features import extract_features
+    from scanclique.graph import feature_graph
+    from scanclique.sim import simulate_pair
+
+    pair = simulate_pair(np.random.default_rng(0))
+    fa, fb = extract_features(pair.scan_a), extract_features(pair.scan_b)
+    loose = CorrespondenceConfig(point_point=0.6)
+    ga, gb = feature_graph(fa), feature_graph(fb, loose)
+    with pytest.raises(ConfigError, match="graph_b was built with other tolerances"):
+        correspondence_graph(ga, gb)
+    with pytest.raises(ConfigError, match="graph_a"):
+        correspondence_graph(ga, feature_graph(fb), loose)
+    # max_nodes is no tolerance: a graph built under another limit still pairs
+    cg = correspondence_graph(ga, feature_graph(fb), CorrespondenceConfig(max_nodes=10**6))
+    assert cg.n_nodes > 0
+
+
+def test_too_many_pairings_are_refused_before_allocating():
+    from scanclique.config import CorrespondenceConfig
+    from scanclique.correspondence import count_pairs
+    from scanclique.errors import GraphError
+
+    la = np.array([0, 0, 1, 8, 8, 8])
+    lb = np.array([0, 1, 1, 8, 2])
+    assert count_pairs(la, lb) == len(candidate_pairs(la, lb)) == 2 * 1 + 1 * 2 + 3 * 1
+    assert count_pairs(la[:0], lb) == 0
+    # 3000 nodes of one label each side: 9e6 pairings, refused from the counts alone
+    big = np.zeros(3000, dtype=np.int64)
+    assert count_pairs(big, big) == 9_000_000
+    from scanclique.graph import FeatureGraph
+
+    def labels_only(labels):  # the count check reads only the labels and the config
+        z = np.zeros((3, 1, 1))
+        return FeatureGraph(labels, labels, z, z, np.zeros(3, bool), len(labels))
+
+    with pytest.raises(GraphError, match="9000000 nodes.*max_nodes=20000"):
+        correspondence_graph(labels_only(big), labels_only(big), CorrespondenceConfig())

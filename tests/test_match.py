@@ -13,13 +13,11 @@ import scanclique as sc
 from scanclique.config import MatchConfig
 from scanclique.features import POINT_LABEL_NAMES
 from scanclique.geometry import Pose2
-from scanclique.graph import NODE_KIND_NAMES
 from scanclique.match import ScanMatch, match_prepared, match_scans, prepare_scan
 from scanclique.scan import Scan
 from scanclique.sim import simulate_pair
 
 SEEDS = list(range(10))
-KINDS = set(NODE_KIND_NAMES.values())
 
 
 def sim_kwargs(seed: int) -> dict:
@@ -74,7 +72,6 @@ def test_simulated_match_record(sim_matches, seed):
 def test_pairs_are_valid_and_consistent_with_the_pose(sim_matches, seed):
     p, m = sim_matches[seed]
     fa, fb = m.features_a, m.features_b
-    assert {q.kind for q in m.pairs} <= KINDS
     seen_a, seen_b = set(), set()
     for q in m.pairs:
         # one-to-one within each group
@@ -119,8 +116,15 @@ def test_paper_configuration(seed):
     m = match_scans(p.scan_a, p.scan_b, sc.paper_config())
     assert ok(m, p.pose_a_b), m.pose and m.pose.distance_to(p.pose_a_b)
     assert not m.refined
-    # untyped points: every point pair is a foreground point, edge or corner
-    assert {q.kind for q in m.pairs} <= KINDS
+    # untyped points (the paper): a point of A may pair with a point of B of another kind;
+    # the pair is reported under A's kind, and lines pair only with lines
+    fa, fb = m.features_a, m.features_b
+    for q in m.pairs:
+        if q.kind == "line":
+            assert q.a < fa.n_lines and q.b < fb.n_lines
+        else:
+            assert q.kind == POINT_LABEL_NAMES[int(fa.points_label[q.a])]
+            assert q.b < fb.n_points
 
 
 @pytest.mark.parametrize("seed", [2, 5])
@@ -312,3 +316,87 @@ def test_search_finds_what_the_cliques_miss(log, i, j):
     m_off, _, right_off = real_match(log, i, j, off)
     assert not right_off
     assert all(h.origin == "clique" for h in m_off.hypotheses)
+
+
+# ---------------------------------------------------------------------------------------
+# configuration travels with the records
+# ---------------------------------------------------------------------------------------
+def test_records_carry_their_configuration():
+    import dataclasses
+
+    p = sim_pair(0)
+    cfg = dataclasses.replace(
+        MatchConfig(), clique=dataclasses.replace(MatchConfig().clique, max_hypotheses=4)
+    )
+    pa, pb = prepare_scan(p.scan_a, cfg), prepare_scan(p.scan_b, cfg)
+    assert pa.config is cfg and pa.graph.config is cfg.correspondence
+    m = match_prepared(pa, pb)  # no config: the one the scans were prepared with
+    assert m.config is cfg
+    assert match_scans(p.scan_a, p.scan_b, cfg).config is cfg
+    # a configuration that differs only after preparation may match prepared scans
+    other = dataclasses.replace(cfg, clique=MatchConfig().clique)
+    assert match_prepared(pa, pb, other).config is other
+
+
+@pytest.mark.parametrize(
+    "section, change",
+    [
+        ("correspondence", {"point_point": 0.5}),
+        ("features", {"corners": False}),
+        ("clustering", {"c1": 0.1}),
+        ("refine", {"sample_points": 60}),
+    ],
+)
+def test_prepared_scans_of_another_configuration_are_refused(section, change):
+    import dataclasses
+
+    from scanclique.errors import ConfigError
+
+    p = sim_pair(1)
+    base = MatchConfig()
+    other = dataclasses.replace(base, **{section: dataclasses.replace(getattr(base, section), **change)})
+    pa, pb = prepare_scan(p.scan_a, base), prepare_scan(p.scan_b, other)
+    with pytest.raises(ConfigError, match=section.split(".")[0]):
+        match_prepared(pa, pb)
+    with pytest.raises(ConfigError, match="prepared with another configuration"):
+        match_prepared(pa, prepare_scan(p.scan_b, base), other)
+
+
+@pytest.mark.parametrize("bad", [None, "scan", np.zeros(10), {"ranges": [1.0]}])
+def test_match_scans_checks_its_arguments(bad):
+    from scanclique.errors import ScanCliqueError
+
+    p = sim_pair(0)
+    with pytest.raises(ScanCliqueError, match="must be a Scan"):
+        match_scans(bad, p.scan_b)
+    with pytest.raises(ScanCliqueError, match="must be a Scan"):
+        match_scans(p.scan_a, bad)
+    with pytest.raises(ScanCliqueError, match="must be a PreparedScan"):
+        match_prepared(bad, prepare_scan(p.scan_b))
+
+
+@pytest.mark.parametrize("bad", [{"clique": {}}, "default.toml", 3])
+def test_a_config_that_is_not_a_matchconfig_is_refused(bad):
+    from scanclique.errors import ConfigError
+
+    p = sim_pair(0)
+    with pytest.raises(ConfigError, match="must be a MatchConfig"):
+        match_scans(p.scan_a, p.scan_b, bad)
+    with pytest.raises(ConfigError, match="must be a MatchConfig"):
+        prepare_scan(p.scan_a, bad)
+
+
+def test_validation_reads_the_match_configuration():
+    import dataclasses
+
+    from scanclique.validation import TOO_FEW_FEATURES, validate_match
+
+    p = sim_pair(0)
+    m = match_scans(p.scan_a, p.scan_b)
+    assert validate_match(m).verdict == "accepted"
+    strict = dataclasses.replace(
+        MatchConfig(), validation=dataclasses.replace(MatchConfig().validation, min_features=50)
+    )
+    m2 = match_scans(p.scan_a, p.scan_b, strict)
+    assert m2.pose == m.pose  # the validation section does not change the match
+    assert validate_match(m2).verdict == TOO_FEW_FEATURES

@@ -126,9 +126,11 @@ def test_validation_config_rejects_bad_values(kwargs):
 
 
 def test_validation_record_checks_its_verdict():
-    with pytest.raises(ScanError):
+    with pytest.raises(ScanError, match="maybe"):
         Validation("maybe", None, None, None, None, GATE_99, None, None, 0, None, (), ())
-    assert set(VERDICTS) == {ACCEPTED, REJECTED_ODOMETRY, AMBIGUOUS, TOO_FEW_FEATURES}
+    for verdict in VERDICTS:  # every listed verdict is one a record accepts
+        v = Validation(verdict, None, None, None, None, GATE_99, None, None, 0, None, (), ())
+        assert v.verdict == verdict
 
 
 # ---------------------------------------------------------------------------------------
@@ -366,15 +368,17 @@ def test_odometry_must_be_decisive_to_resolve_an_ambiguity(symmetric):
     assert json.loads(json.dumps(v.to_dict()))["posterior"] == pytest.approx(v.posterior)
 
 
-def _first_simulated(pred, seeds=range(400)):
-    """The first simulated pair (``simulate_pair``, seeds in order) whose match
-    satisfies ``pred(match, truth, validation_without_odometry)``."""
-    for seed in seeds:
-        pair = simulate_pair(np.random.default_rng(seed))
-        m = sc.match_scans(pair.scan_a, pair.scan_b)
-        if m.pose is not None and pred(m, pair.pose_a_b, validate_match(m)):
-            return m, pair.pose_a_b
-    pytest.fail(f"no simulated pair of the kind wanted among seeds {seeds}")
+def _simulated(seed: int, pred):
+    """The match of simulated pair ``seed`` (``simulate_pair``) and its truth, checked to
+    be of the kind wanted: ``pred(match, truth, validation_without_odometry)``. The seeds
+    are pinned: each was the first of ``range(400)`` of its kind when the test was
+    written; a change to the matcher that loses the kind fails here, saying so."""
+    pair = simulate_pair(np.random.default_rng(seed))
+    m = sc.match_scans(pair.scan_a, pair.scan_b)
+    assert m.pose is not None and pred(m, pair.pose_a_b, validate_match(m)), (
+        f"simulated pair {seed} is no longer of the kind this test needs"
+    )
+    return m, pair.pose_a_b
 
 
 def _larger_rivals(m, v):
@@ -390,13 +394,14 @@ def _far(p: Pose2, q: Pose2) -> bool:
 def larger_wrong():
     """A match the raw scans got right, not flagged ambiguous by the matcher, with a
     larger clique at a wrong pose far away."""
-    return _first_simulated(
+    return _simulated(
+        112,
         lambda m, truth, v: (
             not m.ambiguous
             and v.verdict != TOO_FEW_FEATURES
             and is_right(m.pose, truth)
             and any(_far(m.hypotheses[k].pose, truth) for k in _larger_rivals(m, v))
-        )
+        ),
     )
 
 
@@ -404,13 +409,14 @@ def larger_wrong():
 def larger_right():
     """A match the raw scans got wrong, not flagged ambiguous by the matcher, whose larger
     clique (the paper's choice) is right."""
-    return _first_simulated(
+    return _simulated(
+        140,
         lambda m, truth, v: (
             not m.ambiguous
             and v.verdict != TOO_FEW_FEATURES
             and not is_right(m.pose, truth)
             and any(is_right(m.hypotheses[k].pose, truth) for k in _larger_rivals(m, v))
-        )
+        ),
     )
 
 
@@ -440,7 +446,7 @@ def larger_refuted():
             and all(h.score < 0.1 for h in big)
         )
 
-    return _first_simulated(pred)
+    return _simulated(12, pred)
 
 
 def test_a_larger_mapping_elsewhere_makes_a_match_ambiguous(larger_wrong):
@@ -610,7 +616,9 @@ def test_cli_validate_prints_the_confusion_table(drive_file):
 
 def test_run_validate_without_odometry(drive_file):
     run = cli.run_validate(drive_file / "drive.txt", cap=2, odometry=False)
-    assert {r["verdict"] for r in run.records} <= set(VERDICTS)
+    # without odometry no match can be rejected by it
+    assert all(r["verdict"] != REJECTED_ODOMETRY for r in run.records)
+    assert any(r["verdict"] == ACCEPTED for r in run.records)
     assert run.counts()["n"] == len(run.records) == 6 - 2  # no revisit in a short drive
     assert len(cli.confusion_rows(run)) == 2
     with pytest.raises(ScanCliqueError):

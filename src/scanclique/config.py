@@ -15,6 +15,8 @@ import dataclasses
 import math
 from dataclasses import dataclass, field, fields
 
+import numpy as np
+
 from .errors import ConfigError
 
 __all__ = [
@@ -24,7 +26,12 @@ __all__ = [
     "CliqueConfig",
     "PoseConfig",
     "RefineConfig",
+    "ValidationConfig",
     "MatchConfig",
+    "check_nonneg",
+    "check_positive",
+    "require_nonneg",
+    "require_positive",
     "paper_config",
     "config_to_dict",
     "config_from_dict",
@@ -32,11 +39,13 @@ __all__ = [
 
 
 _TYPES = {"bool": (bool,), "int": (int,), "float": (int, float), "str": (str,)}
+_INT64_MAX = 2**63 - 1
 
 
 def _check_types(obj) -> None:
     """Every field holds a value of its annotated type (bools are not ints here, ints
-    are accepted for floats); sections are checked by their own classes."""
+    are accepted for floats), integers fit in 64 bits (the compiled kernels take them)
+    and no number is NaN; sections are checked by their own classes."""
     for f in fields(obj):
         expected = _TYPES.get(
             f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
@@ -49,20 +58,47 @@ def _check_types(obj) -> None:
             raise ConfigError(
                 f"{type(obj).__name__}.{f.name} must be {f.type}, got {v!r} ({type(v).__name__})"
             )
+        if isinstance(v, int) and not isinstance(v, bool) and abs(v) > _INT64_MAX:
+            raise ConfigError(
+                f"{type(obj).__name__}.{f.name} must fit in 64 bits (|value| <= 2**63 - 1), got {v}"
+            )
+        if isinstance(v, float) and math.isnan(v):
+            raise ConfigError(f"{type(obj).__name__}.{f.name} must be a number, got nan")
 
 
-def _positive(obj, *names: str) -> None:
-    for name in names:
-        v = getattr(obj, name)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ConfigError(f"{type(obj).__name__}.{name} must be a positive number, got {v!r}")
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.number)) and not isinstance(v, (bool, np.bool_))
 
 
-def _nonneg(obj, *names: str) -> None:
-    for name in names:
-        v = getattr(obj, name)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-            raise ConfigError(f"{type(obj).__name__}.{name} must be >= 0, got {v!r}")
+def require_positive(where: str, **values) -> None:
+    """Each value is a finite number > 0, else :class:`ConfigError` naming ``where`` (a
+    prefix such as ``"room_world: "`` or ``"ClusterConfig."``), the name and the value.
+    The one argument checker of configs and of the simulator's parameters."""
+    for name, v in values.items():
+        if not (_is_number(v) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{where}{name} must be a positive number, got {v!r}")
+
+
+def require_nonneg(where: str, **values) -> None:
+    """Each value is a finite number >= 0, else :class:`ConfigError` (see
+    :func:`require_positive`)."""
+    for name, v in values.items():
+        if not (_is_number(v) and math.isfinite(v) and v >= 0):
+            raise ConfigError(f"{where}{name} must be a number >= 0, got {v!r}")
+
+
+def check_positive(obj, *names: str) -> None:
+    """Each named field of ``obj`` is a finite number > 0 (:func:`require_positive`)."""
+    require_positive(f"{type(obj).__name__}.", **{n: getattr(obj, n) for n in names})
+
+
+def check_nonneg(obj, *names: str) -> None:
+    """Each named field of ``obj`` is a finite number >= 0 (:func:`require_nonneg`)."""
+    require_nonneg(f"{type(obj).__name__}.", **{n: getattr(obj, n) for n in names})
+
+
+_positive = check_positive
+_nonneg = check_nonneg
 
 
 @dataclass(frozen=True, slots=True)
@@ -253,9 +289,13 @@ class PoseConfig:
 
     method: str = "lsq"
     min_pairs: int = 2
+    #: a clique's pairs whose Mahalanobis residual exceeds this are dropped from its
+    #: weighted least-squares estimate (one round of outlier rejection)
+    outlier_mahalanobis: float = 3.5
 
     def __post_init__(self) -> None:
         _check_types(self)
+        _positive(self, "outlier_mahalanobis")
         if self.method not in ("lsq", "median"):
             raise ConfigError(f"PoseConfig.method must be 'lsq' or 'median', got {self.method!r}")
         if not (isinstance(self.min_pairs, int) and self.min_pairs >= 2):
@@ -288,6 +328,24 @@ class RefineConfig:
     agree with it. It catches what a maximum clique misses: the true association is small
     (a corridor seen from its other end shares two walls and a door frame) while a larger
     clique of look-alike features wins. ``search=False`` disables it.
+
+    The remaining fields tune those steps; their defaults were chosen once on simulated
+    scans and are rarely worth changing:
+
+    ``conflict_margin``, ``conflict_ratio``: a point conflicts with the other scan's free
+    space when nearer than the beams' ranges by more than
+    ``conflict_margin + conflict_ratio * range`` metres. ``quick_exact``: every clique's
+    pose is first scored on every third sample point; this many times ``candidates`` of
+    the best are scored again on the full sample. ``distinct_metres``,
+    ``distinct_radians``: two hypotheses are the same pose unless this far apart (the one
+    rule of :func:`scanclique.match.distinct_poses`). ``ambiguous_score``: a distinct
+    runner-up scoring at least this fraction of the best, with a clique at most one
+    smaller, makes a match ambiguous (:func:`scanclique.match.near_rival`). The raw-scan
+    search (:func:`scanclique.match.search_pose`): orientation histograms of
+    ``search_bins`` bins over pi, ``search_peaks`` peaks of their correlation (each also
+    turned by pi), ``search_top`` translation peaks per rotation voted in cells of
+    ``search_cell`` metres by every ``search_stride``-th sample point of A against every
+    sample point of B, and ICP from the ``search_icp`` best-scoring seeds.
     """
 
     enabled: bool = True
@@ -302,11 +360,29 @@ class RefineConfig:
     search: bool = True
     search_below: float = 0.4
     search_margin: float = 0.1
+    conflict_margin: float = 0.2
+    conflict_ratio: float = 0.02
+    quick_exact: int = 1
+    distinct_metres: float = 0.3
+    distinct_radians: float = math.radians(5.0)
+    ambiguous_score: float = 0.9
+    search_bins: int = 180
+    search_peaks: int = 6
+    search_top: int = 3
+    search_cell: float = 0.25
+    search_icp: int = 4
+    search_stride: int = 2
 
     def __post_init__(self) -> None:
         _check_types(self)
         _positive(self, "max_correspondence", "inlier_distance", "sample_points")
         _nonneg(self, "conflict_weight", "size_weight", "search_margin")
+        _nonneg(self, "conflict_margin", "conflict_ratio", "quick_exact")
+        _nonneg(self, "distinct_metres", "distinct_radians", "ambiguous_score")
+        _positive(self, "search_bins", "search_peaks", "search_top", "search_cell")
+        _positive(self, "search_icp", "search_stride")
+        if self.min_score == math.inf:
+            raise ConfigError("RefineConfig.min_score must be below inf, got inf")
         if not (isinstance(self.search_below, (int, float)) and math.isfinite(self.search_below)):
             raise ConfigError(
                 f"RefineConfig.search_below must be a finite number, got {self.search_below!r}"
@@ -319,8 +395,74 @@ class RefineConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class ValidationConfig:
+    """Paper §7: thresholds of :func:`scanclique.validation.validate_match`.
+
+    Attributes
+    ----------
+    min_features : int
+        A match needs at least this many mapped features (pairs of the chosen clique that
+        agree with its pose within the correspondence tolerances), else
+        ``too_few_features``. Two fix a planar pose, but the geometry of two features
+        repeats almost anywhere; the chance of a symmetric alias falls fast with the
+        number mapped (paper §7).
+    max_std_metres, max_std_radians : float
+        The precision the constellation allows
+        (:func:`scanclique.uncertainty.constellation_std`): when the largest translation
+        standard deviation or the heading standard deviation of the feature estimate
+        exceeds these, the features do not fix the pose (``too_few_features``; a corridor
+        seen along its walls).
+    feature_gate : float
+        Probability of the per-pair chi-square gate (2 dof) that decides which of the
+        clique's pairs agree with the final pose in
+        :func:`scanclique.validation.feature_estimate`.
+    contender_score : float
+        Hypotheses whose raw-scan score is at least this fraction of the best one's (and
+        whose clique has ``min_features``) are the ones odometry may choose among.
+    decisive : float
+        When odometry has to choose (an ambiguous match, or the match's own pose outside
+        the gate), the chosen hypothesis needs at least this posterior probability among
+        the contenders (Gaussian likelihoods of their Mahalanobis distances, equal
+        priors): with one rival, its squared distance must exceed the chosen one's by
+        ``2 ln(p / (1 - p))``, 9.2 at 0.99. Being inside the gate only says a pose is
+        *possible*; choosing needs the others to be improbable.
+    rival_min_score : float
+        A hypothesis that maps more features than the chosen one is its rival only when
+        its raw-scan score is at least this. The default, 0.1, is the matcher's default
+        ``refine.min_score``, below which it says that no pose explains the raw scans: a
+        larger clique the raw scans refute is no evidence for another pose. (Change the
+        two together.)
+    """
+
+    min_features: int = 3
+    max_std_metres: float = 0.10
+    max_std_radians: float = math.radians(1.0)
+    feature_gate: float = 0.999
+    contender_score: float = 0.5
+    decisive: float = 0.99
+    rival_min_score: float = 0.1
+
+    def __post_init__(self) -> None:
+        _check_types(self)
+        if not self.min_features >= 2:
+            raise ConfigError(
+                f"ValidationConfig.min_features must be an int >= 2, got {self.min_features!r}"
+            )
+        _nonneg(self, "max_std_metres", "max_std_radians", "contender_score")
+        for name in ("feature_gate", "decisive"):
+            v = getattr(self, name)
+            if not 0.0 < v < 1.0:
+                raise ConfigError(
+                    f"ValidationConfig.{name} must be a probability in (0, 1), got {v!r}"
+                )
+
+
+@dataclass(frozen=True, slots=True)
 class MatchConfig:
-    """The whole pipeline's configuration: one section per stage."""
+    """The whole pipeline's configuration: one section per stage (``validation`` is
+    stage 8, used by :func:`scanclique.validation.validate_match`). Records the pipeline
+    makes carry the configuration that made them (``PreparedScan.config``,
+    ``ScanMatch.config``)."""
 
     clustering: ClusterConfig = field(default_factory=ClusterConfig)
     features: FeatureConfig = field(default_factory=FeatureConfig)
@@ -328,6 +470,26 @@ class MatchConfig:
     clique: CliqueConfig = field(default_factory=CliqueConfig)
     pose: PoseConfig = field(default_factory=PoseConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
+    validation: ValidationConfig = field(default_factory=ValidationConfig)
+
+    def __post_init__(self) -> None:
+        expected = {f.name: f.default_factory for f in fields(self)}
+        for name, cls in expected.items():
+            v = getattr(self, name)
+            if not isinstance(v, cls):  # type: ignore[arg-type]
+                raise ConfigError(
+                    f"MatchConfig.{name} must be a {cls.__name__}, got {type(v).__name__}"  # type: ignore[union-attr]
+                )
+
+    def preparation(self) -> tuple:
+        """The sections that shape a prepared scan (features, feature graph, raw-point
+        sample): two prepared scans can be matched together only when these agree."""
+        return (
+            self.clustering,
+            self.features,
+            self.correspondence,
+            self.refine.sample_points,
+        )
 
 
 def paper_config() -> MatchConfig:

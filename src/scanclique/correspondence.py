@@ -17,14 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import CorrespondenceConfig
-from .errors import GraphError
 from ._lazy import kernel_module
+from .config import CorrespondenceConfig
+from .errors import ConfigError, GraphError
 from .graph import FeatureGraph
 
 _K = kernel_module("scanclique._kernels.correspondence")
 
-__all__ = ["CorrespondenceGraph", "correspondence_graph", "candidate_pairs"]
+__all__ = ["CorrespondenceGraph", "correspondence_graph", "candidate_pairs", "count_pairs"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -62,6 +62,22 @@ class CorrespondenceGraph:
         return 0.0 if n < 2 else 2.0 * self.n_edges / (n * (n - 1))
 
 
+def _tolerance_key(c: CorrespondenceConfig) -> tuple:
+    return (c.point_point, c.point_line, c.line_line, c.signed, c.parallel_offset, c.adaptive)
+
+
+def count_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> int:
+    """How many same-label pairings there are, without forming them: the sum over labels
+    of (count in A) x (count in B)."""
+    a = np.asarray(labels_a, dtype=np.int64).ravel()
+    b = np.asarray(labels_b, dtype=np.int64).ravel()
+    if a.size == 0 or b.size == 0:
+        return 0
+    lo = int(min(a.min(), b.min()))
+    size = int(max(a.max(), b.max())) - lo + 1
+    return int(np.dot(np.bincount(a - lo, minlength=size), np.bincount(b - lo, minlength=size)))
+
+
 def candidate_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
     """All same-label pairings ``(a, b)``, shape (n, 2), ordered by a then b."""
     ia, ib = np.nonzero(np.asarray(labels_a)[:, None] == np.asarray(labels_b)[None, :])
@@ -78,7 +94,9 @@ def correspondence_graph(
     graph_a, graph_b : FeatureGraph
         Built with the same configuration (same layers).
     config : CorrespondenceConfig, optional
-        ``max_nodes`` bounds the number of pairings (memory grows as its square).
+        ``max_nodes`` bounds the number of pairings (memory and work grow as its square;
+        the count is checked before anything of that size is allocated). Defaults to the
+        configuration ``graph_a`` was built with; the graphs' tolerances must match it.
 
     Returns
     -------
@@ -88,21 +106,31 @@ def correspondence_graph(
     ------
     GraphError
         When the graphs have different layers, or the pairing count exceeds ``max_nodes``.
+    ConfigError
+        When a graph was built with other tolerances or invariants than ``config``.
     """
-    cfg = config or CorrespondenceConfig()
+    cfg = config or graph_a.config
     if graph_a.invariants.shape[0] != graph_b.invariants.shape[0]:
         raise GraphError(
             f"feature graphs have {graph_a.invariants.shape[0]} and "
             f"{graph_b.invariants.shape[0]} invariant layers; build both with one config"
         )
-    pairs = candidate_pairs(graph_a.labels, graph_b.labels)
-    n = pairs.shape[0]
-    if n > cfg.max_nodes:
+    for name, g in (("graph_a", graph_a), ("graph_b", graph_b)):
+        if _tolerance_key(g.config) != _tolerance_key(cfg) or g.typed_edges != graph_a.typed_edges:
+            raise ConfigError(
+                f"correspondence_graph: {name} was built with other tolerances or invariants "
+                f"({g.config}) than {cfg}; build both feature graphs with the configuration "
+                "you match with"
+            )
+    n = count_pairs(graph_a.labels, graph_b.labels)
+    if n > cfg.max_nodes:  # refused before anything of size n is allocated
         raise GraphError(
             f"correspondence graph would have {n} nodes ({graph_a.n_nodes} x {graph_b.n_nodes} "
-            f"features), more than max_nodes={cfg.max_nodes}; raise the limit or extract fewer "
-            "features"
+            f"features; its adjacency {n * n / 2**20:.0f} MiB and about {n * n / 2e9:.1f} G "
+            f"invariant tests), more than max_nodes={cfg.max_nodes}; raise the limit or "
+            "extract fewer features"
         )
+    pairs = candidate_pairs(graph_a.labels, graph_b.labels)
     adj = np.zeros((n, n), dtype=np.bool_)
     if n > 1:
         _K.edges(

@@ -56,6 +56,9 @@ PARALLEL_MAX_ANGLE = 0.05  #: radians; lines this close to (anti)parallel get an
 _PARALLEL_SIN = np.sin(PARALLEL_MAX_ANGLE)
 
 
+_DEFAULT_CORRESPONDENCE_FIELD = CorrespondenceConfig()
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class FeatureGraph:
     """A complete graph over the features of one scan, with invariant edge labels.
@@ -77,6 +80,11 @@ class FeatureGraph:
         Layers that are angles compared modulo 2π.
     n_points : int
         Number of point nodes (the first ``n_points`` nodes).
+    config : CorrespondenceConfig
+        The tolerances and invariant choices the graph was built with; the
+        correspondence stage refuses to pair graphs built with different ones.
+    typed_edges : bool
+        Whether point kinds got distinct labels (``FeatureConfig.typed_edges``).
     """
 
     labels: np.ndarray
@@ -85,6 +93,8 @@ class FeatureGraph:
     tolerances: np.ndarray
     circular: np.ndarray
     n_points: int
+    config: CorrespondenceConfig = _DEFAULT_CORRESPONDENCE_FIELD
+    typed_edges: bool = True
 
     def __post_init__(self) -> None:
         for name in ("labels", "kinds", "invariants", "tolerances", "circular"):
@@ -183,6 +193,8 @@ def feature_graph(
         tolerances=tol,
         circular=np.array([False, cfg.signed, False]),
         n_points=P,
+        config=cfg,
+        typed_edges=bool(typed),
     )
 
 
@@ -254,4 +266,6 @@ def _feature_graph_reference(
         tolerances=tol,
         circular=np.array([False, cfg.signed, False]),
         n_points=P,
+        config=cfg,
+        typed_edges=bool(fcfg.typed_edges),
     )

@@ -11,7 +11,6 @@ True
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -22,6 +21,7 @@ from . import clique as _clique
 from ._lazy import kernel_module
 from .config import MatchConfig
 from .correspondence import CorrespondenceGraph, correspondence_graph
+from .errors import ConfigError, ScanError
 from .features import Features, extract_features
 from .geometry import Pose2
 from .graph import NODE_KIND_NAMES, FeatureGraph, feature_graph
@@ -31,6 +31,7 @@ from .pose import (
     estimate_pose_lsq_pairs,
     estimate_pose_median,
     mapped_features,
+    pair_consistent_pairs,
     points_first,
 )
 from .refine import ReferenceCloud, icp_point_to_line, reference_cloud
@@ -50,9 +51,13 @@ __all__ = [
     "search_pose",
     "match_prepared",
     "match_scans",
+    "distinct_poses",
+    "near_rival",
 ]
 
 log = logging.getLogger(__name__)
+
+_DEFAULT = MatchConfig()
 
 #: the stages timed in ``ScanMatch.seconds``: ``pose`` is the quick pose and score of every
 #: clique, ``refine`` the full estimate of the best few, their ICP and rescoring
@@ -76,7 +81,7 @@ class Hypothesis:
 
     ``node_pairs`` are (node of A, node of B) in feature-graph order (points, then lines);
     ``score`` is the raw-scan agreement of ``pose`` (:func:`pose_score`; for hypotheses
-    ranked below the best ``QUICK_EXACT * refine.candidates`` it is measured on every
+    ranked below the best ``refine.quick_exact * refine.candidates`` it is measured on every
     third sample point only). ``estimate`` is the
     full weighted estimate with covariance, computed for the best few hypotheses only (the
     others carry the closed-form pose used to rank them); ``refined`` says whether ``pose``
@@ -104,7 +109,9 @@ class PreparedScan:
     ``refine.sample_points`` of them, evenly spaced in beam order, for scoring and ICP;
     ``free`` the free range along each beam (:func:`scanclique.refine.free_ranges`);
     ``angle_index`` the search index of the beam angles
-    (:func:`scanclique.refine.search_index`)."""
+    (:func:`scanclique.refine.search_index`); ``config`` the configuration it was
+    prepared with (:func:`match_prepared` refuses to match two prepared scans, or a
+    configuration, whose :meth:`~scanclique.config.MatchConfig.preparation` differ)."""
 
     scan: Scan
     features: Features
@@ -115,6 +122,7 @@ class PreparedScan:
     free: np.ndarray
     angle_index: tuple
     seconds: dict = field(default_factory=dict)
+    config: MatchConfig = field(default_factory=MatchConfig)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -157,6 +165,9 @@ class ScanMatch:
     seconds : dict
         Time per stage (``features``, ``graph``, ``correspondence``, ``clique``, ``pose``,
         ``refine``, ``search``) in seconds.
+    config : MatchConfig
+        The configuration the match was made with (validation reads its tolerances and
+        thresholds from it).
     """
 
     pose: Pose2 | None
@@ -175,6 +186,7 @@ class ScanMatch:
     n_correspondence_nodes: int
     n_correspondence_edges: int
     seconds: dict
+    config: MatchConfig = field(default_factory=MatchConfig)
 
     @property
     def success(self) -> bool:
@@ -222,8 +234,15 @@ class ScanMatch:
 
 
 def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
-    """Features (paper §4), feature graph (§5.1) and the raw-point cloud of one scan."""
-    cfg = config or MatchConfig()
+    """Features (paper §4), feature graph (§5.1) and the raw-point cloud of one scan,
+    recorded with the configuration that made them (``PreparedScan.config``)."""
+    if not isinstance(scan, Scan):
+        raise ScanError(f"prepare_scan: scan must be a Scan, got {type(scan).__name__}")
+    if config is not None and not isinstance(config, MatchConfig):
+        raise ConfigError(
+            f"prepare_scan: config must be a MatchConfig or None, got {type(config).__name__}"
+        )
+    cfg = config or _DEFAULT
     t0 = time.perf_counter()
     feats = extract_features(scan, cfg.features, cfg.clustering)
     t1 = time.perf_counter()
@@ -246,6 +265,7 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
         free,
         angle_index,
         {"features": t1 - t0, "graph": t2 - t1},
+        cfg,
     )
 
 
@@ -261,19 +281,8 @@ def pose_score(
     of the fraction of B's sampled points within ``refine.inlier_distance`` of A's points
     and the same for A's points against B's, minus ``refine.conflict_weight`` times the
     mean fraction of points lying in the other scan's observed free space."""
-    cfg = config or MatchConfig()
+    cfg = config or _DEFAULT
     return _score(pa, pb, pose.x, pose.y, pose.theta, cfg)
-
-
-#: free-space conflict test of the score: a point conflicts when nearer than the beams'
-#: ranges by more than CONFLICT_MARGIN + CONFLICT_RATIO * range (metres)
-CONFLICT_MARGIN = 0.2
-CONFLICT_RATIO = 0.02
-#: the quick score of every clique's pose uses every third sample point; this many
-#: times ``refine.candidates`` of the best are scored again on the full samples
-QUICK_EXACT = 1
-#: a clique's pairs whose Mahalanobis residual exceeds this are dropped from its estimate
-OUTLIER_MAHALANOBIS = 3.5
 
 
 def _scan_args(p: PreparedScan) -> tuple:
@@ -292,8 +301,8 @@ def _score(pa: PreparedScan, pb: PreparedScan, x: float, y: float, th: float, cf
             float(th),
             r.inlier_distance,
             r.conflict_weight,
-            CONFLICT_MARGIN,
-            CONFLICT_RATIO,
+            r.conflict_margin,
+            r.conflict_ratio,
         )
     )
 
@@ -310,7 +319,7 @@ def _scores(pa, pb, poses, ok, sizes, exact_best, cfg) -> np.ndarray:
     _K.score_batch(
         poses, ok, np.asarray(sizes, dtype=float), r.size_weight, exact_best,
         *_scan_args(pa), *_scan_args(pb), r.inlier_distance,
-        r.conflict_weight, CONFLICT_MARGIN, CONFLICT_RATIO, scores, exact,
+        r.conflict_weight, r.conflict_margin, r.conflict_ratio, scores, exact,
     )  # fmt: skip
     return scores
 
@@ -334,14 +343,14 @@ def estimate_clique_pose(
     """Pose of one clique of the correspondence graph (paper §6): ``node_pairs`` (K, 2) of
     (node of A, node of B) in feature-graph order; the paper's median method or weighted
     least squares with one round of outlier rejection (pairs whose Mahalanobis residual
-    exceeds 3.5 are dropped). The pose maps B's frame into A's; None when the pairs cannot
-    fix one."""
+    exceeds ``pose.outlier_mahalanobis`` are dropped). The pose maps B's frame into A's;
+    None when the pairs cannot fix one."""
     if cfg.pose.method == "median":
         return estimate_pose_median(mapped_features(fa, fb, node_pairs))
     est = estimate_pose_lsq_pairs(fa, fb, node_pairs)
     if est is None:
         return None
-    bad = est.residuals > OUTLIER_MAHALANOBIS
+    bad = est.residuals > cfg.pose.outlier_mahalanobis
     if bad.any() and (~bad).sum() >= cfg.pose.min_pairs:
         ordered = points_first(node_pairs, fa.n_points)
         return estimate_pose_lsq_pairs(fa, fb, ordered[~bad], initial=est.pose)
@@ -375,14 +384,28 @@ def _rank(h: Hypothesis, size_weight: float) -> float:
     return h.score + size_weight * h.clique_size
 
 
-def _distinct(p: Pose2, q: Pose2, dist: float = 0.3, ang: float = math.radians(5)) -> bool:
-    t, r = p.distance_to(q)
-    return t > dist or r > ang
+def distinct_poses(p: Pose2, q: Pose2, config: MatchConfig | None = None) -> bool:
+    """Whether two hypotheses are distinct poses: more than ``refine.distinct_metres``
+    apart in translation or ``refine.distinct_radians`` in rotation (the one rule the
+    matcher's ranking, its ambiguity flag and validation's rivals share)."""
+    r = (config or _DEFAULT).refine
+    t, a = p.distance_to(q)
+    return t > r.distinct_metres or a > r.distinct_radians
+
+
+def near_rival(h: Hypothesis, best: Hypothesis, config: MatchConfig | None = None) -> bool:
+    """The ambiguity rule (:func:`match_prepared`, step 7): ``h`` explains the raw scans
+    nearly as well as ``best`` (a score at least ``refine.ambiguous_score`` of it) with a
+    clique at most one smaller. A match is ambiguous when a distinct hypothesis
+    (:func:`distinct_poses`) is a near rival of its best."""
+    r = (config or _DEFAULT).refine
+    return h.score >= r.ambiguous_score * best.score and h.clique_size >= best.clique_size - 1
 
 
 def _empty(
     pa: PreparedScan,
     pb: PreparedScan,
+    cfg: MatchConfig,
     reason: str,
     seconds: dict,
     n_nodes=0,
@@ -408,6 +431,7 @@ def _empty(
         n_correspondence_nodes=n_nodes,
         n_correspondence_edges=n_edges,
         seconds=seconds,
+        config=cfg,
     )
 
 
@@ -445,7 +469,7 @@ def _quick_hypotheses(
             poses,
             ok,
         )
-    scores = _scores(pa, pb, poses, ok, sizes, QUICK_EXACT * cfg.refine.candidates, cfg)
+    scores = _scores(pa, pb, poses, ok, sizes, cfg.refine.quick_exact * cfg.refine.candidates, cfg)
     rank = scores + cfg.refine.size_weight * sizes
     out = []
     pl, sl, zl = poses.tolist(), scores.tolist(), sizes.tolist()
@@ -481,8 +505,8 @@ def _refine_candidates(
         fb.points_xy, fb.points_cov, fb.lines_rho_alpha, fb.lines_cov,
         pa.cloud.index, pa.cloud.points, pa.cloud.normals, pa.angle_index, pa.free, pa.sample,
         *_scan_args(pb),
-        cfg.pose.min_pairs, OUTLIER_MAHALANOBIS, r.inlier_distance, r.conflict_weight,
-        CONFLICT_MARGIN, CONFLICT_RATIO,
+        cfg.pose.min_pairs, cfg.pose.outlier_mahalanobis, r.inlier_distance, r.conflict_weight,
+        r.conflict_margin, r.conflict_ratio,
         r.enabled, r.iterations, r.max_correspondence, r.inlier_distance,
         ok, x_est, info, ssr, used, maha, score_est, x_icp, score_icp,
     )  # fmt: skip
@@ -538,19 +562,6 @@ def _refine_median_candidates(
     return full
 
 
-#: the raw-scan search (:func:`search_pose`): orientation histograms of this many bins
-#: over pi, this many peaks of their correlation (each also turned by pi), this many
-#: translation peaks per rotation voted in cells of SEARCH_CELL metres by every
-#: SEARCH_STRIDE-th sample point of A against every sample point of B, and ICP from
-#: this many of the best-scoring seeds
-SEARCH_BINS = 180
-SEARCH_PEAKS = 6
-SEARCH_TOP = 3
-SEARCH_CELL = 0.25
-SEARCH_ICP = 4
-SEARCH_STRIDE = 2
-
-
 def search_pose(
     pa: PreparedScan, pb: PreparedScan, config: MatchConfig | None = None
 ) -> tuple[Pose2, float] | None:
@@ -567,25 +578,27 @@ def search_pose(
        A, one of B) votes for the translation that would bring them together, in square
        cells (a Hough transform); the best few cells, each the mean of its votes and its
        neighbours';
-    3. every seed is scored, and the best ``SEARCH_ICP`` are refined by point-to-line ICP
-       and scored again; the best-scoring pose is returned.
+    3. every seed is scored, and the best ``refine.search_icp`` are refined by
+       point-to-line ICP and scored again; the best-scoring pose is returned.
+
+    The search's sizes are ``refine.search_*`` (:class:`~scanclique.config.RefineConfig`).
 
     Costs one to two milliseconds on laser scans (``6 x 2`` rotations, ``60 x 120``
     votes each, 36 seeds scored, 4 ICP runs).
     """
-    cfg = config or MatchConfig()
+    cfg = config or _DEFAULT
     r = cfg.refine
     seeds = _K.search_seeds(
         pa.cloud.normals, pb.cloud.normals,
-        np.ascontiguousarray(pa.sample[::SEARCH_STRIDE]), pb.sample,
-        SEARCH_BINS, SEARCH_PEAKS, SEARCH_CELL, SEARCH_TOP,
+        np.ascontiguousarray(pa.sample[:: r.search_stride]), pb.sample,
+        r.search_bins, r.search_peaks, r.search_cell, r.search_top,
     )  # fmt: skip
     if len(seeds) == 0 or len(pb.sample) < 3:
         return None
     n = len(seeds)
     scores = _scores(pa, pb, seeds, np.ones(n, dtype=bool), np.zeros(n), 0, cfg)
     best = None
-    for i in np.argsort(-scores, kind="stable")[:SEARCH_ICP].tolist():
+    for i in np.argsort(-scores, kind="stable")[: r.search_icp].tolist():
         icp = icp_point_to_line(
             pa.cloud,
             pb.sample,
@@ -617,11 +630,9 @@ def _searched_hypothesis(
     if score < beat + cfg.refine.search_margin or score < cfg.refine.min_score:
         return None
     fa, fb, cc = pa.features, pb.features, cfg.correspondence
-    agree = _K.consistent(
-        cg.pairs, fa.n_points, fb.n_points, fa.points_xy, fb.points_xy,
-        fa.lines_rho_alpha, fb.lines_rho_alpha, pose.as_array(),
-        cc.point_point, cc.line_line, cc.point_line,
-    )  # fmt: skip
+    agree = pair_consistent_pairs(
+        fa, fb, cg.pairs, pose, cc.point_point, cc.line_line, cc.point_line
+    )
     nodes = np.flatnonzero(agree)
     if len(nodes) < cfg.pose.min_pairs:
         return None
@@ -634,6 +645,34 @@ def _searched_hypothesis(
     if est is None:
         return None
     return Hypothesis(node_pairs, len(node_pairs), pose, score, est, True, "search")
+
+
+def _check_prepared(pa, pb, config) -> MatchConfig:
+    for name, p in (("pa", pa), ("pb", pb)):
+        if not isinstance(p, PreparedScan):
+            raise ScanError(
+                f"match_prepared: {name} must be a PreparedScan (from prepare_scan), got "
+                f"{type(p).__name__}"
+            )
+    if config is not None and not isinstance(config, MatchConfig):
+        raise ConfigError(
+            f"match_prepared: config must be a MatchConfig or None, got {type(config).__name__}"
+        )
+    cfg = config if config is not None else pa.config
+    for name, p in (("pa", pa), ("pb", pb)):
+        if p.config is not cfg and p.config.preparation() != cfg.preparation():
+            raise ConfigError(
+                f"match_prepared: {name} was prepared with another configuration "
+                f"({_differs(p.config, cfg)} differ); prepare both scans with the "
+                "configuration you match with"
+            )
+    return cfg
+
+
+def _differs(a: MatchConfig, b: MatchConfig) -> str:
+    names = ("clustering", "features", "correspondence", "refine.sample_points")
+    pairs = zip(names, a.preparation(), b.preparation(), strict=True)
+    return ", ".join(n for n, x, y in pairs if x != y)
 
 
 def match_prepared(
@@ -655,8 +694,13 @@ def match_prepared(
     6. no pose when even the best hypothesis has no raw-scan support
        (score below ``refine.min_score``);
     7. flag ambiguity when a distinct runner-up scores nearly as well.
+
+    ``config`` defaults to the one ``pa`` was prepared with. Raises
+    :class:`~scanclique.errors.ConfigError` when ``pa``, ``pb`` and ``config`` disagree on
+    what shaped the prepared scans (:meth:`~scanclique.config.MatchConfig.preparation`):
+    features and tolerances of one configuration cannot be matched under another's.
     """
-    cfg = config or MatchConfig()
+    cfg = _check_prepared(pa, pb, config)
     seconds = {k: 0.0 for k in STAGES}
     seconds["features"] = pa.seconds.get("features", 0.0) + pb.seconds.get("features", 0.0)
     seconds["graph"] = pa.seconds.get("graph", 0.0) + pb.seconds.get("graph", 0.0)
@@ -664,7 +708,7 @@ def match_prepared(
     min_pairs = cfg.pose.min_pairs
     if len(fa) == 0 or len(fb) == 0:
         which = "A" if len(fa) == 0 else "B"
-        return _empty(pa, pb, f"scan {which} has no features", seconds)
+        return _empty(pa, pb, cfg, f"scan {which} has no features", seconds)
 
     # 1. correspondence graph (paper §5.2)
     t = time.perf_counter()
@@ -672,7 +716,7 @@ def match_prepared(
     seconds["correspondence"] = time.perf_counter() - t
     n_nodes, n_edges = cg.n_nodes, cg.n_edges
     if n_nodes == 0:
-        return _empty(pa, pb, "no feature of A has a feature of the same type in B", seconds)
+        return _empty(pa, pb, cfg, "no feature of A has a feature of the same type in B", seconds)
 
     # 2. maximum cliques (paper §5.3), disjoint alternatives by peeling, vertex-guided
     t = time.perf_counter()
@@ -682,6 +726,7 @@ def match_prepared(
         return _empty(
             pa,
             pb,
+            cfg,
             f"largest consistent mapping has {omega} features, fewer than min_pairs={min_pairs}",
             seconds,
             n_nodes,
@@ -698,6 +743,7 @@ def match_prepared(
         return _empty(
             pa,
             pb,
+            cfg,
             "no clique fixes a pose (too few or degenerate features)",
             seconds,
             n_nodes,
@@ -710,7 +756,7 @@ def match_prepared(
     #    ICP on the raw points (refine.enabled), and rank again
     distinct: list[Hypothesis] = []
     for h in hyps:
-        if all(_distinct(h.pose, d.pose) for d in distinct):
+        if all(distinct_poses(h.pose, d.pose, cfg) for d in distinct):
             distinct.append(h)
         if len(distinct) >= cfg.refine.candidates:
             break
@@ -725,6 +771,7 @@ def match_prepared(
         return _empty(
             pa,
             pb,
+            cfg,
             "no clique fixes a pose (degenerate features)",
             seconds,
             n_nodes,
@@ -750,6 +797,7 @@ def match_prepared(
         return _empty(
             pa,
             pb,
+            cfg,
             f"no hypothesis explains the raw scans (best score {best.score:.3f} < "
             f"refine.min_score={cfg.refine.min_score})",
             seconds,
@@ -762,19 +810,14 @@ def match_prepared(
 
     # 7. ambiguity: a distinct runner-up that explains the raw scans nearly as well
     ambiguous = any(
-        h.score >= 0.9 * best.score
-        and h.clique_size >= best.clique_size - 1
-        and _distinct(h.pose, best.pose)
-        for h in hyps[1:]
+        near_rival(h, best, cfg) and distinct_poses(h.pose, best.pose, cfg) for h in hyps[1:]
     )
     # the mapping reported: the chosen clique's pairs that agree with the final pose
     ordered = points_first(best.node_pairs, fa.n_points)
     cc = cfg.correspondence
-    keep = _K.consistent(
-        ordered, fa.n_points, fb.n_points, fa.points_xy, fb.points_xy,
-        fa.lines_rho_alpha, fb.lines_rho_alpha, best.pose.as_array(),
-        cc.point_point, cc.line_line, cc.point_line,
-    )  # fmt: skip
+    keep = pair_consistent_pairs(
+        fa, fb, ordered, best.pose, cc.point_point, cc.line_line, cc.point_line
+    )
     return ScanMatch(
         pose=best.pose,
         covariance=best.estimate.covariance,
@@ -792,6 +835,7 @@ def match_prepared(
         n_correspondence_nodes=n_nodes,
         n_correspondence_edges=n_edges,
         seconds=seconds,
+        config=cfg,
     )
 
 
@@ -814,5 +858,12 @@ def match_scans(a: Scan, b: Scan, config: MatchConfig | None = None) -> ScanMatc
         None with ``.reason`` when no pose can be determined (e.g. a scan with no features:
         an empty mapping, not an exception).
     """
-    cfg = config or MatchConfig()
+    for name, s in (("a", a), ("b", b)):
+        if not isinstance(s, Scan):
+            raise ScanError(f"match_scans: {name} must be a Scan, got {type(s).__name__}")
+    if config is not None and not isinstance(config, MatchConfig):
+        raise ConfigError(
+            f"match_scans: config must be a MatchConfig or None, got {type(config).__name__}"
+        )
+    cfg = config or _DEFAULT
     return match_prepared(prepare_scan(a, cfg), prepare_scan(b, cfg), cfg)

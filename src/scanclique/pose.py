@@ -213,8 +213,12 @@ def _translation_lsq(m: MappedFeatures, theta: float) -> np.ndarray | None:
 def closed_form_pose(m: MappedFeatures) -> Pose2 | None:
     """A quick pose from mapped features: rotation from Arun et al. on the points (two or
     more, spread over 0.2 m) or else the circular mean of the line normal rotations, then the
-    least-squares translation. The start of :func:`estimate_pose_lsq`; used alone to score
-    many hypotheses cheaply. None when the features cannot fix a rotation."""
+    least-squares translation. The start of :func:`estimate_pose_lsq`. None when the
+    features cannot fix a rotation.
+
+    The NumPy reference: the pipeline runs the compiled
+    :func:`scanclique._match_kernels.closed_form` (:func:`closed_form_pose_pairs`), which
+    the tests hold to this."""
     if m.n_points >= 2 and np.ptp(m.points_b, axis=0).max() > 0.2:
         theta = arun_2d(m.points_a, m.points_b).theta
     elif m.n_lines:
@@ -231,7 +235,10 @@ def pair_consistent(
 ) -> np.ndarray:
     """Which mapped pairs agree with ``pose`` (maps B into A): points within ``point_tol``
     metres; lines within ``line_angle_tol`` radians and ``line_offset_tol`` metres.
-    Boolean array, points first then lines (the order of :func:`mapped_features`)."""
+    Boolean array, points first then lines (the order of :func:`mapped_features`).
+
+    The NumPy reference of :func:`pair_consistent_pairs` (compiled), which the pipeline
+    and validation run and the tests hold to this."""
     ok_p = (
         np.linalg.norm(pose.transform(m.points_b) - m.points_a, axis=1) <= point_tol
         if m.n_points
@@ -335,6 +342,9 @@ def estimate_pose_lsq(
     Gauss–Newton on all residuals weighted by the inverse of the pairs' combined
     covariances. Returns None when the features cannot fix the rotation (fewer than two
     points and no line).
+
+    The NumPy reference of :func:`estimate_pose_lsq_pairs` (compiled), which the pipeline
+    and validation run and the tests hold to this.
     """
     if initial is None:
         initial = closed_form_pose(m)
@@ -384,6 +394,26 @@ def closed_form_pose_pairs(fa: Features, fb: Features, node_pairs: np.ndarray) -
         out,
     )
     return Pose2.from_array(out) if ok else None
+
+
+def pair_consistent_pairs(
+    fa: Features,
+    fb: Features,
+    node_pairs: np.ndarray,
+    pose: Pose2,
+    point_tol: float,
+    line_angle_tol: float,
+    line_offset_tol: float,
+) -> np.ndarray:
+    """:func:`pair_consistent` of ``mapped_features(fa, fb, node_pairs)``, compiled: which
+    of the node pairs ``(K, 2)`` (in their given order) agree with ``pose`` (maps B into
+    A) within the tolerances (metres, radians, metres)."""
+    pairs = np.ascontiguousarray(node_pairs, dtype=np.int64).reshape(-1, 2)
+    return K.consistent(
+        pairs, fa.n_points, fb.n_points, fa.points_xy, fb.points_xy,
+        fa.lines_rho_alpha, fb.lines_rho_alpha, pose.as_array(),
+        float(point_tol), float(line_angle_tol), float(line_offset_tol),
+    )  # fmt: skip
 
 
 def estimate_pose_lsq_pairs(

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .config import require_nonneg, require_positive
 from .errors import ConfigError, ScanCliqueError
 from .geometry import Pose2
 from .scan import Scan, beam_angles
@@ -85,15 +86,11 @@ def _check_rng(rng, where: str) -> np.random.Generator:
 
 
 def _check_positive(where: str, **values: float) -> None:
-    for name, v in values.items():
-        if not (isinstance(v, (int, float, np.number)) and math.isfinite(v) and v > 0):
-            raise ConfigError(f"{where}: {name} must be a positive number, got {v!r}")
+    require_positive(f"{where}: ", **values)
 
 
 def _check_nonneg(where: str, **values: float) -> None:
-    for name, v in values.items():
-        if not (isinstance(v, (int, float, np.number)) and math.isfinite(v) and v >= 0):
-            raise ConfigError(f"{where}: {name} must be >= 0, got {v!r}")
+    require_nonneg(f"{where}: ", **values)
 
 
 def _check_count(where: str, **values: int) -> None:

@@ -10,7 +10,7 @@ of a GPS constellation). This module does all of it, as pure functions over a
 
 * :func:`feature_estimate` — the feature-based pose of a match and its covariance: the
   chosen clique's pairs that agree with the final pose, re-estimated by weighted least
-  squares (:func:`scanclique.pose.estimate_pose_lsq`). A corridor seen only along its
+  squares (:func:`scanclique.pose.estimate_pose_lsq_pairs`). A corridor seen only along its
   walls shows an along-corridor variance that is large (or infinite).
 * :func:`odometry_prior` — the relative pose of two scans from their odometry poses, with
   a covariance that grows with the distance travelled and the angle turned
@@ -58,19 +58,30 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import chdtri
 
-from .config import CorrespondenceConfig, RefineConfig
+from .config import ValidationConfig
 from .errors import ConfigError, ScanError
-from .geometry import Pose2, wrap_angle
-from .match import Hypothesis, ScanMatch
+from .geometry import Pose2
+from .match import Hypothesis, ScanMatch, distinct_poses, near_rival
 from .pairsets import pair_sets
 from .pose import (
     PoseEstimate,
-    estimate_pose_lsq,
-    mapped_features,
-    pair_consistent,
+    estimate_pose_lsq_pairs,
+    pair_consistent_pairs,
     points_first,
+)
+from .uncertainty import (
+    GATE_99,
+    OdometryNoise,
+    check_covariance,
+    check_pose,
+    chi2_quantile,
+    compose_covariance,
+    constellation_std,
+    inverse_covariance,
+    mahalanobis_sq,
+    odometry_prior,
+    pose_difference,
 )
 
 __all__ = [
@@ -108,160 +119,9 @@ VERDICTS = (ACCEPTED, REJECTED_ODOMETRY, AMBIGUOUS, TOO_FEW_FEATURES)
 """Every verdict :func:`validate_match` can give."""
 
 
-def _chi2_quantile(p: float, dof: int) -> float:
-    return float(chdtri(dof, 1.0 - p))
-
-
-GATE_99 = _chi2_quantile(0.99, 3)
-"""The 99 % quantile of chi-square with 3 degrees of freedom (11.34): the default gate on
-the squared Mahalanobis distance of a pose ``(x, y, theta)``."""
-
-_BIG_VARIANCE = 1e6  # stands for an infinite variance in sums of covariances (m², rad²)
-
-
 # ---------------------------------------------------------------------------------------
 # Configuration
 # ---------------------------------------------------------------------------------------
-def _check_nonneg(obj, *names: str) -> None:
-    for name in names:
-        v = getattr(obj, name)
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-            raise ConfigError(f"{type(obj).__name__}.{name} must be a number >= 0, got {v!r}")
-
-
-@dataclass(frozen=True, slots=True)
-class OdometryNoise:
-    """How wrong wheel odometry may be between two scans (one standard deviation).
-
-    The model is linear in the path: odometry errors are mostly systematic (wheel
-    diameters, wheel base), so they grow with the distance travelled ``D`` (metres) and
-    the angle turned ``Phi`` (radians, summed absolute heading changes), not with their
-    square roots::
-
-        sigma_theta = floor_radians + per_radian * Phi + rot_per_metre * D
-        sigma_xy    = floor_metres  + per_metre * D + D / 2 * (sigma_theta - floor_radians)
-
-    The last term is the lever arm of the heading error picked up along the way. The
-    covariance of ``(x, y, theta)`` is ``diag(sigma_xy², sigma_xy², sigma_theta²)``.
-
-    Attributes
-    ----------
-    per_metre : float
-        Translation error per metre travelled (m/m).
-    per_radian : float
-        Heading error per radian turned (rad/rad).
-    rot_per_metre : float
-        Heading error per metre travelled (rad/m): drift while driving straight.
-    floor_metres, floor_radians : float
-        Error that is there even without motion (timing between the laser and the wheel
-        encoders, vibration), metres and radians.
-
-    The defaults suit the raw wheel odometry of the Intel and CSAIL logs (10 % of the
-    distance, 10 % of the angle, 1 degree per metre, 5 cm and 2 degrees): they cover
-    about 99 % of the consecutive-scan odometry increments of both logs.
-    """
-
-    per_metre: float = 0.10
-    per_radian: float = 0.10
-    rot_per_metre: float = math.radians(1.0)
-    floor_metres: float = 0.05
-    floor_radians: float = math.radians(2.0)
-
-    def __post_init__(self) -> None:
-        _check_nonneg(
-            self, "per_metre", "per_radian", "rot_per_metre", "floor_metres", "floor_radians"
-        )
-        if self.floor_metres == 0 or self.floor_radians == 0:
-            raise ConfigError(
-                "OdometryNoise.floor_metres and floor_radians must be positive (a zero "
-                "covariance cannot be tested against)"
-            )
-
-    def scaled(self, factor: float) -> OdometryNoise:
-        """Every term multiplied by ``factor`` (a worse or better odometer)."""
-        if not (math.isfinite(factor) and factor > 0):
-            raise ConfigError(f"OdometryNoise.scaled: factor must be > 0, got {factor!r}")
-        return OdometryNoise(
-            self.per_metre * factor,
-            self.per_radian * factor,
-            self.rot_per_metre * factor,
-            self.floor_metres * factor,
-            self.floor_radians * factor,
-        )
-
-    def std(self, distance: float, turn: float) -> tuple[float, float]:
-        """``(sigma_xy, sigma_theta)`` after travelling ``distance`` m and turning ``turn``
-        rad."""
-        s_th = self.floor_radians + self.per_radian * turn + self.rot_per_metre * distance
-        s_xy = (
-            self.floor_metres
-            + self.per_metre * distance
-            + 0.5 * distance * (s_th - self.floor_radians)
-        )
-        return s_xy, s_th
-
-
-@dataclass(frozen=True, slots=True)
-class ValidationConfig:
-    """Thresholds of :func:`validate_match`.
-
-    Attributes
-    ----------
-    min_features : int
-        A match needs at least this many mapped features (pairs of the chosen clique that
-        agree with its pose within the paper's §6 tolerances), else ``too_few_features``.
-        Two fix a planar pose, but the geometry of two features repeats almost anywhere;
-        the chance of a symmetric alias falls fast with the number mapped (paper §7).
-    max_std_metres, max_std_radians : float
-        The precision the constellation allows (:func:`constellation_std`): when the
-        largest translation standard deviation or the heading standard deviation of the
-        feature estimate exceeds these, the features do not fix the pose
-        (``too_few_features``; a corridor seen along its walls).
-    feature_gate : float
-        Probability of the per-pair chi-square gate (2 dof) that decides which of the
-        clique's pairs agree with the final pose in :func:`feature_estimate`.
-    contender_score : float
-        Hypotheses whose raw-scan score is at least this fraction of the best one's (and
-        whose clique has ``min_features``) are the ones odometry may choose among.
-    decisive : float
-        When odometry has to choose (an ambiguous match, or the match's own pose outside
-        the gate), the chosen hypothesis needs at least this posterior probability among
-        the contenders (Gaussian likelihoods of their Mahalanobis distances, equal
-        priors): with one rival, its squared distance must exceed the chosen one's by
-        ``2 ln(p / (1 - p))``, 9.2 at 0.99. Being inside the gate only says a pose is
-        *possible*; choosing needs the others to be improbable.
-    rival_min_score : float
-        A hypothesis that maps more features than the chosen one is its rival only when
-        its raw-scan score is at least this: the matcher's own ``refine.min_score``
-        (0.1), below which it says that no pose explains the raw scans. A larger clique
-        the raw scans refute is no evidence for another pose.
-    """
-
-    min_features: int = 3
-    max_std_metres: float = 0.10
-    max_std_radians: float = math.radians(1.0)
-    feature_gate: float = 0.999
-    contender_score: float = 0.5
-    decisive: float = 0.99
-    rival_min_score: float = RefineConfig().min_score
-
-    def __post_init__(self) -> None:
-        if isinstance(self.min_features, bool) or not (
-            isinstance(self.min_features, int) and self.min_features >= 2
-        ):
-            raise ConfigError(
-                f"ValidationConfig.min_features must be an int >= 2, got {self.min_features!r}"
-            )
-        _check_nonneg(self, "max_std_metres", "max_std_radians", "contender_score")
-        v = self.rival_min_score
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
-            raise ConfigError(f"ValidationConfig.rival_min_score must be a number, got {v!r}")
-        for name in ("feature_gate", "decisive"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
-                raise ConfigError(
-                    f"ValidationConfig.{name} must be a probability in (0, 1), got {v!r}"
-                )
 
 
 # ---------------------------------------------------------------------------------------
@@ -422,14 +282,13 @@ def _hypothesis_estimate(
     ordered = points_first(h.node_pairs, fa.n_points)
     if len(ordered) == 0:
         return h.estimate, 0
-    m = mapped_features(fa, fb, ordered)
-    at_pose = estimate_pose_lsq(m, initial=h.pose, iterations=0)
+    at_pose = estimate_pose_lsq_pairs(fa, fb, ordered, initial=h.pose, iterations=0)
     if at_pose is None:
         return h.estimate, 0
-    keep = at_pose.residuals <= math.sqrt(_chi2_quantile(gate_probability, 2))
+    keep = at_pose.residuals <= math.sqrt(chi2_quantile(gate_probability, 2))
     n_keep = int(keep.sum())
     if n_keep >= 2:
-        est = estimate_pose_lsq(mapped_features(fa, fb, ordered[keep]), initial=h.pose)
+        est = estimate_pose_lsq_pairs(fa, fb, ordered[keep], initial=h.pose)
         if est is not None:
             return est, n_keep
     return h.estimate, n_keep
@@ -446,7 +305,7 @@ def feature_estimate(
     bias far beyond its covariance. This estimate keeps the pairs of the chosen clique
     whose Mahalanobis residual at ``match.pose`` passes the chi-square gate
     ``gate_probability`` (2 dof, 99.9 %: 3.7 standard deviations) and re-estimates the
-    pose from them (:func:`scanclique.pose.estimate_pose_lsq`, starting at
+    pose from them (:func:`scanclique.pose.estimate_pose_lsq_pairs`, starting at
     ``match.pose``). Its covariance is the inverse information of those features: the
     precision their geometry and measurement noise allow, large (or infinite) along a
     corridor seen only along its walls. When fewer than two pairs pass, the clique's own
@@ -474,153 +333,16 @@ def feature_estimate(
     return est
 
 
-def constellation_std(covariance) -> tuple[float, float]:
-    """``(largest translation std m, heading std rad)`` of a pose covariance: the square
-    root of the largest eigenvalue of its ``(x, y)`` block (the worst direction: along a
-    corridor) and of its ``theta`` variance. Infinite when a direction is unconstrained.
-
-    >>> constellation_std(np.diag([0.01**2, 4.0, 1e-6]))
-    (2.0, 0.001)
-    """
-    P = np.asarray(covariance, dtype=float)
-    if P.shape != (3, 3):
-        raise ScanError(f"constellation_std expects a 3x3 covariance, got shape {P.shape}")
-    if not np.all(np.isfinite(P[:2, :2])):
-        s_xy = math.inf
-    else:
-        s_xy = math.sqrt(max(float(np.linalg.eigvalsh(P[:2, :2]).max()), 0.0))
-    s_th = math.sqrt(P[2, 2]) if math.isfinite(P[2, 2]) and P[2, 2] >= 0 else math.inf
-    return s_xy, s_th
-
-
 # ---------------------------------------------------------------------------------------
 # Odometry
 # ---------------------------------------------------------------------------------------
-def _check_pose(p, name: str) -> Pose2:
-    if not isinstance(p, Pose2):
-        raise ScanError(f"{name} must be a Pose2, got {type(p).__name__}")
-    return p
-
-
-def _check_cov(P, name: str) -> np.ndarray:
-    try:
-        a = np.array(P, dtype=float)
-    except (TypeError, ValueError):
-        raise ScanError(f"{name} must be a 3x3 covariance matrix, got {P!r}") from None
-    if a.shape != (3, 3):
-        raise ScanError(f"{name} must be a 3x3 covariance matrix, got shape {a.shape}")
-    if np.isnan(a).any() or (np.isinf(a) & (a < 0)).any():
-        raise ScanError(f"{name} holds NaN or -inf")
-    if (np.diag(a) < 0).any():
-        raise ScanError(f"{name} has a negative variance: {np.diag(a).tolist()}")
-    return a
-
-
-def _travel(poses: Sequence[Pose2]) -> tuple[float, float]:
-    d = t = 0.0
-    for p, q in zip(poses[:-1], poses[1:], strict=True):
-        u = p.inverse() @ q
-        d += math.hypot(u.x, u.y)
-        t += abs(u.theta)
-    return d, t
-
-
-def odometry_prior(
-    odom_a: Pose2,
-    odom_b: Pose2,
-    noise: OdometryNoise | None = None,
-    *,
-    path: Sequence[Pose2] | None = None,
-) -> tuple[Pose2, np.ndarray]:
-    """The relative pose of two scans from their odometry poses, and its covariance.
-
-    Parameters
-    ----------
-    odom_a, odom_b : Pose2
-        Odometry poses of the sensor at scans A and B, in the odometry frame (only their
-        relative pose matters: the frame may be offset or drift).
-    noise : OdometryNoise, optional
-        The error model (defaults: :class:`OdometryNoise`).
-    path : sequence of Pose2, optional
-        The odometry poses from A to B in order (e.g. of every scan in between, both ends
-        included): the distance travelled and the angle turned are summed along it.
-        Without it, the straight line from A to B and the net heading change are used,
-        which understates the travel of a long, winding path.
-
-    Returns
-    -------
-    (Pose2, ndarray (3, 3))
-        ``odom_a.inverse() @ odom_b`` (maps B into A, like a match's pose) and the
-        covariance of its ``(x, y, theta)``.
-
-    Examples
-    --------
-    >>> odom_a = Pose2(1.0, 2.0, 0.5)
-    >>> prior, cov = odometry_prior(odom_a, odom_a @ Pose2(1.0, 0.0, 0.0))
-    >>> prior, np.sqrt(np.diag(cov)).round(3).tolist()
-    (Pose2(x=1.0000, y=0.0000, theta=0.0000), [0.159, 0.159, 0.052])
-    """
-    noise = noise or OdometryNoise()
-    a, b = _check_pose(odom_a, "odom_a"), _check_pose(odom_b, "odom_b")
-    rel = a.inverse() @ b
-    if path is None:
-        dist, turn = math.hypot(rel.x, rel.y), abs(rel.theta)
-    else:
-        poses = [_check_pose(p, f"path[{k}]") for k, p in enumerate(path)]
-        if len(poses) < 2:
-            poses = [a, b]
-        dist, turn = _travel(poses)
-    s_xy, s_th = noise.std(dist, turn)
-    return rel, np.diag([s_xy**2, s_xy**2, s_th**2])
-
-
-def pose_difference(p: Pose2, q: Pose2) -> np.ndarray:
-    """``(x, y, theta)`` of ``p`` minus those of ``q``, the angle wrapped to [-pi, pi): the
-    innovation of two estimates of one relative pose, in the coordinates their
-    covariances are given in."""
-    e = p.as_array() - q.as_array()
-    e[2] = float(wrap_angle(e[2]))
-    return e
-
-
-def _finite(P: np.ndarray) -> np.ndarray:
-    """A covariance whose infinite variances are large and infinite covariances zero:
-    a direction the features do not fix then adds no information to a sum."""
-    P = np.array(P, dtype=float)
-    bad = ~np.isfinite(P)
-    if bad.any():
-        d = np.diag(P).copy()
-        P[bad] = 0.0
-        np.fill_diagonal(P, np.where(np.isfinite(d), d, _BIG_VARIANCE))
-    return P
-
-
-def mahalanobis_sq(pose: Pose2, covariance, prior: Pose2, prior_covariance) -> float:
-    """Squared Mahalanobis distance between two estimates of one relative pose, with their
-    covariances added (independent errors). Infinite variances (directions the features
-    do not fix) count as very large.
-
-    >>> p, q = Pose2(0.3, 0.0, 0.0), Pose2(0.0, 0.0, 0.0)
-    >>> round(mahalanobis_sq(p, np.eye(3) * 0.01, q, np.eye(3) * 0.08), 9)
-    1.0
-    """
-    e = pose_difference(_check_pose(pose, "pose"), _check_pose(prior, "prior"))
-    S = _finite(_check_cov(covariance, "covariance")) + _finite(
-        _check_cov(prior_covariance, "prior_covariance")
-    )
-    try:
-        d2 = float(e @ np.linalg.solve(S, e))
-    except np.linalg.LinAlgError:  # a singular sum: zero variance in some direction
-        d2 = float(e @ np.linalg.pinv(S) @ e)
-    return d2 if math.isfinite(d2) and d2 >= 0 else float(e @ np.linalg.pinv(S) @ e)
 
 
 # ---------------------------------------------------------------------------------------
 # Verdicts
 # ---------------------------------------------------------------------------------------
-def _distinct(p: Pose2, q: Pose2, dist: float = 0.3, ang: float = math.radians(5)) -> bool:
-    t, r = p.distance_to(q)
-    return t > dist or r > ang
+def _distinct(match: ScanMatch, p: Pose2, q: Pose2) -> bool:
+    return distinct_poses(p, q, match.config)
 
 
 def _hyp_cov(match: ScanMatch, k: int, h: Hypothesis, est: PoseEstimate | None) -> np.ndarray:
@@ -633,15 +355,10 @@ def _hyp_cov(match: ScanMatch, k: int, h: Hypothesis, est: PoseEstimate | None) 
     return np.diag([0.05**2, 0.05**2, math.radians(1.0) ** 2])
 
 
-def _near_rival(h: Hypothesis, best: Hypothesis) -> bool:
-    """The ambiguity rule of :func:`scanclique.match.match_prepared`: a raw-scan score at
-    least 0.9 of the best and a clique at most one smaller."""
-    return h.score >= 0.9 * best.score and h.clique_size >= best.clique_size - 1
-
-
-def _rivals(match: ScanMatch, min_score: float = RefineConfig().min_score) -> list[int]:
+def _rivals(match: ScanMatch, min_score: float) -> list[int]:
     """Indices of the hypotheses that make a match ambiguous: the best-ranked hypothesis
-    of each pose distinct from the chosen one (0.3 m or 5 degrees) that
+    of each pose distinct from the chosen one (:func:`scanclique.match.distinct_poses`
+    under the match's configuration) that
 
     * explains the raw scans nearly as well (the rule of
       :func:`scanclique.match.match_prepared`, counted when ``match.ambiguous``), or
@@ -655,12 +372,12 @@ def _rivals(match: ScanMatch, min_score: float = RefineConfig().min_score) -> li
     best = hyps[0]
     out: list[int] = []
     for k, h in enumerate(hyps[1:], start=1):
-        near = match.ambiguous and _near_rival(h, best)
+        near = match.ambiguous and near_rival(h, best, match.config)
         larger = h.clique_size > best.clique_size and h.score >= min_score
         if (
             (near or larger)
-            and _distinct(h.pose, best.pose)
-            and all(_distinct(h.pose, hyps[j].pose) for j in out)
+            and _distinct(match, h.pose, best.pose)
+            and all(_distinct(match, h.pose, hyps[j].pose) for j in out)
         ):
             out.append(k)
     return out
@@ -688,7 +405,7 @@ def _contenders(match: ScanMatch, cfg: ValidationConfig) -> tuple[list[int], lis
             continue
         if h.score < cfg.contender_score * best.score:
             continue
-        if all(_distinct(h.pose, hyps[j].pose) for j in first + second):
+        if all(_distinct(match, h.pose, hyps[j].pose) for j in first + second):
             second.append(k)
     return first, second
 
@@ -709,9 +426,9 @@ def check_hypotheses(
     the best. Each is tested with its feature covariance (:func:`feature_estimate`; the
     match's covariance for hypotheses that carry only a closed-form pose).
     """
-    cfg = config or ValidationConfig()
-    prior = _check_pose(prior, "prior")
-    prior_cov = _check_cov(prior_covariance, "prior_covariance")
+    cfg = config or match.config.validation
+    prior = check_pose(prior, "prior")
+    prior_cov = check_covariance(prior_covariance, "prior_covariance")
     first, second = _contenders(match, cfg)
     out = []
     for k in first + second:
@@ -747,7 +464,7 @@ def choose_by_odometry(
     contenders are tested the same way, decisiveness required. None when nothing passes
     or odometry is not decisive.
     """
-    cfg = config or ValidationConfig()
+    cfg = config or match.config.validation
     checks = check_hypotheses(match, prior, prior_covariance, gate, config=cfg)
     k, _ = _choose(checks, cfg.decisive)
     return None if k is None else match.hypotheses[checks[k].index]
@@ -792,10 +509,10 @@ def _features_used(
     est, _ = _hypothesis_estimate(match, h, cfg.feature_gate)
     fa, fb = match.features_a, match.features_b
     ordered = points_first(h.node_pairs, fa.n_points)
-    tol = CorrespondenceConfig()
+    tol = match.config.correspondence
     n = int(
-        pair_consistent(
-            mapped_features(fa, fb, ordered), h.pose, tol.point_point, tol.line_line, tol.point_line
+        pair_consistent_pairs(
+            fa, fb, ordered, h.pose, tol.point_point, tol.line_line, tol.point_line
         ).sum()
     )
     std = constellation_std(est.covariance) if est is not None else (math.inf, math.inf)
@@ -878,9 +595,14 @@ def validate_match(
     ScanError
         One odometry pose without the other, or a pose that is not a Pose2.
     """
-    cfg = config or ValidationConfig()
     if not isinstance(match, ScanMatch):
         raise ScanError(f"validate_match expects a ScanMatch, got {type(match).__name__}")
+    if config is not None and not isinstance(config, ValidationConfig):
+        raise ConfigError(
+            f"validate_match: config must be a ValidationConfig or None, got "
+            f"{type(config).__name__}"
+        )
+    cfg = config or match.config.validation
     if not (isinstance(gate, (int, float)) and math.isfinite(gate) and gate > 0):
         raise ConfigError(f"gate must be a positive number, got {gate!r}")
     if (odom_a is None) != (odom_b is None):
@@ -1050,29 +772,6 @@ def _ambiguity_reason(match: ScanMatch, rivals: Sequence[int]) -> str:
 # ---------------------------------------------------------------------------------------
 # Consistency of several matches: cycles A -> B -> C against A -> C
 # ---------------------------------------------------------------------------------------
-def compose_covariance(T_ab: Pose2, cov_ab, T_bc: Pose2, cov_bc) -> np.ndarray:
-    """Covariance of ``(x, y, theta)`` of ``T_ab @ T_bc`` to first order, the two
-    independent."""
-    c, s = math.cos(T_ab.theta), math.sin(T_ab.theta)
-    rt = np.array([c * T_bc.x - s * T_bc.y, s * T_bc.x + c * T_bc.y])
-    J1 = np.array([[1.0, 0.0, -rt[1]], [0.0, 1.0, rt[0]], [0.0, 0.0, 1.0]])
-    J2 = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    A, B = _finite(_check_cov(cov_ab, "cov_ab")), _finite(_check_cov(cov_bc, "cov_bc"))
-    return J1 @ A @ J1.T + J2 @ B @ J2.T
-
-
-def _inverse_covariance(T: Pose2, cov) -> np.ndarray:
-    """Covariance of ``T.inverse()`` to first order."""
-    c, s = math.cos(T.theta), math.sin(T.theta)
-    # T^-1 = (-R^T t, -theta); d/dt = -R^T, d/dtheta = -dR^T/dtheta t, theta' = -theta
-    J = np.array(
-        [
-            [-c, -s, -(-s * T.x + c * T.y)],
-            [s, -c, -(-c * T.x - s * T.y)],
-            [0.0, 0.0, -1.0],
-        ]
-    )
-    return J @ _finite(_check_cov(cov, "covariance")) @ J.T
 
 
 def triple_consistency(
@@ -1118,7 +817,7 @@ def triple_consistency(
     """
     d = _default_cov(default_cov)
     for name, T in (("T_ab", T_ab), ("T_bc", T_bc), ("T_ac", T_ac)):
-        _check_pose(T, name)
+        check_pose(T, name)
     ca = d if cov_ab is None else cov_ab
     cb = d if cov_bc is None else cov_bc
     cc = d if cov_ac is None else cov_ac
@@ -1130,7 +829,7 @@ def triple_consistency(
 def _default_cov(default_cov) -> np.ndarray:
     if default_cov is None:
         return np.diag([0.05**2, 0.05**2, math.radians(1.0) ** 2])
-    return _check_cov(default_cov, "default_cov")
+    return check_covariance(default_cov, "default_cov")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -1209,14 +908,14 @@ def flag_inconsistent(
                 raise ScanError(
                     f"flag_inconsistent: match {key} must be a Pose2 or (Pose2, covariance)"
                 ) from None
-            T = _check_pose(T, f"match {key}")
-            cov = default if cov is None else _check_cov(cov, f"covariance of match {key}")
+            T = check_pose(T, f"match {key}")
+            cov = default if cov is None else check_covariance(cov, f"covariance of match {key}")
         if i == j:
             raise ScanError(f"flag_inconsistent: match {key} relates a scan to itself")
         if i < j:
             rel[(i, j)] = (T, cov)
         elif (j, i) not in rel:
-            rel[(j, i)] = (T.inverse(), _inverse_covariance(T, cov))
+            rel[(j, i)] = (T.inverse(), inverse_covariance(T, cov))
     nbrs: dict[int, set[int]] = {}
     for i, j in rel:
         nbrs.setdefault(i, set()).add(j)
