@@ -49,7 +49,7 @@ from ..scan import Scan
 from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
 from .store import PlaceRecord, PlaceStore
-from .verify import REJECTED, VERDICT_RANK, verify_pair
+from .verify import ACCEPT_MIN_SCORE, REJECTED, VERDICT_RANK, verify_pair
 
 __all__ = ["PlaceDB", "PlaceHit", "PREPARE_KEYS", "feature_arrays"]
 
@@ -175,7 +175,8 @@ class PlaceDB:
     durable : bool
         Commit with ``synchronous=FULL`` (survive power loss, slower adds).
     min_score : float
-        Accepted matches below this raw-scan score are rejected (:func:`.verify_pair`).
+        Accepted matches below this raw-scan score are rejected (:func:`.verify_pair`;
+        default :data:`.verify.ACCEPT_MIN_SCORE`).
     cache : int
         Prepared places kept in memory (most recently used).
 
@@ -193,7 +194,7 @@ class PlaceDB:
         *,
         readonly: bool = False,
         durable: bool = False,
-        min_score: float = 0.0,
+        min_score: float = ACCEPT_MIN_SCORE,
         cache: int = 4096,
     ) -> None:
         given = None if config is None else config_to_dict(config)

@@ -46,7 +46,7 @@ from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
 from .signature import SIGNATURE_SIZE, scan_signature
-from .verify import ACCEPTED, verify_pair
+from .verify import ACCEPT_MIN_SCORE, ACCEPTED, verify_pair
 
 __all__ = ["Loop", "LoopSearch", "find_loops", "loop_candidates"]
 
@@ -327,7 +327,7 @@ def find_loops(
     min_gap: int = 50,
     workers: int = 1,
     scheduler=None,
-    min_score: float = 0.0,
+    min_score: float = ACCEPT_MIN_SCORE,
     progress: Callable[[str, int, int], None] | None = None,
 ) -> LoopSearch:
     """The all-pairs revisit search of a log (module docstring).

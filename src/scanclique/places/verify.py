@@ -34,12 +34,29 @@ from ..validation import ACCEPTED as _V_ACCEPTED
 from ..validation import AMBIGUOUS as _V_AMBIGUOUS
 from ..validation import ValidationConfig, validate_match
 
-__all__ = ["ACCEPTED", "AMBIGUOUS", "REJECTED", "VERDICTS", "Verification", "verify_pair"]
+__all__ = [
+    "ACCEPTED",
+    "AMBIGUOUS",
+    "REJECTED",
+    "VERDICTS",
+    "ACCEPT_MIN_SCORE",
+    "Verification",
+    "verify_pair",
+]
 
 ACCEPTED = "accepted"
 AMBIGUOUS = "ambiguous"
 REJECTED = "rejected"
 VERDICTS = (ACCEPTED, AMBIGUOUS, REJECTED)
+#: the default ``min_score`` of place recognition: a place is recognised only when the raw
+#: scans agree on at least half their points under the match's pose (the score is the
+#: fraction of points within ``refine.inlier_distance`` of the other scan, less the
+#: points in its free space), the same half the revisit rule of
+#: :mod:`scanclique.pairsets` asks of a true place. Pairwise validation alone accepts
+#: the geometric aliases of a building (a corridor's doors, rooms alike) far too often
+#: when there is no odometry to veto them: on the shared logs most of the wrong
+#: accepted answers score below 0.5, most right ones above (``benchmarks/places.py``).
+ACCEPT_MIN_SCORE = 0.5
 #: order of verdicts when ranking hits (best first)
 VERDICT_RANK = {ACCEPTED: 0, AMBIGUOUS: 1, REJECTED: 2}
 
@@ -108,7 +125,7 @@ def verify_pair(
     query: PreparedScan,
     config: MatchConfig | None = None,
     *,
-    min_score: float = 0.0,
+    min_score: float = ACCEPT_MIN_SCORE,
     validation: ValidationConfig | None = None,
 ) -> Verification:
     """Match ``query`` against ``place`` and validate the match (no odometry).

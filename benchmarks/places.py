@@ -1,0 +1,453 @@
+"""Place recognition benchmark (issue 14): recognition, scale and scale-out of
+``scanclique.places``.
+
+One command::
+
+    python benchmarks/places.py                      # the default run (~10 min here)
+    python benchmarks/places.py --full               # every scan a query, full freiburg loops
+    python benchmarks/places.py --stages recognition --logs intel --query-every 1
+
+1. **Recognition**, the FLIRT / GFLIP protocol, per log (intel, csail, freiburg): every
+   scan of the log is a place (:class:`scanclique.places.PlaceDB`, built by ``add``); a
+   query (every ``--query-every``-th scan; all with ``--full``) is asked against all
+   places at least 50 scans away (``exclude``), ``--candidates`` prefilter candidates
+   verified. Its answer is its best hit when that is ``accepted``; the answer is right
+   when the place's reference pose composed with the hit's pose is within 0.5 m and
+   0.2 rad of the query's reference pose. A query *has a true place* when some scan at
+   least 50 scans away is within 2 m with at least 50 % overlap under the reference
+   (the revisit rule of :mod:`scanclique.pairsets`). Recall = right answers of queries
+   with a true place / queries with a true place; precision = right answers / answers
+   (all queries). Thresholding the answers by raw-scan score gives the precision-recall
+   curve (figure); reported: recall at 99 % and at 100 % precision, precision and recall
+   of every accepted answer, the prefilter's recall at 10 and 50 candidates (a true
+   place among them), and time per query.
+2. **Scale**: one database grown to 1k, 5k and 50k places (the logs' scans added again
+   and again with distinct names): add time per place (features, signature and
+   transaction), query time (``k=5``, five candidates verified) and the prefilter alone,
+   median and p95, and the file size.
+3. **Scale-out**: the all-pairs revisit search of freiburg 079
+   (:func:`scanclique.places.loops.find_loops`, every ``--loops-every``-th scan; all with
+   ``--full``) serially, over 2 local worker processes, and over a local Dask cluster of
+   2 worker processes: wall time, speedup, and whether the results are identical.
+
+Results: ``benchmarks/results/places-2026-12-01.json`` / ``.md`` / ``.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import git_state, machine, results_path, versions  # noqa: E402
+
+DATE = "2026-12-01"
+LOGS = ("intel", "csail", "freiburg")
+RIGHT_T = 0.5  # metres
+RIGHT_R = 0.2  # radians
+
+
+# ---------------------------------------------------------------------------------------
+# 1. Recognition
+# ---------------------------------------------------------------------------------------
+def true_places(scans, queries) -> dict[int, set]:
+    """For each query, the scans that are true places for it (the revisit rule)."""
+    from scipy.spatial import cKDTree
+
+    from scanclique.pairsets import (
+        REVISIT_MAX_DISTANCE,
+        REVISIT_MIN_GAP,
+        REVISIT_MIN_OVERLAP,
+        overlap,
+        reference_pose,
+    )
+
+    pos = np.array([[s.reference.x, s.reference.y] for s in scans])
+    tree = cKDTree(pos)
+    out = {}
+    for i in queries:
+        near = [j for j in tree.query_ball_point(pos[i], REVISIT_MAX_DISTANCE)
+                if abs(j - i) >= REVISIT_MIN_GAP]
+        out[i] = {
+            j for j in sorted(near)
+            if overlap(scans[j], scans[i], reference_pose(scans, j, i)) >= REVISIT_MIN_OVERLAP
+        }
+    return out
+
+
+def pr_curve(answers: list[dict], n_true: int) -> dict:
+    """Precision and recall of the answers thresholded by score (best first)."""
+    a = sorted(answers, key=lambda r: -r["score"])
+    right = np.array([r["right"] for r in a], dtype=float)
+    counted = np.array([r["right"] and r["has_true"] for r in a], dtype=float)
+    if not len(a):
+        return {"precision": [], "recall": [], "threshold": [], "r99": 0.0, "r100": 0.0}
+    prec = np.cumsum(right) / np.arange(1, len(a) + 1)
+    rec = np.cumsum(counted) / max(1, n_true)
+    # a threshold can only sit between distinct scores
+    last = np.r_[np.diff([r["score"] for r in a]) != 0, True]
+    prec, rec = prec[last], rec[last]
+    thr = np.array([r["score"] for r in a])[last]
+
+    def at(p):
+        ok = prec >= p - 1e-12
+        return float(rec[ok].max()) if ok.any() else 0.0
+
+    return {
+        "precision": prec.tolist(),
+        "recall": rec.tolist(),
+        "threshold": thr.tolist(),
+        "r99": at(0.99),
+        "r100": at(1.0),
+    }
+
+
+def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True) -> dict:
+    from scanclique.datasets import load_log
+    from scanclique.places import ACCEPTED, PlaceDB
+    from scanclique.places.verify import ACCEPT_MIN_SCORE
+    from scanclique.pairsets import REVISIT_MIN_GAP
+
+    scans = load_log(name)
+    n = len(scans)
+    # every answer the validation accepts, thresholded by score below (the default
+    # min_score is one point of that curve)
+    db = PlaceDB(tmp / f"{name}.db", min_score=0.0)
+    t = time.perf_counter()
+    add_ms = []
+    for k, s in enumerate(scans):
+        t1 = time.perf_counter()
+        pid = db.add(s, name=f"{name}:{k}")
+        add_ms.append(1e3 * (time.perf_counter() - t1))
+        assert pid == k + 1
+    build_s = time.perf_counter() - t
+    queries = list(range(0, n, every))
+    truth = true_places(scans, queries)
+    records, pre10, pre50, n_true = [], 0, 0, 0
+    q_ms = []
+    t0 = time.perf_counter()
+    for qn, i in enumerate(queries):
+        q = scans[i]
+        exclude = range(max(1, i + 2 - REVISIT_MIN_GAP), min(n, i + REVISIT_MIN_GAP) + 1)
+        p = db.prepare(q)
+        ids, _ = db.candidates(p, n=50, exclude=exclude)
+        rows = [int(x) - 1 for x in ids]
+        has_true = bool(truth[i])
+        if has_true:
+            n_true += 1
+            pre10 += bool(truth[i].intersection(rows[:10]))
+            pre50 += bool(truth[i].intersection(rows[:50]))
+        t1 = time.perf_counter()
+        hits = db.query(p, k=candidates, candidates=candidates, exclude=exclude)
+        q_ms.append(1e3 * (time.perf_counter() - t1))
+        best = hits[0] if hits and hits[0].verdict == ACCEPTED else None
+        rec = {"i": i, "has_true": has_true, "answered": best is not None, "right": False,
+               "score": 0.0, "verdicts": [h.verdict for h in hits]}
+        if best is not None:
+            place = scans[best.place_id - 1]
+            t_err, r_err = (place.reference @ best.pose).distance_to(q.reference)
+            rec.update(place=best.place_id - 1, score=best.score, t_err=t_err, r_err=r_err,
+                       right=bool(t_err <= RIGHT_T and r_err <= RIGHT_R), rank=best.rank,
+                       n_features=best.n_features)
+        records.append(rec)
+        if progress and (qn + 1) % 50 == 0:
+            el = time.perf_counter() - t0
+            print(f"  {name}: {qn + 1}/{len(queries)} queries, {el:.0f} s", file=sys.stderr)
+    db.close()
+    answers = [r for r in records if r["answered"]]
+    curve = pr_curve(answers, n_true)
+    n_right = sum(r["right"] for r in answers)
+    n_right_true = sum(r["right"] and r["has_true"] for r in answers)
+    dflt = [r for r in answers if r["score"] >= ACCEPT_MIN_SCORE]
+    d_right = sum(r["right"] for r in dflt)
+    d_right_true = sum(r["right"] and r["has_true"] for r in dflt)
+    return {
+        "log": name,
+        "scans": n,
+        "queries": len(queries),
+        "with_true_place": n_true,
+        "candidates": candidates,
+        "answered": len(answers),
+        "right": n_right,
+        "precision": n_right / len(answers) if answers else float("nan"),
+        "recall": n_right_true / n_true if n_true else float("nan"),
+        "default_min_score": ACCEPT_MIN_SCORE,
+        "default_answered": len(dflt),
+        "default_precision": d_right / len(dflt) if dflt else float("nan"),
+        "default_recall": d_right_true / n_true if n_true else float("nan"),
+        "recall_at_99": curve["r99"],
+        "recall_at_100": curve["r100"],
+        "prefilter_recall_10": pre10 / n_true if n_true else float("nan"),
+        "prefilter_recall_50": pre50 / n_true if n_true else float("nan"),
+        "query_ms_median": float(np.median(q_ms)),
+        "query_ms_p95": float(np.percentile(q_ms, 95)),
+        "add_ms_median": float(np.median(add_ms)),
+        "build_s": build_s,
+        "wrong": [r for r in answers if not r["right"]],
+        "answers": [{k: r.get(k) for k in ("i", "place", "has_true", "right", "score",
+                                           "n_features", "rank", "t_err", "r_err")}
+                    for r in answers],
+        "curve": {k: curve[k] for k in ("precision", "recall", "threshold")},
+    }
+
+
+# ---------------------------------------------------------------------------------------
+# 2. Scale
+# ---------------------------------------------------------------------------------------
+def scale(sizes: list[int], n_queries: int, tmp: Path, progress=True) -> list[dict]:
+    from scanclique.datasets import load_log
+    from scanclique.places import PlaceDB
+
+    pool = [(name, k, s) for name in ("freiburg", "intel", "csail")
+            for k, s in enumerate(load_log(name))]
+    rng = np.random.default_rng(0)
+    qidx = rng.choice(len(pool), size=n_queries, replace=False)
+    path = tmp / "scale.db"
+    db = PlaceDB(path)
+    out, added = [], 0
+    for size in sizes:
+        add_ms = []
+        t0 = time.perf_counter()
+        while added < size:
+            name, k, s = pool[added % len(pool)]
+            t = time.perf_counter()
+            db.add(s, name=f"{name}:{k}#{added // len(pool)}")
+            add_ms.append(1e3 * (time.perf_counter() - t))
+            added += 1
+            if progress and added % 5000 == 0:
+                print(f"  scale: {added} places, {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+        # queries from a second connection, as a reader would
+        reader = PlaceDB(path, readonly=True)
+        q_ms, pre_ms = [], []
+        for qi in qidx:
+            s = pool[int(qi)][2]
+            t = time.perf_counter()
+            reader.query(s, k=5)
+            q_ms.append(1e3 * (time.perf_counter() - t))
+            p = reader.prepare(s)
+            t = time.perf_counter()
+            reader.candidates(p, n=5)
+            pre_ms.append(1e3 * (time.perf_counter() - t))
+        reader.close()
+        st = db.store.stats()
+        out.append({
+            "places": size,
+            "add_ms_median": float(np.median(add_ms)),
+            "add_ms_p95": float(np.percentile(add_ms, 95)),
+            "query_ms_median": float(np.median(q_ms)),
+            "query_ms_p95": float(np.percentile(q_ms, 95)),
+            "prefilter_ms_median": float(np.median(pre_ms)),
+            "prefilter_ms_p95": float(np.percentile(pre_ms, 95)),
+            "file_mb": (st["file_bytes"] + st["wal_bytes"]) / 1e6,
+            "bytes_per_place": (st["file_bytes"] + st["wal_bytes"]) / size,
+        })
+        if progress:
+            print(f"  scale: {out[-1]}", file=sys.stderr)
+    db.close()
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# 3. Scale-out
+# ---------------------------------------------------------------------------------------
+def scale_out(every: int, candidates: int, workers: int) -> dict:
+    from distributed import LocalCluster
+
+    from scanclique.datasets import load_log
+    from scanclique.places.loops import find_loops
+
+    scans = load_log("freiburg")[::every]
+    min_gap = max(1, math.ceil(50 / every))
+    # warm up the compiled kernels and caches in this process
+    find_loops(scans[: min_gap + 5], candidates=1, min_gap=min_gap)
+    runs = {}
+    t = time.perf_counter()
+    runs["serial"] = find_loops(scans, candidates=candidates, min_gap=min_gap)
+    runs["serial"].seconds["wall"] = time.perf_counter() - t
+    t = time.perf_counter()
+    runs["processes"] = find_loops(scans, candidates=candidates, min_gap=min_gap, workers=workers)
+    runs["processes"].seconds["wall"] = time.perf_counter() - t
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        t = time.perf_counter()
+        runs["dask"] = find_loops(scans, candidates=candidates, min_gap=min_gap,
+                                  scheduler=cluster.scheduler_address)
+        runs["dask"].seconds["wall"] = time.perf_counter() - t
+    ref = runs["serial"].keys()
+    base = runs["serial"].seconds["wall"]
+    return {
+        "scans": len(scans),
+        "every": every,
+        "min_gap": min_gap,
+        "candidates": candidates,
+        "pairs": len(ref),
+        "accepted": len(runs["serial"].accepted),
+        "workers": workers,
+        "runs": {
+            k: {
+                "backend": r.backend,
+                "workers": r.workers,
+                "wall_s": r.seconds["wall"],
+                "seconds": r.seconds,
+                "speedup": base / r.seconds["wall"],
+                "identical": r.keys() == ref,
+            }
+            for k, r in runs.items()
+        },
+    }
+
+
+# ---------------------------------------------------------------------------------------
+# Report
+# ---------------------------------------------------------------------------------------
+def _f(v, fmt=".3f"):
+    return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, fmt)
+
+
+def report(res: dict) -> str:
+    lines = []
+    if "recognition" in res:
+        lines += [
+            "## Recognition (FLIRT/GFLIP protocol: all places >= 50 scans away; right: 0.5 m, 0.2 rad)",
+            "",
+            "| log | queries | with true place | accepted (validation) | precision | recall | "
+            "default (score >= 0.5): precision | recall | recall@99%P | recall@100%P | "
+            "prefilter recall@10 | @50 | query ms median | p95 |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in res["recognition"]:
+            lines.append(
+                f"| {r['log']} | {r['queries']} | {r['with_true_place']} | {r['answered']} | "
+                f"{_f(r['precision'])} | {_f(r['recall'])} | {_f(r['default_precision'])} | "
+                f"{_f(r['default_recall'])} | {_f(r['recall_at_99'])} | "
+                f"{_f(r['recall_at_100'])} | {_f(r['prefilter_recall_10'])} | "
+                f"{_f(r['prefilter_recall_50'])} | {_f(r['query_ms_median'], '.1f')} | "
+                f"{_f(r['query_ms_p95'], '.1f')} |"
+            )
+        lines.append("")
+    if "scale" in res:
+        lines += [
+            "## Scale (one database grown; queries k=5 from a second connection)",
+            "",
+            "| places | add ms median | add ms p95 | query ms median | query ms p95 | "
+            "prefilter ms median | prefilter ms p95 | file MB | bytes/place |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in res["scale"]:
+            lines.append(
+                f"| {r['places']} | {_f(r['add_ms_median'], '.2f')} | {_f(r['add_ms_p95'], '.2f')} | "
+                f"{_f(r['query_ms_median'], '.1f')} | {_f(r['query_ms_p95'], '.1f')} | "
+                f"{_f(r['prefilter_ms_median'], '.2f')} | {_f(r['prefilter_ms_p95'], '.2f')} | "
+                f"{_f(r['file_mb'], '.1f')} | {_f(r['bytes_per_place'], '.0f')} |"
+            )
+        lines.append("")
+    if "scale_out" in res:
+        s = res["scale_out"]
+        lines += [
+            f"## Scale-out: freiburg all-pairs revisit search ({s['scans']} scans, every "
+            f"{s['every']}, min gap {s['min_gap']}, {s['candidates']} candidates: {s['pairs']} "
+            f"pairs, {s['accepted']} accepted)",
+            "",
+            "| backend | workers | wall s | speedup | identical to serial |",
+            "|---|---|---|---|---|",
+        ]
+        for k, r in s["runs"].items():
+            lines.append(
+                f"| {k} | {r['workers']} | {_f(r['wall_s'], '.1f')} | {_f(r['speedup'], '.2f')} | "
+                f"{r['identical']} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def figure(rec: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    for r in rec:
+        c = r["curve"]
+        ax.plot(c["recall"], c["precision"], marker=".", ms=3,
+                label=f"{r['log']} (r@99% {r['recall_at_99']:.2f})")
+    ax.set_xlabel("recall (queries with a true place)")
+    ax.set_ylabel("precision (accepted answers)")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0.8, 1.005)
+    ax.axhline(0.99, color="grey", lw=0.5, ls="--")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left")
+    ax.set_title("scanclique places: answers thresholded by raw-scan score")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--stages", default="recognition,scale,scale_out")
+    ap.add_argument("--logs", default=",".join(LOGS))
+    ap.add_argument("--query-every", type=int, default=3, help="every n-th scan is a query")
+    ap.add_argument("--candidates", type=int, default=5, help="candidates verified per query")
+    ap.add_argument("--sizes", default="1000,5000,50000")
+    ap.add_argument("--scale-queries", type=int, default=60)
+    ap.add_argument("--loops-every", type=int, default=3)
+    ap.add_argument("--loops-candidates", type=int, default=3)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--full", action="store_true",
+                    help="every scan a query, all freiburg scans in the loop search")
+    ap.add_argument("--out", default=None, help="results JSON (default benchmarks/results/)")
+    a = ap.parse_args(argv)
+    if a.full:
+        a.query_every, a.loops_every = 1, 1
+    stages = set(a.stages.split(","))
+    out_json = results_path(a.out, f"places-{DATE}.json")
+    res = {"date": DATE, "args": vars(a), "machine": machine(detailed=True),
+           "versions": versions(("numpy", "scipy", "numba", "distributed")), "git": git_state()}
+    from scanclique import __version__
+
+    res["versions"]["scanclique"] = __version__
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmpd:
+        tmp = Path(tmpd)
+        if "recognition" in stages:
+            res["recognition"] = [recognition(n, a.query_every, a.candidates, tmp)
+                                  for n in a.logs.split(",")]
+            for r in res["recognition"]:
+                print(f"{r['log']:9s} queries {r['queries']:5d} true {r['with_true_place']:5d} "
+                      f"answered {r['answered']:5d} precision {_f(r['precision'])} recall "
+                      f"{_f(r['recall'])} default P {_f(r['default_precision'])} R "
+                      f"{_f(r['default_recall'])} r@99 {_f(r['recall_at_99'])} r@100 "
+                      f"{_f(r['recall_at_100'])} prefilter@10 {_f(r['prefilter_recall_10'])} "
+                      f"@50 {_f(r['prefilter_recall_50'])} query ms {r['query_ms_median']:.1f} "
+                      f"(p95 {r['query_ms_p95']:.1f})", flush=True)
+        if "scale" in stages:
+            res["scale"] = scale([int(x) for x in a.sizes.split(",")], a.scale_queries, tmp)
+        if "scale_out" in stages:
+            res["scale_out"] = scale_out(a.loops_every, a.loops_candidates, a.workers)
+    res["seconds"] = time.perf_counter() - t0
+    out_json.parent.mkdir(parents=True, exist_ok=True)
+    out_json.write_text(json.dumps(res, indent=1, default=float))
+    md = report(res)
+    out_json.with_suffix(".md").write_text(
+        f"# places benchmark {DATE}\n\n`python benchmarks/places.py {' '.join(argv or sys.argv[1:])}`"
+        f" at {res['git']['commit']}, {res['machine']['cpus']} CPUs, load "
+        f"{res['machine']['load_average']}, {res['seconds']:.0f} s\n\n" + md
+    )
+    if "recognition" in res:
+        figure(res["recognition"], out_json.with_suffix(".png"))
+    print(md)
+    print(f"results: {out_json}")
+
+
+if __name__ == "__main__":
+    main()
