@@ -1,0 +1,108 @@
+"""The ``scanclique map`` command: map a whole log (issue 12).
+
+The work is :func:`scanclique.mapping.run.run_map`; this module only parses arguments and
+prints. Heavy imports happen inside the command.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Annotated
+
+import typer
+
+from . import JsonOpt, _console, _err_console, _guard, _print_json, _table
+
+
+def map_cmd(
+    log: Annotated[
+        str,
+        typer.Argument(
+            help="A CARMEN log (.log, .clf, .gz, .bz2), a registered data set name "
+            "(intel, fr079, ...) or a ROS 1/ROS 2 bag."
+        ),
+    ],
+    out: Annotated[str, typer.Option("--out", "-o", help="Output directory.")],
+    odometry: Annotated[
+        bool,
+        typer.Option(
+            "--odometry/--no-odometry",
+            help="Use the log's odometry when every scan has it (default); --no-odometry "
+            "maps from the scans alone.",
+        ),
+    ] = True,
+    topic: Annotated[
+        str | None, typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one).")
+    ] = None,
+    plot: Annotated[
+        bool, typer.Option("--plot", help="Also write map.png with the trajectory and closures.")
+    ] = False,
+    workers: Annotated[
+        int | None, typer.Option("--workers", min=1, help="Processes for loop verification.")
+    ] = None,
+    json_out: JsonOpt = False,
+) -> None:
+    """Map a log: trajectory.tum, graph.g2o, map.pgm + map.yaml (ROS map_server),
+    report.json (and map.png with --plot) in OUT.
+
+    **Examples**
+
+    ```
+    scanclique map ../shared/data/carmen/fr079.clf.bz2 --out runs/fr079
+    scanclique map intel-raw --out runs/intel --no-odometry
+    scanclique map my.bag --topic /scan --out runs/mine --plot
+    ```
+    """
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from ..mapping.run import run_map
+
+    quiet = json_out or not sys.stderr.isatty()
+    with Progress(
+        TextColumn("mapping"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} scans"),
+        TextColumn("{task.fields[rate]:.0f} scans/s"),
+        TextColumn("{task.fields[closures]} closures"),
+        TimeRemainingColumn(),
+        console=_err_console(),
+        transient=True,
+        disable=quiet,
+    ) as bar:
+        task = bar.add_task("map", total=None, rate=0.0, closures=0)
+        import time
+
+        t0 = time.perf_counter()
+
+        def tick(done: int, total: int, closures: int) -> None:
+            rate = done / max(time.perf_counter() - t0, 1e-9)
+            bar.update(task, completed=done, total=total, rate=rate, closures=closures)
+
+        run = _guard(
+            lambda: run_map(
+                log,
+                out,
+                use_odometry=None if odometry else False,
+                topic=topic,
+                plot=plot,
+                progress=tick,
+                workers=workers,
+            )
+        )
+    if json_out:
+        _print_json(
+            {
+                "log": log,
+                "counts": run.result.counts(),
+                "seconds": {**run.result.seconds, **run.seconds},
+                "metrics": run.metrics,
+                "files": run.files,
+            }
+        )
+        return
+    _console().print(_table(run.rows(), f"scanclique map {run.label}", ("Metric", "Value", "Units")))
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``scanclique map`` to ``app``."""
+    app.command("map")(map_cmd)

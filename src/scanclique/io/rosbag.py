@@ -1,0 +1,228 @@
+"""Reader for ROS 1 (``.bag``) and ROS 2 (directory with ``metadata.yaml``, ``.db3``,
+``.mcap``) bags through ``rosbags`` (pure Python, no ROS install): ``sensor_msgs/LaserScan``
+messages become :class:`~scanclique.scan.Scan` records.
+
+Conventions
+-----------
+* **Topic.** ``topic`` names the LaserScan topic; when None, the bag must hold exactly
+  one LaserScan topic.
+* **Beams.** ``angle_min + i * angle_increment``; ``range_min`` / ``range_max`` from the
+  message (ranges outside are kept and masked by :class:`Scan`). A message with a negative
+  ``angle_increment`` (a scanner mounted upside down) is reversed into increasing angles.
+* **Timestamp.** The message header's stamp (seconds), else the bag's receive time.
+* **Odometry.** From ``nav_msgs/Odometry`` (the topic ``odom_topic``, default: the only
+  Odometry topic) or, when the bag has none, from ``tf`` / ``tf2_msgs/TFMessage``
+  transforms ``odom_frame -> base_frame`` (default ``odom`` -> ``base_link``, or
+  ``base_footprint``); interpolated at each scan's stamp (linear in x and y, along the
+  shorter arc in the heading); None outside their time span. The pose is the robot's
+  (``base_frame``), not the laser's: the laser's mounting is for the caller to apply
+  (as for CARMEN FLASER messages).
+* ``Scan.reference`` is None; ``Scan.source`` is ``"<bag>:<topic>#<index>"``.
+
+Errors
+------
+A missing or unreadable bag, a topic that is not in the bag or not a LaserScan, a bag
+with several LaserScan topics and no ``topic``, and a message that cannot be
+deserialised or is inconsistent (ranges of another length than the angles imply, non-
+finite angles) raise :class:`~scanclique.errors.ParseError` naming the bag, the topic and
+the message index.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from bisect import bisect_left
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParseError, ScanCliqueError
+from ..geometry import Pose2
+from ..scan import Scan
+
+__all__ = ["read_bag", "LASERSCAN", "ODOMETRY", "TF"]
+
+LASERSCAN = ("sensor_msgs/msg/LaserScan", "sensor_msgs/LaserScan")
+ODOMETRY = ("nav_msgs/msg/Odometry", "nav_msgs/Odometry")
+TF = ("tf2_msgs/msg/TFMessage", "tf2_msgs/TFMessage", "tf/tfMessage", "tf/msg/tfMessage")
+
+
+def _yaw(q) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _stamp(msg, t_ns: int) -> float:
+    h = getattr(msg, "header", None)
+    st = getattr(h, "stamp", None)
+    if st is not None:
+        sec = getattr(st, "sec", None)
+        nsec = getattr(st, "nanosec", getattr(st, "nsec", 0))
+        if sec is not None and (sec or nsec):
+            return float(sec) + 1e-9 * float(nsec)
+    return 1e-9 * t_ns
+
+
+def _interp(times: list[float], poses: list[Pose2], t: float) -> Pose2 | None:
+    if not times or t < times[0] - 1e-9 or t > times[-1] + 1e-9:
+        return None
+    k = bisect_left(times, t)
+    if k < len(times) and abs(times[k] - t) < 1e-9:
+        return poses[k]
+    if k == 0:
+        return poses[0]
+    if k >= len(times):
+        return poses[-1]
+    t0, t1 = times[k - 1], times[k]
+    a, b = poses[k - 1], poses[k]
+    u = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
+    dth = math.atan2(math.sin(b.theta - a.theta), math.cos(b.theta - a.theta))
+    return Pose2(a.x + u * (b.x - a.x), a.y + u * (b.y - a.y), a.theta + u * dth)
+
+
+def read_bag(
+    path: str | os.PathLike,
+    topic: str | None = None,
+    *,
+    odom_topic: str | None = None,
+    odom_frame: str = "odom",
+    base_frame: str | None = None,
+) -> list[Scan]:
+    """The LaserScan messages of a ROS 1 or ROS 2 bag as scans, with odometry.
+
+    Parameters
+    ----------
+    path : path
+        A ROS 1 ``.bag`` file, or a ROS 2 bag directory (or its ``.db3`` / ``.mcap``).
+    topic : str, optional
+        The LaserScan topic (default: the only one in the bag).
+    odom_topic : str, optional
+        The ``nav_msgs/Odometry`` topic (default: the only one; tf when there is none).
+    odom_frame, base_frame : str
+        The tf frames of the odometry (parent) and the robot (child; default
+        ``base_link``, else ``base_footprint``) when odometry comes from tf.
+
+    Returns
+    -------
+    list of Scan
+        In the order of the bag's messages.
+
+    Raises
+    ------
+    ParseError
+        See the module docstring.
+    """
+    try:
+        from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    except ImportError as exc:  # pragma: no cover - optional dependency
+        raise ScanCliqueError(
+            f"reading ROS bags needs rosbags ({exc}): pip install 'scanclique[map]'"
+        ) from None
+    p = Path(path)
+    name = str(path)
+    if not p.exists():
+        raise ParseError(name, None, "no such bag (file or ROS 2 bag directory)")
+    bag = p.parent if p.is_file() and p.suffix in (".db3", ".mcap") else p
+    try:
+        reader = AnyReader([bag])
+        reader.open()
+    except Exception as exc:  # noqa: BLE001  (rosbags raises its own types)
+        raise ParseError(name, None, f"not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+    try:
+        conns = list(reader.connections)
+        scans_c = [c for c in conns if c.msgtype in LASERSCAN]
+        if topic is not None:
+            named = [c for c in conns if c.topic == topic]
+            if not named:
+                have = sorted({c.topic for c in conns})
+                raise ParseError(name, None, f"topic {topic!r} is not in the bag (topics: {have})")
+            bad = [c for c in named if c.msgtype not in LASERSCAN]
+            if bad:
+                raise ParseError(
+                    name, None,
+                    f"topic {topic!r} holds {bad[0].msgtype}, expected sensor_msgs/LaserScan",
+                )  # fmt: skip
+            scans_c = named
+        else:
+            topics = sorted({c.topic for c in scans_c})
+            if not topics:
+                raise ParseError(name, None, "the bag holds no sensor_msgs/LaserScan topic")
+            if len(topics) > 1:
+                raise ParseError(
+                    name, None, f"the bag holds several LaserScan topics {topics}: pass topic="
+                )
+            topic = topics[0]
+        # odometry: nav_msgs/Odometry, else tf
+        odo_c = [c for c in conns if c.msgtype in ODOMETRY]
+        if odom_topic is not None:
+            odo_c = [c for c in odo_c if c.topic == odom_topic]
+            if not odo_c:
+                raise ParseError(name, None, f"odometry topic {odom_topic!r} is not a nav_msgs/Odometry topic of the bag")
+        elif len({c.topic for c in odo_c}) > 1:
+            odo_c = [c for c in odo_c if c.topic == sorted({c.topic for c in odo_c})[0]]
+        tf_c = [c for c in conns if c.msgtype in TF] if not odo_c else []
+        o_times: list[float] = []
+        o_poses: list[Pose2] = []
+        bases = (base_frame,) if base_frame else ("base_link", "base_footprint")
+        # (an empty list of connections would mean *all* messages to rosbags)
+        for c, t_ns, raw in reader.messages(connections=odo_c + tf_c) if odo_c + tf_c else ():
+            try:
+                msg = reader.deserialize(raw, c.msgtype)
+            except Exception as exc:  # noqa: BLE001
+                raise ParseError(name, None, f"{c.topic}: cannot deserialise {c.msgtype} ({exc})") from None
+            if c.msgtype in ODOMETRY:
+                pp = msg.pose.pose
+                o_times.append(_stamp(msg, t_ns))
+                o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
+            else:
+                for tr in msg.transforms:
+                    if tr.header.frame_id.lstrip("/") == odom_frame and tr.child_frame_id.lstrip("/") in bases:
+                        q = tr.transform
+                        o_times.append(_stamp(tr, t_ns))
+                        o_poses.append(Pose2(q.translation.x, q.translation.y, _yaw(q.rotation)))
+        order = np.argsort(o_times, kind="stable")
+        o_times = [o_times[k] for k in order]
+        o_poses = [o_poses[k] for k in order]
+        out: list[Scan] = []
+        for k, (c, t_ns, raw) in enumerate(reader.messages(connections=scans_c)):
+            where = f"{name}:{c.topic}#{k}"
+            try:
+                msg = reader.deserialize(raw, c.msgtype)
+            except Exception as exc:  # noqa: BLE001
+                raise ParseError(name, None, f"{c.topic} message {k}: cannot deserialise LaserScan ({exc})") from None
+            r = np.asarray(msg.ranges, dtype=float)
+            inc = float(msg.angle_increment)
+            a0 = float(msg.angle_min)
+            if not (math.isfinite(inc) and math.isfinite(a0)) or inc == 0.0:
+                raise ParseError(
+                    name, None,
+                    f"{c.topic} message {k}: angle_min {a0} / angle_increment {inc} do not define beams",
+                )  # fmt: skip
+            ang = a0 + inc * np.arange(r.size)
+            if inc < 0:
+                r, ang = r[::-1].copy(), ang[::-1].copy()
+            span = float(msg.angle_max) - a0
+            expect = int(round(span / inc)) + 1 if math.isfinite(span) else r.size
+            if r.size == 0 or abs(expect - r.size) > 1:
+                raise ParseError(
+                    name, None,
+                    f"{c.topic} message {k}: {r.size} ranges, but angle_min..angle_max by "
+                    f"angle_increment gives {expect} beams",
+                )  # fmt: skip
+            t = _stamp(msg, t_ns)
+            try:
+                out.append(
+                    Scan(
+                        r, ang,
+                        range_min=max(float(msg.range_min), 0.0),
+                        range_max=float(msg.range_max),
+                        timestamp=t,
+                        odometry=_interp(o_times, o_poses, t),
+                        source=where,
+                    )
+                )  # fmt: skip
+            except ScanCliqueError as exc:
+                raise ParseError(name, None, f"{c.topic} message {k}: {exc}") from None
+        return out
+    finally:
+        reader.close()

@@ -1,0 +1,217 @@
+"""ROS 1 / ROS 2 bag reader (scanclique.io.rosbag), on bags this test writes itself with
+rosbags from scans of a CARMEN log (never a downloaded bag)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+from scanclique.errors import ParseError  # noqa: E402
+from scanclique.geometry import Pose2  # noqa: E402
+from scanclique.io.rosbag import read_bag  # noqa: E402
+from scanclique.mapping.run import is_bag  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def carmen_scans(request):
+    from conftest import require_log
+
+    from scanclique import datasets
+
+    require_log("intel")
+    return datasets.load_log("intel")[:25]
+
+
+def _msgs(ts, ros1: bool):
+    T = ts.types
+    Time = T["builtin_interfaces/msg/Time"]
+
+    def header(t: float, frame: str, seq: int):
+        sec = int(math.floor(t))
+        stamp = Time(sec=sec, nanosec=int(round((t - sec) * 1e9)))
+        if ros1:
+            return T["std_msgs/msg/Header"](seq=seq, stamp=stamp, frame_id=frame)
+        return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    def quat(th: float):
+        return T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2))
+
+    def laser(scan, seq):
+        a = scan.angles
+        return T["sensor_msgs/msg/LaserScan"](
+            header=header(scan.timestamp, "laser", seq),
+            angle_min=float(a[0]), angle_max=float(a[-1]), angle_increment=float(a[1] - a[0]),
+            time_increment=0.0, scan_time=0.0, range_min=0.0, range_max=float(scan.range_max),
+            ranges=np.asarray(scan.ranges, dtype=np.float32), intensities=np.zeros(0, np.float32),
+        )  # fmt: skip
+
+    def odom(t, p: Pose2, seq):
+        V3 = T["geometry_msgs/msg/Vector3"]
+        pose = T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=p.x, y=p.y, z=0.0), orientation=quat(p.theta)
+        )
+        tw = T["geometry_msgs/msg/Twist"](linear=V3(x=0.0, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0))
+        return T["nav_msgs/msg/Odometry"](
+            header=header(t, "odom", seq), child_frame_id="base_link",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=tw, covariance=np.zeros(36)),
+        )  # fmt: skip
+
+    def tf(t, p: Pose2, seq):
+        tr = T["geometry_msgs/msg/TransformStamped"](
+            header=header(t, "odom", seq), child_frame_id="base_link",
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](x=p.x, y=p.y, z=0.0), rotation=quat(p.theta)
+            ),
+        )  # fmt: skip
+        return T["tf2_msgs/msg/TFMessage"](transforms=[tr])
+
+    return laser, odom, tf
+
+
+def _odo_samples(scans):
+    """Odometry at the scans' times and half-way between them (the reader interpolates)."""
+    out = []
+    for a, b in zip(scans[:-1], scans[1:], strict=True):
+        out.append((a.timestamp, a.odometry))
+        out.append((0.5 * (a.timestamp + b.timestamp), None))
+    out.append((scans[-1].timestamp, scans[-1].odometry))
+    return [(t, p) for t, p in out if p is not None]
+
+
+def write_ros1(path, scans, odometry=True):
+    from rosbags.rosbag1 import Writer
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    laser, odom, _ = _msgs(ts, ros1=True)
+    with Writer(path) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts) if odometry else None
+        for k, s in enumerate(scans):
+            t_ns = int(s.timestamp * 1e9)
+            if co is not None:
+                w.write(co, t_ns, ts.serialize_ros1(odom(s.timestamp, s.odometry, k), "nav_msgs/msg/Odometry"))
+            w.write(cs, t_ns + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
+
+
+def write_ros2(path, scans):
+    from rosbags.rosbag2 import Writer
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    laser, _, tf = _msgs(ts, ros1=False)
+    with Writer(path, version=9) as w:
+        cs = w.add_connection("/front/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        for k, s in enumerate(scans):
+            t_ns = int(s.timestamp * 1e9)
+            w.write(ct, t_ns, ts.serialize_cdr(tf(s.timestamp, s.odometry, k), "tf2_msgs/msg/TFMessage"))
+            w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+
+
+def _same(scans, back):
+    assert len(back) == len(scans)
+    for s, b in zip(scans, back, strict=True):
+        np.testing.assert_allclose(b.ranges, s.ranges, rtol=1e-6, atol=1e-5)
+        np.testing.assert_allclose(b.angles, s.angles, atol=1e-6)
+        assert b.timestamp == pytest.approx(s.timestamp, abs=1e-6)
+        t, r = b.odometry.distance_to(s.odometry)
+        assert t < 1e-6 and r < 1e-6
+        assert b.reference is None
+
+
+@pytest.mark.realdata
+def test_ros1_bag_round_trip(tmp_path, carmen_scans):
+    path = tmp_path / "intel.bag"
+    write_ros1(path, carmen_scans)
+    assert is_bag(path)
+    back = read_bag(path)
+    _same(carmen_scans, back)
+    assert back[0].source.endswith("/scan#0")
+
+
+@pytest.mark.realdata
+def test_ros2_bag_with_tf(tmp_path, carmen_scans):
+    path = tmp_path / "intel_ros2"
+    write_ros2(path, carmen_scans)
+    assert is_bag(path)
+    back = read_bag(path, topic="/front/scan")
+    _same(carmen_scans, back)
+
+
+@pytest.mark.realdata
+def test_bag_maps(tmp_path, carmen_scans):
+    from scanclique.mapping import map_scans
+
+    path = tmp_path / "intel.bag"
+    write_ros1(path, carmen_scans)
+    r = map_scans(read_bag(path))
+    assert r.used_odometry and all(p is not None for p in r.poses)
+    direct = map_scans(carmen_scans)
+    for p, q in zip(r.poses, direct.poses, strict=True):
+        assert p.distance_to(q)[0] < 1e-3
+
+
+@pytest.mark.realdata
+def test_interpolated_odometry(tmp_path, carmen_scans):
+    # odometry only at every other scan: the reader interpolates at the others' stamps
+    from rosbags.rosbag1 import Writer
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    laser, odom, _ = _msgs(ts, ros1=True)
+    path = tmp_path / "sparse.bag"
+    with Writer(path) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
+        for k, s in enumerate(carmen_scans):
+            if k % 2 == 0:
+                w.write(co, int(s.timestamp * 1e9), ts.serialize_ros1(odom(s.timestamp, s.odometry, k), "nav_msgs/msg/Odometry"))
+            w.write(cs, int(s.timestamp * 1e9) + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
+    back = read_bag(path)
+    s0, s1, s2 = carmen_scans[0], carmen_scans[1], carmen_scans[2]
+    u = (s1.timestamp - s0.timestamp) / (s2.timestamp - s0.timestamp)
+    exp_x = s0.odometry.x + u * (s2.odometry.x - s0.odometry.x)
+    assert back[1].odometry.x == pytest.approx(exp_x, abs=1e-6)
+    assert back[-1].odometry is None or len(carmen_scans) % 2 == 1
+
+
+@pytest.mark.realdata
+def test_bad_bags(tmp_path, carmen_scans):
+    with pytest.raises(ParseError, match="no such bag"):
+        read_bag(tmp_path / "missing.bag")
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"this is not a bag at all\n" * 10)
+    with pytest.raises(ParseError, match="junk.bag: not a readable ROS bag"):
+        read_bag(junk)
+    path = tmp_path / "intel.bag"
+    write_ros1(path, carmen_scans[:3])
+    with pytest.raises(ParseError, match=r"topic '/laser' is not in the bag"):
+        read_bag(path, topic="/laser")
+    with pytest.raises(ParseError, match=r"topic '/odom' holds nav_msgs/msg/Odometry, expected sensor_msgs/LaserScan"):
+        read_bag(path, topic="/odom")
+    no_scan = tmp_path / "odom_only.bag"
+    from rosbags.rosbag1 import Writer
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    _, odom, _ = _msgs(ts, ros1=True)
+    with Writer(no_scan) as w:
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
+        w.write(co, 1, ts.serialize_ros1(odom(1.0, Pose2(0, 0, 0), 0), "nav_msgs/msg/Odometry"))
+    with pytest.raises(ParseError, match="holds no sensor_msgs/LaserScan topic"):
+        read_bag(no_scan)
+
+
+def test_bags_without_odometry_have_none(tmp_path):
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(2)
+    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 4, n_beams=181)
+    path = tmp_path / "sim.bag"
+    write_ros1(path, scans, odometry=False)
+    back = read_bag(path)
+    assert [b.odometry for b in back] == [None] * 4
