@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, git_state, machine  # noqa: E402
 
 DATE = "2026-12-01"
-METHODS = ("nn", "jcbb", "clique")
+METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
 def _vp_worker(args):

@@ -16,7 +16,7 @@ from scanclique.slam.metrics import align_se2, duplicate_pairs, gps_error, gps_o
 from scanclique.slam.models import inverse_observe, observe
 from scanclique.slam.sim import simulate_park
 
-CFG = slam.SlamConfig(max_range=20.0)
+CFG = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05)
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import typer
 
 from . import JsonOpt, _console, _err_console, _fail, _guard, _print_json, _table
 
-METHODS = ("clique", "jcbb", "nn")
+METHODS = ("clique", "clique-jcbb", "jcbb", "nn")
 
 
 def slam(
@@ -19,7 +19,7 @@ def slam(
         typer.Argument(help="'victoria-park' (in the shared data directory) or its directory."),
     ] = "victoria-park",
     association: Annotated[
-        str, typer.Option("--association", "-a", help="clique, jcbb or nn.")
+        str, typer.Option("--association", "-a", help="clique, clique-jcbb (hybrid), jcbb or nn.")
     ] = "clique",
     out: Annotated[
         Path | None,

@@ -25,6 +25,11 @@ Three methods behind one interface (:func:`associate`, and
     since the clique's mutual consistency is the real test. A distinct maximum clique that
     also passes the joint gate makes the step *ambiguous*: only the pairs all such cliques
     agree on are kept.
+``"clique-jcbb"``
+    Hybrid: the maximum cliques propose, joint compatibility verifies: JCBB restricted to
+    the pairs of the maximum cliques (the largest jointly compatible set of geometrically
+    consistent pairs). Several distinct maximum cliques mark the step ambiguous; the
+    observations they disagree on start no landmark.
 
 Observations left unpaired become a new landmark when they are far from every landmark
 (beyond the chi-square bound at ``new_probability``), else they are rejected.
@@ -58,7 +63,7 @@ __all__ = [
 #: Association codes of an observation that is paired with no landmark.
 NEW = -1
 REJECTED = -2
-METHODS = ("nn", "jcbb", "clique")
+METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
 @functools.lru_cache(maxsize=4096)
@@ -92,6 +97,8 @@ class AssociationConfig:
         m) must agree within this (the node attribute of the correspondence graph).
     jcbb_node_limit : int
         Node budget of the branch and bound (the best hypothesis so far is kept).
+    clique_limit : int
+        At most this many maximum cliques are examined (ambiguity shows as several).
     """
 
     gate_probability: float = 0.99
@@ -100,6 +107,7 @@ class AssociationConfig:
     invariant_sigmas: float = 3.0
     attribute_tolerance: float | None = None
     jcbb_node_limit: int = 200_000
+    clique_limit: int = 4
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -370,38 +378,76 @@ def _jcbb(d2, nu, Sz, R, cfg, allowed=None):
     return out, nodes
 
 
-def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None):
-    """Max clique of the correspondence graph, then the joint gate. Returns
-    (out, candidates, clique size, ambiguous, blocked observations)."""
+def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None):
+    """The correspondence graph of the observation and the predicted map (paper 5.2).
+
+    Vertices: the pairs (observation i, landmark j) within the loose individual gate
+    ``clique_probability`` (and within ``attribute_tolerance`` of the landmark's attribute
+    when set). Edges: pairs ``(i, j)``, ``(k, l)`` with ``i != k``, ``j != l`` whose
+    point-point distances agree, ``(|p_i - p_k| - |m_j - m_l|)^2 <= s^2 (var_o + var_m)``
+    with ``s = invariant_sigmas`` and the variances from :func:`point_distance_invariants`
+    (observation noise ``R``; the map's joint covariance).
+
+    Returns
+    -------
+    (oi, lj, A)
+        Observation and landmark of each vertex, and the boolean adjacency matrix.
+    """
+    ok = d2 <= chi2_bound(2, cfg.clique_probability)
+    if cfg.attribute_tolerance is not None and attributes is not None and pred.attributes is not None:
+        ok &= np.abs(attributes[:, None] - pred.attributes[None, :]) <= cfg.attribute_tolerance
+    oi, lj = np.nonzero(ok)
+    pts, pcov = _observation_points(z, R)
+    Do, Vo = point_distance_invariants(pts, pcov)
+    Dm, Vm = point_distance_invariants(pred.positions, pred.Pm)
+    diff = Do[np.ix_(oi, oi)] - Dm[np.ix_(lj, lj)]
+    var = Vo[np.ix_(oi, oi)] + Vm[np.ix_(lj, lj)]
+    A = diff * diff <= cfg.invariant_sigmas**2 * var
+    A &= oi[:, None] != oi[None, :]
+    A &= lj[:, None] != lj[None, :]
+    return oi, lj, A
+
+
+def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
+    """Maximum cliques of the correspondence graph, then the joint gate.
+
+    ``verify="peel"`` (method ``clique``): each maximum clique's pairs are tested jointly
+    with the full covariance, and the pair of largest individual distance is dropped until
+    the test passes. ``verify="jcbb"`` (hybrid ``clique-jcbb``): JCBB restricted to the
+    pairs of the maximum cliques finds their largest jointly compatible subset.
+
+    Returns (out, candidates, clique size, ambiguous, blocked observations).
+    """
     from ..clique import all_maximum_cliques
 
     k, n = d2.shape
     out = np.full(k, REJECTED, np.int64)
     if n == 0 or k == 0:
         return out, 0, 0, False, ()
-    ok = d2 <= chi2_bound(2, cfg.clique_probability)
-    if cfg.attribute_tolerance is not None and attributes is not None and pred.attributes is not None:
-        ok &= np.abs(attributes[:, None] - pred.attributes[None, :]) <= cfg.attribute_tolerance
-    oi, lj = np.nonzero(ok)
+    oi, lj, A = correspondence_graph(z, R, d2, pred, cfg, attributes)
     C = len(oi)
     if C == 0:
         return out, 0, 0, False, ()
-    # the two graphs' invariant edges (point-point distances) and their variances
-    pts, pcov = _observation_points(z, R)
-    Do, Vo = point_distance_invariants(pts, pcov)
-    Dm, Vm = point_distance_invariants(pred.positions, pred.Pm)
-    # correspondence graph (paper section 5.2): pairs a=(i, j), b=(k, l), i != k, j != l
-    diff = Do[np.ix_(oi, oi)] - Dm[np.ix_(lj, lj)]
-    var = Vo[np.ix_(oi, oi)] + Vm[np.ix_(lj, lj)]
-    A = diff * diff <= cfg.invariant_sigmas**2 * var
-    A &= oi[:, None] != oi[None, :]
-    A &= lj[:, None] != lj[None, :]
-    res = all_maximum_cliques(A, limit=8)
+    res = all_maximum_cliques(A, limit=cfg.clique_limit)
     gate = _gate_table(k, cfg.gate_probability)
+    if verify == "jcbb":
+        allowed = np.zeros((k, n), bool)
+        for cl in res.cliques:
+            allowed[oi[cl], lj[cl]] = True
+        out, _nodes = _jcbb(d2, nu, pred.Sz, R, cfg, allowed)
+        blocked = ()
+        amb = False
+        if len(res.cliques) > 1:
+            sets = [set(zip(oi[cl].tolist(), lj[cl].tolist())) for cl in res.cliques]
+            if any(x != sets[0] for x in sets[1:]):
+                amb = True
+                common = set.intersection(*sets)
+                blocked = tuple({i for i, _ in set.union(*sets) - common})
+        return out, C, int(res.omega), amb, blocked
     passing = []
     for cl in res.cliques:
         sel = np.asarray(cl, np.int64)
-        # joint gate with the full covariance; drop the worst pair until it passes
+        D2 = 0.0
         while len(sel):
             pairs = np.column_stack([oi[sel], lj[sel]])
             D2 = joint_distance(pairs, nu, pred.Sz, R)
@@ -413,21 +459,17 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None):
     best = [p for p in passing if p[0] == size]
     best.sort(key=lambda p: p[1])
     sel = best[0][2]
-    ambiguous = False
-    blocked: set[int] = set()
     if len(best) > 1 and size > 0:
         sets = [set(zip(oi[p[2]].tolist(), lj[p[2]].tolist())) for p in best]
-        common = set.intersection(*sets)
-        if any(s != sets[0] for s in sets[1:]):
-            ambiguous = True
-            union = set.union(*sets)
-            blocked = {i for i, _ in union - common}
-            out_pairs = sorted(common)
-            for i, j in out_pairs:
+        if any(x != sets[0] for x in sets[1:]):
+            # ambiguous: keep only the pairs every equally good hypothesis shares
+            common = set.intersection(*sets)
+            blocked = {i for i, _ in set.union(*sets) - common}
+            for i, j in sorted(common):
                 out[i] = j
-            return out, C, int(res.omega), ambiguous, tuple(blocked)
+            return out, C, int(res.omega), True, tuple(blocked)
     out[oi[sel]] = lj[sel]
-    return out, C, int(res.omega), ambiguous, ()
+    return out, C, int(res.omega), False, ()
 
 
 def associate_predicted(
@@ -455,6 +497,8 @@ def associate_predicted(
         out, _nodes = _jcbb(d2, nu, pred.Sz, R, cfg)
     elif method == "clique":
         out, cands, csize, amb, blocked = _clique(z, R, d2, nu, pred, cfg, attributes)
+    elif method == "clique-jcbb":
+        out, cands, csize, amb, blocked = _clique(z, R, d2, nu, pred, cfg, attributes, "jcbb")
     else:
         raise ValueError(f"association method must be one of {', '.join(METHODS)}, got {method!r}")
     pairs = np.column_stack([np.flatnonzero(out >= 0), out[out >= 0]])
@@ -490,7 +534,7 @@ def associate(
     pose : (3,) array
         Vehicle pose ``(x, y, theta)`` in the world.
     pose_cov : (3, 3) array
-    method : {"clique", "jcbb", "nn"}
+    method : {"clique", "clique-jcbb", "jcbb", "nn"}
     cross_cov : (3, 2n) array, optional
         Covariance between pose and map (zero when omitted).
     sensor : (2,) float

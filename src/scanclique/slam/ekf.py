@@ -71,6 +71,8 @@ class SlamConfig:
     max_misses : int
         A tentative landmark expected in view (within ``visible_range``) and not seen this
         many times is removed.
+    tentative_scans : int
+        A landmark still tentative this many scans after its first sighting is removed.
     visible_range : float
         Range (m) within which a landmark in the field of view is expected to be seen.
     association : AssociationConfig
@@ -78,13 +80,14 @@ class SlamConfig:
 
     sigma_range: float = 0.5
     sigma_bearing: float = math.radians(1.5)
-    max_range: float | None = 30.0
+    max_range: float | None = 25.0
     sensor_fov: float = math.pi
-    sigma_xy_rate: float = 0.05
+    sigma_xy_rate: float = 0.1
     sigma_theta_rate: float = math.radians(0.5)
     initial_sigma: tuple[float, float, float] = (0.01, 0.01, math.radians(0.1))
-    confirm_hits: int = 3
+    confirm_hits: int = 5
     max_misses: int = 3
+    tentative_scans: int = 25
     visible_range: float = 20.0
     association: AssociationConfig = field(default_factory=AssociationConfig)
 
@@ -185,6 +188,8 @@ class _Filter:
         self.hits = np.zeros(cap, np.int64)
         self.misses = np.zeros(cap, np.int64)
         self.att = np.zeros(cap)
+        self.born = np.zeros(cap, np.int64)  # scan index of the first sighting
+        self.scan = 0
         self.next_id = 0
 
     @property
@@ -200,7 +205,7 @@ class _Filter:
         d = self.dim
         P[:d, :d] = self.P[:d, :d]
         self.x, self.P = x, P
-        for name in ("ids", "hits", "misses", "att"):
+        for name in ("ids", "hits", "misses", "att", "born"):
             a = getattr(self, name)
             b = np.zeros(new, a.dtype)
             b[:cap] = a
@@ -224,6 +229,7 @@ class _Filter:
         self.hits[j] = 1
         self.misses[j] = 0
         self.att[j] = attribute
+        self.born[j] = self.scan
         self.n += 1
         return self.ids[j]
 
@@ -241,7 +247,7 @@ class _Filter:
         self.x[:m] = x
         self.P[:m, :m] = P
         self.x[m:d] = 0
-        for name in ("ids", "hits", "misses", "att"):
+        for name in ("ids", "hits", "misses", "att", "born"):
             a = getattr(self, name)
             a[: len(keep_l)] = a[keep_l]
         self.n = len(keep_l)
@@ -399,12 +405,16 @@ def ekf_slam(
                         lid = f.add(m[q], Gx[q], Gz[q], R, att[i] if att is not None else 0.0)
                         a_used[i] = NEW
                         _ = lid
+                tentative = f.hits[: f.n] < cfg.confirm_hits
                 drop = np.flatnonzero(
-                    (f.hits[: f.n] < cfg.confirm_hits) & (f.misses[: f.n] >= cfg.max_misses)
+                    tentative
+                    & ((f.misses[: f.n] >= cfg.max_misses)
+                       | (f.scan - f.born[: f.n] >= cfg.tentative_scans))
                 )
                 if len(drop):
                     f.remove(drop)
             Pvv = f.P[:3, :3].copy()
+            f.scan += 1
             obs_t.append(step.time)
             a_out = np.full(n_all, REJECTED, np.int64)  # beyond max_range: rejected
             a_out[keep] = a_used
