@@ -185,3 +185,32 @@ def test_point_distance_invariants_variance():
     d = np.hypot(*(s[:, 0] - s[:, 1]).T)
     assert abs(D[0, 1] - np.hypot(10, 2)) < 1e-12
     assert abs(V[0, 1] - d.var()) / d.var() < 0.05
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_clique_jcbb_is_largest_compatible_within_the_cliques(seed):
+    """The hybrid: the largest jointly compatible hypothesis among the pairs of the
+    maximum cliques (brute force over them)."""
+    from scanclique.clique import all_maximum_cliques
+
+    z, R, lm, mc, pose, pc, _ = _problem(seed, clutter=2)
+    pred, Rk, nu, d2 = _parts(z, R, lm, mc, pose, pc)
+    cfg = A.AssociationConfig()
+    oi, lj, adj = A.correspondence_graph(np.asarray(z), Rk, d2, pred, cfg)
+    allowed = set()
+    if len(oi):
+        for cl in all_maximum_cliques(adj, limit=cfg.clique_limit).cliques:
+            allowed |= set(zip(oi[cl].tolist(), lj[cl].tolist()))
+    gate1 = A.chi2_bound(2, cfg.gate_probability)
+    cands = [[j for j in range(len(lm)) if (i, j) in allowed and d2[i, j] <= gate1]
+             for i in range(len(z))]
+    best = 0
+    for h in _hypotheses(cands, len(z)):
+        pairs = [(i, j) for i, j in enumerate(h) if j is not None]
+        if len(pairs) > best and A.joint_distance(np.array(pairs), nu, pred.Sz, Rk) <= A.chi2_bound(
+            2 * len(pairs), cfg.gate_probability
+        ):
+            best = len(pairs)
+    a = slam.associate(z, R, lm, mc, pose, pc, method="clique-jcbb")
+    assert a.n_pairs == best
+    assert all((int(i), int(j)) in allowed for i, j in a.pairs)
