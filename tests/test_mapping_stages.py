@@ -1,0 +1,226 @@
+"""Each stage of scanclique.mapping on its own: PCM, back end, occupancy, outputs, run_map
+and the ``scanclique map`` command."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from scanclique.geometry import Pose2
+from scanclique.mapping.backend import optimize, tangent_covariance
+from scanclique.mapping.config import OccupancyConfig
+from scanclique.mapping.occupancy import occupancy_grid, probabilities
+from scanclique.mapping.pcm import consistency_graph, pcm_select
+from scanclique.scan import Scan
+
+
+# -- PCM --------------------------------------------------------------------------------
+def _truth_chain(n=30):
+    """A square-ish loop of keyframes (the truth), and the chain = truth."""
+    poses = []
+    for k in range(n):
+        a = 2 * math.pi * k / n
+        poses.append(Pose2(3 * math.cos(a), 3 * math.sin(a), a + math.pi / 2))
+    return poses
+
+
+def test_pcm_keeps_the_consistent_closures():
+    truth = _truth_chain()
+
+    def chain(a, b):
+        D = abs(b - a) * 0.6
+        return truth[a].inverse() @ truth[b], np.diag([(0.02 + 0.02 * D) ** 2] * 2 + [(0.01 + 0.005 * D) ** 2])
+
+    P = np.diag([0.02**2, 0.02**2, math.radians(0.5) ** 2])
+    good = [(i, j, truth[i].inverse() @ truth[j], P) for i, j in ((0, 20), (2, 22), (5, 25), (1, 27))]
+    bad = [
+        (3, 23, (truth[3].inverse() @ truth[23]) @ Pose2(1.5, 0.0, 0.3), P),
+        (4, 24, (truth[4].inverse() @ truth[24]) @ Pose2(0.0, -2.0, -0.5), P),
+    ]
+    closures = good + bad
+    A = consistency_graph(closures, chain)
+    assert A[:4, :4][np.triu_indices(4, 1)].all()  # the right ones agree pairwise
+    assert not A[4, 5]
+    keep = pcm_select(closures, chain)
+    assert keep.tolist() == [0, 1, 2, 3]
+    assert pcm_select(closures[:1], chain).tolist() == [0]
+    assert pcm_select(bad, chain).tolist() == []
+
+
+# -- back end ---------------------------------------------------------------------------
+def test_tangent_covariance_rotates_into_the_measurement_frame():
+    P = np.diag([0.04, 0.0001, 0.001])  # uncertain along frame-i x
+    Q = tangent_covariance(Pose2(1.0, 0.0, math.pi / 2), P)
+    # in the measurement's own axes (turned by 90 deg) the uncertain direction is -y
+    assert Q[1, 1] == pytest.approx(0.04, rel=1e-6) and Q[0, 0] == pytest.approx(0.0001, rel=1e-6)
+    inf = tangent_covariance(Pose2.identity(), np.diag([np.inf, 0.01, 0.01]))
+    assert np.all(np.isfinite(inf)) and np.all(np.linalg.eigvalsh(inf) > 0)
+
+
+def test_optimize_a_loop_with_one_outlier():
+    truth = _truth_chain(20)
+    P = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    edges = []
+    guesses = [truth[0]]
+    for k in range(19):
+        Z = (truth[k].inverse() @ truth[k + 1]) @ Pose2(0.01, 0.0, 0.004)  # biased odometry
+        edges.append((k, k + 1, Z, P * 4, False))
+        guesses.append(guesses[-1] @ Z)
+    right = [(0, 19, truth[0].inverse() @ truth[19], P, True), (2, 17, truth[2].inverse() @ truth[17], P, True)]
+    wrong = [(3, 14, (truth[3].inverse() @ truth[14]) @ Pose2(1.5, -1.0, 0.4), P, True)]
+    g0 = [truth[0].inverse() @ g for g in guesses]
+    t0 = [truth[0].inverse() @ t for t in truth]
+
+    def err(poses):
+        return max(p.distance_to(t)[0] for p, t in zip(poses, t0, strict=True))
+
+    before = err(g0)
+    clean = err(optimize(g0, edges + right, robust="none"))
+    polluted = err(optimize(g0, edges + right + wrong, robust="none"))
+    robust = err(optimize(g0, edges + right + wrong, robust="cauchy"))
+    assert clean < 0.3 * before
+    assert polluted > 2 * clean  # least squares follows the wrong closure
+    assert robust < 0.5 * polluted and robust < 0.5 * before  # the kernel limits it
+
+
+# -- occupancy --------------------------------------------------------------------------
+def _slow_grid(scans, poses, cfg, shape, origin):
+    """Reference: the same Bresenham walk in plain Python."""
+    g = np.zeros(shape)
+    r = cfg.resolution
+    lo = np.asarray(origin)
+    for s, p in zip(scans, poses, strict=True):
+        rng = np.where(s.valid, s.ranges, cfg.max_range)
+        hit = s.valid & (rng <= cfg.max_range)
+        rng = np.minimum(rng, cfg.max_range)
+        E = p.transform(np.column_stack((rng * np.cos(s.angles), rng * np.sin(s.angles))))
+        x0, y0 = np.floor((np.array([p.x, p.y]) - lo) / r).astype(int)
+        for (x1, y1), h in zip(np.floor((E - lo) / r).astype(int), hit, strict=True):
+            x, y = x0, y0
+            dx, dy = abs(x1 - x0), -abs(y1 - y0)
+            sx, sy = (1 if x0 < x1 else -1), (1 if y0 < y1 else -1)
+            err = dx + dy
+            while (x, y) != (x1, y1):
+                if 0 <= x < shape[1] and 0 <= y < shape[0]:
+                    g[y, x] = max(g[y, x] + cfg.log_odds_miss, -cfg.clamp)
+                e2 = 2 * err
+                if e2 >= dy:
+                    err += dy
+                    x += sx
+                if e2 <= dx:
+                    err += dx
+                    y += sy
+            if 0 <= x1 < shape[1] and 0 <= y1 < shape[0]:
+                if h:
+                    g[y1, x1] = min(g[y1, x1] + cfg.log_odds_hit, cfg.clamp)
+                else:
+                    g[y1, x1] = max(g[y1, x1] + cfg.log_odds_miss, -cfg.clamp)
+    return g
+
+
+def test_occupancy_kernel_agrees_with_slow_reference():
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(4)
+    scans = simulate_trajectory(rng, office_world(rng, length=10.0), 3, n_beams=91)
+    poses = [scans[0].reference.inverse() @ s.reference for s in scans]
+    cfg = OccupancyConfig(resolution=0.1, max_range=12.0)
+    grid = occupancy_grid(scans, poses, cfg)
+    slow = _slow_grid(scans, poses, cfg, grid.shape, grid.origin)
+    np.testing.assert_allclose(grid.log_odds, slow, atol=1e-4)
+    p = probabilities(grid.log_odds)
+    assert (p > 0.65).sum() > 50 and (p < 0.45).sum() > 300
+
+
+def test_occupancy_of_a_wall():
+    # one scan facing a wall 2 m ahead: the wall's cells are occupied, the way there free
+    angles = np.linspace(-0.2, 0.2, 21)
+    scan = Scan(2.0 / np.cos(angles), angles, range_max=30.0)
+    g = occupancy_grid([scan], [Pose2.identity()], OccupancyConfig(resolution=0.05, margin=0.5))
+    p = probabilities(g.log_odds)
+    col = int((2.0 - g.origin[0]) / 0.05)
+    row = int((0.0 - g.origin[1]) / 0.05)
+    assert p[row, col] > 0.65 and p[row, col // 2] < 0.4
+
+
+# -- outputs ----------------------------------------------------------------------------
+def _small_result():
+    from scanclique.mapping import map_scans
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(8)
+    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 12, step=0.25, n_beams=181)
+    return scans, map_scans(scans)
+
+
+def test_outputs_round_trip(tmp_path):
+    gtsam = pytest.importorskip("gtsam")
+    from scanclique.mapping import outputs
+
+    scans, r = _small_result()
+    n_v, n_e = outputs.write_g2o(tmp_path / "graph.g2o", r.poses, r.edges)
+    assert n_v == len(scans) and n_e == len(r.edges)
+    graph, initial = gtsam.readG2o(str(tmp_path / "graph.g2o"), False)
+    assert initial.size() == len(scans) and graph.size() == len(r.edges)
+    p5 = initial.atPose2(5)
+    assert p5.x() == pytest.approx(r.poses[5].x, abs=1e-6) and p5.theta() == pytest.approx(r.poses[5].theta, abs=1e-6)
+    # the written information matrices weigh the edges as the result's covariances do
+    e = r.edges[0]
+    f = graph.at(0)
+    assert f.keys() == [e.i, e.j]
+
+    n = outputs.write_tum(tmp_path / "trajectory.tum", r.poses, [s.timestamp for s in scans])
+    rows = np.loadtxt(tmp_path / "trajectory.tum")
+    assert n == len(scans) and rows.shape == (len(scans), 8)
+    k = 7
+    assert 2 * math.atan2(rows[k, 6], rows[k, 7]) == pytest.approx(r.poses[k].theta, abs=1e-6)
+
+    from scanclique.mapping.occupancy import occupancy_grid
+
+    grid = occupancy_grid(scans, r.poses)
+    w, h = outputs.write_map(tmp_path / "map.pgm", tmp_path / "map.yaml", grid)
+    raw = (tmp_path / "map.pgm").read_bytes()
+    assert raw.startswith(b"P5\n")
+    assert raw.endswith(bytes(np.where(probabilities(grid.log_odds) > 0.65, 0, 0)[:0]))
+    body = raw[-w * h :]
+    assert set(np.frombuffer(body, np.uint8).tolist()) <= {0, 205, 254}
+    y = (tmp_path / "map.yaml").read_text()
+    assert "image: map.pgm" in y and "occupied_thresh: 0.65" in y and "free_thresh: 0.196" in y
+    assert "resolution: 0.050000" in y
+    # top row of the image is the highest y of the grid
+    img = np.frombuffer(body, np.uint8).reshape(h, w)
+    p = probabilities(grid.log_odds)
+    assert ((p[-1] > 0.65) == (img[0] == 0)).all()
+
+
+def test_run_map_and_command(tmp_path):
+    """``run_map`` and ``scanclique map`` on a ROS 1 bag written from a simulated drive."""
+    pytest.importorskip("rosbags")
+    from test_rosbag import write_ros1
+    from typer.testing import CliRunner
+
+    from scanclique.cli import app
+    from scanclique.mapping.run import run_map
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(8)
+    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 15, step=0.25, n_beams=181)
+    bag = tmp_path / "sim.bag"
+    write_ros1(bag, scans)
+    run = run_map(bag, tmp_path / "out", plot=True)
+    for f in ("trajectory.tum", "graph.g2o", "map.pgm", "map.yaml", "map.png", "report.json"):
+        assert (tmp_path / "out" / f).is_file(), f
+    rep = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert rep["counts"]["scans"] == 15 and rep["used_odometry"] is True
+    assert "front_end" in rep["config"] and "match" in rep["config"]
+    assert any(row[0] == "scans" for row in run.rows())
+
+    res = CliRunner().invoke(app, ["map", str(bag), "--out", str(tmp_path / "cli"), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert out["counts"]["scans"] == 15
+    res = CliRunner().invoke(app, ["map", str(tmp_path / "nope.bag"), "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "error:" in res.output and "nope.bag" in res.output
