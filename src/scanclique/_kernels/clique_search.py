@@ -138,18 +138,22 @@ def bb_search(B, n, P0, init, floor, mode, limit, deadline, mask, maxsat, node_l
     nfound = 0
     status = _FINISHED
 
+    # few allocations (the pipeline's graphs are searched in microseconds): the stacks
+    # as rows of one block, the two scratch sets as rows of another
     maxd = depth_max + 1
     Pst = np.empty((maxd, W), np.uint64)
-    pos = np.empty(maxd, np.int64)
-    base = np.empty(maxd, np.int64)
-    cnt = np.empty(maxd, np.int64)
-    C = np.empty(maxd, np.int64)
-    U = np.empty(W, np.uint64)
-    Q = np.empty(W, np.uint64)
+    stack = np.empty((4, maxd), np.int64)
+    pos = stack[0]
+    base = stack[1]
+    cnt = stack[2]
+    C = stack[3]
+    UQ = np.empty((2, W), np.uint64)
+    U = UQ[0]
+    Q = UQ[1]
     # colour classes below the bar (the bar never exceeds depth_max)
     CL = np.empty((max(bar, depth_max) + 1, W), np.uint64)
-    S = maxsat_scratch(n if maxsat else 0, W)
-    col = S[5] if maxsat else np.empty(n, np.int64)
+    S = maxsat_scratch(n, W)
+    col = S[5]
     need = popcount(P0, W)
     cap = 4 * need + 64
     ord_v = np.empty(cap, np.int64)
@@ -228,6 +232,8 @@ def bb_search(B, n, P0, init, floor, mode, limit, deadline, mask, maxsat, node_l
         base[depth] = nb
         cnt[depth] = c
         pos[depth] = c - 1
+    if nfound == found.shape[0]:
+        return best, nodes, status, found
     out = np.empty((nfound, target), np.int64)
     for r in range(nfound):
         for i in range(target):

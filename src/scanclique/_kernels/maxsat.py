@@ -178,17 +178,26 @@ def absorb(B, W, need, CL, P, ord_v, ord_c, base, cnt, S):
 
 @numba.njit(cache=True)
 def maxsat_scratch(n, W):
+    """Scratch of :func:`absorb` and :func:`try_vertex` for ``n`` vertices and classes,
+    sets of ``W`` words, in four allocations (row views of three blocks): the search
+    allocates it once per call, which matters on the pipeline's small graphs."""
+    V = np.empty((4, W), np.uint64)
+    I = np.empty((4, n + 1), np.int64)
+    F = np.empty((3, n + 1), np.bool_)
+    col = I[0]
+    for i in range(n + 1):
+        col[i] = -1
     return (
         np.empty((n + 1, W), np.uint64),  # RS: reasons, a bitset of classes per class
-        np.empty(W, np.uint64),  # SX: the classes of one conflict
-        np.empty(W, np.uint64),  # SU: the classes consumed by one candidate class
-        np.empty(W, np.uint64),  # T: vertices still compatible with the true ones
-        np.empty(W, np.uint64),  # D: vertices a new unit removes from T
-        np.full(n + 1, -1, np.int64),  # col: class index of each vertex, -1 if none
-        np.empty(n + 1, np.int64),  # left: |class ∩ T|
-        np.empty(n + 1, np.bool_),  # active
-        np.empty(n + 1, np.bool_),  # queued
-        np.empty(n + 1, np.bool_),  # fired
-        np.empty(n + 1, np.int64),  # queue of unit classes
-        np.empty(n + 1, np.int64),  # their vertices (-1: not known yet)
+        V[0],  # SX: the classes of one conflict
+        V[1],  # SU: the classes consumed by one candidate class
+        V[2],  # T: vertices still compatible with the true ones
+        V[3],  # D: vertices a new unit removes from T
+        col,  # col: class index of each vertex, -1 if none
+        I[1],  # left: |class ∩ T|
+        F[0],  # active
+        F[1],  # queued
+        F[2],  # fired
+        I[2],  # queue of unit classes
+        I[3],  # their vertices (-1: not known yet)
     )

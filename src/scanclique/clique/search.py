@@ -172,11 +172,12 @@ def max_clique(
     >>> r.vertices.tolist(), r.weight
     ([0, 1, 2, 3], 10.0)
     """
-    tl = _time_limit(time_limit)
-    nl = _node_limit(node_limit)
-    if weights is None and type(graph) is np.ndarray and graph.dtype is _BOOL:
-        return _max_clique_dense(graph, _clock(), tl, nl, lower_bound)
     t0 = _clock()
+    # the checks inlined for the common None (the pipeline's graphs take microseconds)
+    tl = math.inf if time_limit is None else _time_limit(time_limit)
+    nl = _NO_LIMIT if node_limit is None else _node_limit(node_limit)
+    if weights is None and type(graph) is np.ndarray and graph.dtype is _BOOL:
+        return _max_clique_dense(graph, t0, tl, nl, lower_bound)
     return _max_clique(_bits_of(graph), t0, tl, nl, lower_bound, weights)
 
 
@@ -194,7 +195,7 @@ def _max_clique_dense(adj, t0, tl, nl, lower_bound) -> CliqueResult:
     if not adj.flags.c_contiguous:
         adj = np.ascontiguousarray(adj)
     n = shape[0]
-    floor = _floor(lower_bound)
+    floor = 0 if lower_bound is None else _floor(lower_bound)
     if n == 0:
         return CliqueResult(np.empty(0, np.int64), True, 0, _clock() - t0)
     if _solve_dense is None:
@@ -208,17 +209,14 @@ def _max_clique_dense(adj, t0, tl, nl, lower_bound) -> CliqueResult:
 
 def _found(out, size, nodes, status, floor, t0) -> CliqueResult:
     """The :class:`CliqueResult` of a search that wrote ``size`` vertices to ``out``."""
-    if status == 0:
-        optimal = size > floor
-        reason = None if optimal else "lower_bound"
-    else:
-        optimal = False
-        reason = _REASON[status]
     verts = out[:size]
     # write=False, passed by position: numpy's stubs say keyword-only, but the keyword
     # costs a fifth of a microsecond more to parse (numpy 2.4)
     verts.setflags(False)  # type: ignore[call-arg]
-    return _result(verts, optimal, nodes, _clock() - t0, None, reason)
+    if status == 0 and size > floor:  # the common case first
+        return _result(verts, True, nodes, _clock() - t0)
+    reason = "lower_bound" if status == 0 else _REASON[status]
+    return _result(verts, False, nodes, _clock() - t0, None, reason)
 
 
 def _max_clique(A, t0, tl, nl, lower_bound, weights) -> CliqueResult:
