@@ -300,7 +300,7 @@ _CORE_COMMANDS: tuple[str, ...] = ("match", "features", "clique", "demo", "valid
 #: adds its typer command(s) to ``app``. A command module imports only typer, rich and the
 #: standard library at module level (heavy imports go inside the command), so that
 #: ``scanclique --help`` and ``--version`` stay light.
-COMMAND_MODULES: tuple[str, ...] = ("slam",)
+COMMAND_MODULES: tuple[str, ...] = ("slam", "places")
 
 
 def _register_commands() -> None:

@@ -1,0 +1,247 @@
+"""The ``scanclique places`` commands (``add``, ``query``, ``info``) and ``scanclique
+loops``: the place database of :mod:`scanclique.places` (issue 14).
+
+The work is :mod:`scanclique.places.run`; this module only parses arguments and prints.
+Heavy imports happen inside the commands.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from . import (
+    ConfigOpt,
+    JsonOpt,
+    PaperOpt,
+    _console,
+    _err_console,
+    _guard,
+    _print_json,
+    _table,
+)
+
+places_app = typer.Typer(
+    name="places",
+    no_args_is_help=True,
+    add_completion=False,
+    rich_markup_mode="markdown",
+    help="A place database (topological localisation): add scans as places, query a scan "
+    "for the places it sees and its pose relative to each.",
+)
+
+DbArg = Annotated[Path, typer.Argument(help="The place database (SQLite file; created by add).")]
+SourceArg = Annotated[
+    str, typer.Argument(help="A log (CARMEN, .npz, scan text) or a data set name (freiburg).")
+]
+
+
+def _config(config, paper):
+    """None when neither is given: the database's stored configuration is used."""
+    if config is None and not paper:
+        return None
+    from ..tools import load_config
+
+    return _guard(lambda: load_config(config, paper))
+
+
+def _quiet(json_out: bool) -> bool:
+    return json_out or not sys.stderr.isatty()
+
+
+@places_app.command("add")
+def add(
+    db: DbArg,
+    source: SourceArg,
+    every: Annotated[int, typer.Option("--every", min=1, help="One place per n-th scan.")] = 1,
+    start: Annotated[int, typer.Option("--start", min=0, help="First scan index.")] = 0,
+    stop: Annotated[
+        int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")
+    ] = None,
+    config: ConfigOpt = None,
+    paper: PaperOpt = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Add scans of a log as places (named LOG:INDEX; names already present are skipped).
+
+    **Examples**
+
+    ```
+    scanclique places add places.db freiburg --every 5
+    scanclique places add places.db intel --start 100 --stop 200
+    ```
+    """
+    from rich.progress import Progress
+
+    from ..places.run import run_add
+
+    cfg = _config(config, paper)
+    with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
+        task = bar.add_task("adding places", total=None)
+        run = _guard(
+            lambda: run_add(
+                db, source, every=every, start=start, stop=stop, config=cfg,
+                progress=lambda d, t: bar.update(task, completed=d, total=t),
+            )
+        )  # fmt: skip
+    if json_out:
+        _print_json(run.to_dict())
+        return
+    _console().print(f"added {run.added} places to {db} ({run.total} in the database)")
+    _console().print(_table(run.rows(), f"scanclique places add {run.label}", ("Metric", "Value", "Units")))
+
+
+@places_app.command("query")
+def query(
+    db: DbArg,
+    source: SourceArg,
+    index: Annotated[int, typer.Argument(help="Index of the query scan in the log.")],
+    top: Annotated[int, typer.Option("--top", "-k", min=1, help="Hits to show.")] = 5,
+    candidates: Annotated[
+        int | None,
+        typer.Option("--candidates", min=1, help="Prefilter candidates to verify (default --top)."),
+    ] = None,
+    min_score: Annotated[
+        float | None,
+        typer.Option("--min-score", help="Accept only matches scoring at least this (default 0.5)."),
+    ] = None,
+    config: ConfigOpt = None,
+    paper: PaperOpt = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Query the database with one scan: the best places, their verified relative poses
+    (the query's frame in the place's) and verdicts.
+
+    **Examples**
+
+    ```
+    scanclique places query places.db intel 120 --top 5
+    scanclique places query places.db freiburg 3000 --candidates 10 --json
+    ```
+    """
+    from ..places.run import run_query
+    from ..places.verify import ACCEPT_MIN_SCORE
+
+    cfg = _config(config, paper)
+    ms = ACCEPT_MIN_SCORE if min_score is None else min_score
+    run = _guard(lambda: run_query(db, source, index, k=top, candidates=candidates, config=cfg,
+                                   min_score=ms))  # fmt: skip
+    if json_out:
+        _print_json(run.to_dict())
+        return
+    con = _console()
+    cols = ("Rank", "Place", "Verdict", "Score", "Feat.", "x y [m] th [deg]", "err [m, deg]")
+    con.print(_table(run.hit_rows(), f"{run.label}:{index} in {db}", cols))
+    con.print(_table(run.rows(), "query", ("Metric", "Value", "Units")))
+    con.print(
+        "pose: the query scan's frame in the place's frame (maps the query's points into the "
+        "place's); err: against the reference poses, when both scans have one; rank: in the "
+        "signature prefilter",
+        soft_wrap=True,
+    )
+
+
+@places_app.command("info")
+def info(
+    db: DbArg,
+    check: Annotated[
+        bool, typer.Option("--check", help="Also run SQLite's integrity check (reads the file).")
+    ] = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Counts, sizes, versions and the stored configuration of a place database.
+
+    **Examples**
+
+    ```
+    scanclique places info places.db
+    scanclique places info places.db --check --json
+    ```
+    """
+    from ..places.run import run_info
+
+    d = _guard(lambda: run_info(db, check=check))
+    if json_out:
+        _print_json(d)
+        return
+    rows = [
+        ("places", str(d["places"]), ""),
+        ("file size", f"{(d['file_bytes'] + d['wal_bytes']) / 1e6:.2f}", "MB"),
+        ("array data", f"{d['array_bytes'] / 1e6:.2f}", "MB"),
+        ("schema version", str(d["schema_version"]), ""),
+        ("signature version", f"{d['signature_version']} ({d['signature_size']} values)", ""),
+        ("written by scanclique", str(d["scanclique_version"]), ""),
+    ]
+    if "integrity" in d:
+        rows.append(("integrity", "; ".join(d["integrity"]), ""))
+    _console().print(_table(rows, f"scanclique places info {db}", ("Metric", "Value", "Units")))
+
+
+def loops(
+    source: SourceArg,
+    workers: Annotated[
+        int, typer.Option("--workers", "-j", min=0, help="Local worker processes (0: one per CPU).")
+    ] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option("--scheduler", help="Run on this Dask scheduler (tcp://host:8786) instead."),
+    ] = None,
+    candidates: Annotated[
+        int, typer.Option("--candidates", min=1, help="Prefilter candidates verified per scan.")
+    ] = 5,
+    min_gap: Annotated[
+        int, typer.Option("--min-gap", min=1, help="Only pairs at least this many scans apart.")
+    ] = 50,
+    every: Annotated[int, typer.Option("--every", min=1, help="Search every n-th scan.")] = 1,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Write every verified pair as JSON here.")
+    ] = None,
+    config: ConfigOpt = None,
+    paper: PaperOpt = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Every revisit in a log: all scans through the signature prefilter, the candidates
+    verified by the clique matcher, in parallel; identical results on every backend.
+
+    **Examples**
+
+    ```
+    scanclique loops freiburg --workers 2 --out loops.json
+    scanclique loops freiburg --scheduler tcp://host:8786
+    scanclique loops intel --candidates 10 --json
+    ```
+    """
+    from rich.progress import Progress
+
+    from ..places.run import run_loops
+
+    cfg = _config(config, paper)
+    with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
+        tasks = {}
+
+        def tick(stage: str, done: int, total: int) -> None:
+            if stage not in tasks:
+                tasks[stage] = bar.add_task(stage, total=total)
+            bar.update(tasks[stage], completed=done, total=total)
+
+        run = _guard(
+            lambda: run_loops(
+                source, every=every, candidates=candidates, min_gap=min_gap, workers=workers,
+                scheduler=scheduler, config=cfg, out=out, progress=tick,
+            )
+        )  # fmt: skip
+    if json_out:
+        _print_json(run.to_dict())
+        return
+    _console().print(_table(run.rows(), f"scanclique loops {run.label}", ("Metric", "Value", "Units")))
+    if out is not None:
+        _console().print(f"pairs written to {out}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``scanclique places {add,query,info}`` and ``scanclique loops`` to ``app``."""
+    app.add_typer(places_app, name="places")
+    app.command("loops")(loops)

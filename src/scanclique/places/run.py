@@ -1,0 +1,303 @@
+"""The work of the ``scanclique places`` and ``scanclique loops`` commands, as plain
+functions a script calls the same way (no typer, no rich).
+
+>>> import tempfile, os, numpy as np, scanclique as sc
+>>> d = tempfile.mkdtemp()
+>>> scans = sc.sim.simulate_trajectory(np.random.default_rng(2), sc.sim.office_world(
+...     np.random.default_rng(2)), 6, step=0.3)
+>>> run = run_add(os.path.join(d, "p.db"), scans, every=2)
+>>> run.added, run.total
+(3, 3)
+>>> q = run_query(os.path.join(d, "p.db"), scans, 3, k=2)
+>>> q.hits[0].verdict
+'accepted'
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..config import MatchConfig
+from ..scan import Scan
+from .database import PlaceDB
+from .loops import LoopSearch, find_loops
+from .verify import ACCEPT_MIN_SCORE, ACCEPTED, AMBIGUOUS, REJECTED
+
+__all__ = ["AddRun", "QueryRun", "LoopsRun", "run_add", "run_query", "run_info", "run_loops"]
+
+#: a recognised pose is right when this close to the reference (the benchmark's rule)
+RIGHT_TRANSLATION = 0.5  # metres
+RIGHT_ROTATION = 0.2  # radians
+
+
+def _scans(source) -> tuple[list[Scan], str]:
+    """The scans of a log (path or registered name), or a given sequence of scans."""
+    if isinstance(source, (str, os.PathLike)):
+        from .. import datasets
+
+        s = os.fspath(source)
+        return list(datasets.load_log(source)), os.path.basename(s) if os.sep in s else s
+    return list(source), "scans"
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class AddRun:
+    """What :func:`run_add` did: ``added`` places (ids ``ids``), ``total`` in the database
+    afterwards, ``skipped`` scans already in it (by name), and the time per add."""
+
+    path: str
+    label: str
+    added: int
+    skipped: int
+    total: int
+    ids: tuple
+    add_ms: tuple
+    seconds: float
+
+    def rows(self) -> list[tuple[str, str, str]]:
+        ms = np.array(self.add_ms) if self.add_ms else np.zeros(1)
+        return [
+            ("places added", str(self.added), ""),
+            ("already present (same name)", str(self.skipped), ""),
+            ("places in the database", str(self.total), ""),
+            ("add time, median", f"{np.median(ms):.2f}", "ms"),
+            ("add time, p95", f"{np.percentile(ms, 95):.2f}", "ms"),
+            ("wall time", f"{self.seconds:.1f}", "s"),
+        ]
+
+    def to_dict(self) -> dict:
+        ms = np.array(self.add_ms) if self.add_ms else np.zeros(1)
+        return {
+            "path": self.path,
+            "source": self.label,
+            "added": self.added,
+            "skipped": self.skipped,
+            "total": self.total,
+            "ids": list(self.ids),
+            "add_ms_median": float(np.median(ms)),
+            "seconds": self.seconds,
+        }
+
+
+def run_add(
+    path: str | os.PathLike,
+    source,
+    *,
+    every: int = 1,
+    start: int = 0,
+    stop: int | None = None,
+    config: MatchConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> AddRun:
+    """Add every ``every``-th scan of ``source`` (``start`` to ``stop``) to the database
+    at ``path`` as places named ``"<log>:<index>"``; scans whose name is already there
+    are skipped (so a run can be repeated or resumed)."""
+    scans, label = _scans(source)
+    idx = list(range(start, len(scans) if stop is None else min(stop, len(scans)), max(1, every)))
+    t0 = time.perf_counter()
+    ids, ms, skipped = [], [], 0
+    with PlaceDB(path, config) as db:
+        have = set(db.store.names(db.ids).values()) if len(db) else set()
+        for n, i in enumerate(idx):
+            name = f"{label}:{i}"
+            if name in have:
+                skipped += 1
+            else:
+                t = time.perf_counter()
+                ids.append(db.add(scans[i], name=name))
+                ms.append(1e3 * (time.perf_counter() - t))
+            if progress:
+                progress(n + 1, len(idx))
+        total = len(db)
+    return AddRun(
+        os.fspath(path), label, len(ids), skipped, total, tuple(ids), tuple(ms),
+        time.perf_counter() - t0,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class QueryRun:
+    """The hits of one query (:meth:`PlaceDB.query`), with the query's reference error of
+    each hit when both the query and the place have reference poses
+    (``errors[k] = (metres, radians)`` or None)."""
+
+    path: str
+    label: str
+    index: int
+    hits: tuple
+    errors: tuple
+    places: int
+    seconds: float
+
+    def hit_rows(self) -> list[tuple[str, ...]]:
+        out = []
+        for h, e in zip(self.hits, self.errors, strict=True):
+            p = h.pose
+            out.append(
+                (
+                    str(h.rank),
+                    f"{h.place_id} {h.name}" if h.name else str(h.place_id),
+                    h.verdict,
+                    f"{h.score:.2f}",
+                    str(h.n_features),
+                    "-" if p is None else f"{p.x:.2f} {p.y:.2f} {math.degrees(p.theta):.1f}",
+                    "-" if e is None else f"{e[0]:.2f} {math.degrees(e[1]):.1f}",
+                )
+            )
+        return out
+
+    def rows(self) -> list[tuple[str, str, str]]:
+        n = {v: sum(h.verdict == v for h in self.hits) for v in (ACCEPTED, AMBIGUOUS, REJECTED)}
+        return [
+            ("places in the database", str(self.places), ""),
+            ("candidates verified", str(len(self.hits)), ""),
+            ("accepted / ambiguous / rejected", f"{n[ACCEPTED]} / {n[AMBIGUOUS]} / {n[REJECTED]}", ""),
+            ("query time", f"{1e3 * self.seconds:.1f}", "ms"),
+        ]
+
+    def to_dict(self) -> dict:
+        return {
+            "path": self.path,
+            "query": f"{self.label}:{self.index}",
+            "places": self.places,
+            "seconds": self.seconds,
+            "hits": [
+                {**h.to_dict(), "reference_error": None if e is None else list(e)}
+                for h, e in zip(self.hits, self.errors, strict=True)
+            ],
+        }
+
+
+def run_query(
+    path: str | os.PathLike,
+    source,
+    index: int,
+    *,
+    k: int = 5,
+    candidates: int | None = None,
+    config: MatchConfig | None = None,
+    min_score: float = ACCEPT_MIN_SCORE,
+) -> QueryRun:
+    """Query the database at ``path`` with scan ``index`` of ``source``."""
+    from ..errors import ScanIndexError
+
+    scans, label = _scans(source)
+    if not 0 <= index < len(scans):
+        raise ScanIndexError(
+            f"{label}: scan index {index} out of range: the log has {len(scans)} scans "
+            f"(0..{len(scans) - 1})"
+        )
+    q = scans[index]
+    with PlaceDB(path, config, readonly=True, min_score=min_score) as db:
+        t = time.perf_counter()
+        hits = db.query(q, k=k, candidates=candidates)
+        seconds = time.perf_counter() - t
+        errors = []
+        for h in hits:
+            ref = db.get(h.place_id).scan.reference if h.pose is not None else None
+            if ref is None or q.reference is None:
+                errors.append(None)
+            else:
+                errors.append((ref @ h.pose).distance_to(q.reference))
+        n = len(db)
+    return QueryRun(os.fspath(path), label, index, tuple(hits), tuple(errors), n, seconds)
+
+
+def run_info(path: str | os.PathLike, check: bool = False) -> dict:
+    """:meth:`PlaceDB.info` of an existing database (opened read-only)."""
+    with PlaceDB(path, readonly=True) as db:
+        return db.info(check=check)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LoopsRun:
+    """:func:`run_loops`' result: the search, and when the log has reference poses the
+    number of accepted loops whose pose is right (0.5 m, 0.2 rad)."""
+
+    label: str
+    search: LoopSearch
+    every: int
+    right: int | None
+    out: str | None = None
+    notes: tuple = field(default=())
+
+    def rows(self) -> list[tuple[str, str, str]]:
+        s = self.search
+        n = {v: sum(lp.verdict == v for lp in s.loops) for v in (ACCEPTED, AMBIGUOUS, REJECTED)}
+        rows = [
+            ("scans searched", str(s.n_scans), ""),
+            ("candidates per scan", str(s.candidates), ""),
+            ("minimum gap", str(s.min_gap), "scans"),
+            ("pairs verified", str(len(s.loops)), ""),
+            ("accepted", str(n[ACCEPTED]), ""),
+            ("ambiguous", str(n[AMBIGUOUS]), ""),
+            ("rejected", str(n[REJECTED]), ""),
+        ]
+        if self.right is not None:
+            rows.append(("accepted with a right pose (0.5 m, 0.2 rad)", str(self.right), ""))
+        rows += [
+            ("backend", f"{s.backend} ({s.workers} worker{'s' if s.workers != 1 else ''})", ""),
+            ("signatures", f"{s.seconds['signatures']:.1f}", "s"),
+            ("prefilter", f"{s.seconds['prefilter']:.2f}", "s"),
+            ("verification", f"{s.seconds['verify']:.1f}", "s"),
+            ("total", f"{s.seconds['total']:.1f}", "s"),
+        ]
+        return rows
+
+    def to_dict(self) -> dict:
+        return {"source": self.label, "every": self.every, "right": self.right,
+                **self.search.to_dict()}  # fmt: skip
+
+
+def run_loops(
+    source,
+    *,
+    every: int = 1,
+    candidates: int = 5,
+    min_gap: int = 50,
+    workers: int = 1,
+    scheduler=None,
+    config: MatchConfig | None = None,
+    min_score: float = ACCEPT_MIN_SCORE,
+    out: str | os.PathLike | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> LoopsRun:
+    """Every revisit of a log (:func:`.loops.find_loops`) on every ``every``-th scan
+    (``min_gap`` counts scans of the full log); indices in the result are of the full
+    log. Writes the result as JSON to ``out`` when given."""
+    import json
+
+    scans, label = _scans(source)
+    sel = scans[:: max(1, every)]
+    gap = max(1, math.ceil(min_gap / max(1, every)))
+    res = find_loops(
+        sel, config, candidates=candidates, min_gap=gap, workers=workers,
+        scheduler=scheduler, min_score=min_score, progress=progress,
+    )  # fmt: skip
+    if every > 1:
+        from .loops import Loop
+
+        loops = tuple(
+            Loop(lp.i * every, lp.j * every, lp.rank, lp.distance, lp.verdict, lp.pose,
+                 lp.score, lp.n_features)
+            for lp in res.loops
+        )  # fmt: skip
+        res = LoopSearch(loops, len(sel), res.candidates, gap * every, res.backend,
+                         res.workers, res.seconds)  # fmt: skip
+    right = None
+    if all(s.reference is not None for s in scans):
+        right = 0
+        for lp in res.accepted:
+            t, r = (scans[lp.j].reference @ lp.pose).distance_to(scans[lp.i].reference)
+            right += bool(t <= RIGHT_TRANSLATION and r <= RIGHT_ROTATION)
+    run = LoopsRun(label, res, every, right, None if out is None else os.fspath(out))
+    if out is not None:
+        with open(out, "w") as fh:
+            json.dump(run.to_dict(), fh, indent=1)
+    return run

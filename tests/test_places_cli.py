@@ -1,0 +1,82 @@
+"""``scanclique places add/query/info`` and ``scanclique loops`` through typer's CliRunner."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import scanclique as sc
+from scanclique import cli
+from scanclique.io import write_scans_text
+
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(cli.app, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory):
+    """A short simulated drive written as a scan text log (12 scans)."""
+    rng = np.random.default_rng(21)
+    scans = sc.sim.simulate_trajectory(rng, sc.sim.office_world(rng), 12, step=0.2)
+    path = tmp_path_factory.mktemp("log") / "drive.txt"
+    write_scans_text(path, scans)
+    return path
+
+
+def test_add_query_info(tmp_path, log):
+    db = tmp_path / "p.db"
+    r = invoke("places", "add", db, log, "--every", "2")
+    assert r.exit_code == 0, r.output
+    assert "added 6 places" in r.output and "Metric" in r.output
+    r = invoke("places", "add", db, log, "--every", "2", "--json")  # again: all skipped
+    d = json.loads(r.stdout)
+    assert d["added"] == 0 and d["skipped"] == 6 and d["total"] == 6
+    r = invoke("places", "query", db, log, 5, "--top", "2", "--json")
+    assert r.exit_code == 0, r.output
+    hits = json.loads(r.stdout)["hits"]
+    assert len(hits) == 2 and hits[0]["verdict"] == "accepted"
+    assert hits[0]["name"] in ("drive.txt:4", "drive.txt:6")
+    r = invoke("places", "query", db, log, 5)
+    assert r.exit_code == 0 and "accepted" in r.output
+    r = invoke("places", "info", db, "--check", "--json")
+    d = json.loads(r.stdout)
+    assert d["places"] == 6 and d["integrity"] == ["ok"] and d["schema_version"] == 1
+
+
+def test_user_errors_exit_2(tmp_path, log):
+    r = invoke("places", "info", tmp_path / "missing.db")
+    assert r.exit_code == 2 and "error:" in r.output and "no such place database" in r.output
+    foreign = tmp_path / "foreign.db"
+    con = sqlite3.connect(foreign)
+    con.execute("CREATE TABLE t (x)")
+    con.commit()
+    con.close()
+    r = invoke("places", "add", foreign, log)
+    assert r.exit_code == 2 and "not a scanclique place database" in r.output
+    assert "Traceback" not in r.output
+    db = tmp_path / "p.db"
+    invoke("places", "add", db, log, "--stop", "2")
+    r = invoke("places", "query", db, log, 99)
+    assert r.exit_code == 2 and "out of range" in r.output
+    r = invoke("places", "add", db, log, "--paper")  # features prepared differently
+    assert r.exit_code == 2 and "configuration differs" in r.output
+
+
+def test_loops(tmp_path, log):
+    out = tmp_path / "loops.json"
+    r = invoke("loops", log, "--min-gap", "4", "--candidates", "2", "--out", out)
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    assert d["n_scans"] == 12 and d["n_pairs"] == 15
+    assert all(lp["i"] - lp["j"] >= 4 for lp in d["loops"])
+    r2 = invoke("loops", log, "--min-gap", "4", "--candidates", "2", "--workers", "2", "--json")
+    d2 = json.loads(r2.stdout)
+    assert d2["backend"] == "processes" and d2["loops"] == d["loops"]
+    assert d["right"] is None or d["right"] <= d["n_accepted"]
