@@ -214,3 +214,14 @@ def test_clique_jcbb_is_largest_compatible_within_the_cliques(seed):
     a = slam.associate(z, R, lm, mc, pose, pc, method="clique-jcbb")
     assert a.n_pairs == best
     assert all((int(i), int(j)) in allowed for i, j in a.pairs)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_compiled_correspondence_graph_matches_numpy(seed):
+    z, R, lm, mc, pose, pc, _ = _problem(seed, n_lm=8, n_obs=6, clutter=3, pose_sigma=0.5)
+    pred, Rk, nu, d2 = _parts(z, R, lm, mc, pose, pc)
+    cfg = A.AssociationConfig()
+    o1, l1, A1 = A.correspondence_graph(np.asarray(z), Rk, d2, pred, cfg)
+    o2, l2, A2 = A.correspondence_graph(np.asarray(z), Rk, d2, pred, cfg, _slow_graph=True)
+    assert (o1 == o2).all() and (l1 == l2).all()
+    assert (A1 == A2).all()

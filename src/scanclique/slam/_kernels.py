@@ -254,3 +254,68 @@ def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, qadd, poses, covs
             Fcum[:, :] = F @ Fcum
         poses[out0 + q, :] = x
         covs[out0 + q, :, :] = Pvv
+
+
+@njit(cache=True)
+def correspondence_adjacency(z, R, pos, Pm, oi, lj, sig2):
+    """Adjacency (C, C) of the correspondence graph of point features (see
+    :func:`scanclique.slam.association.correspondence_graph`): pairs ``a = (oi[a], lj[a])``
+    and ``b`` are joined when ``oi`` and ``lj`` differ and the squared difference of the
+    observed and mapped point-point distances is at most ``sig2`` times the sum of their
+    first-order variances. ``z`` (k, 2) range/bearing, ``R`` (k, 2, 2), ``pos`` (n, 2),
+    ``Pm`` (2n, 2n) joint covariance of the landmarks."""
+    k = z.shape[0]
+    pts = np.empty((k, 2))
+    C = np.empty((k, 2, 2))
+    for i in range(k):
+        r = z[i, 0]
+        c = np.cos(z[i, 1])
+        s = np.sin(z[i, 1])
+        pts[i, 0] = r * c
+        pts[i, 1] = r * s
+        j00, j01, j10, j11 = c, -r * s, s, r * c
+        a00, a01, a10, a11 = R[i, 0, 0], R[i, 0, 1], R[i, 1, 0], R[i, 1, 1]
+        # J R J^T
+        t00 = j00 * a00 + j01 * a10
+        t01 = j00 * a01 + j01 * a11
+        t10 = j10 * a00 + j11 * a10
+        t11 = j10 * a01 + j11 * a11
+        C[i, 0, 0] = t00 * j00 + t01 * j01
+        C[i, 0, 1] = t00 * j10 + t01 * j11
+        C[i, 1, 0] = t10 * j00 + t11 * j01
+        C[i, 1, 1] = t10 * j10 + t11 * j11
+    n = oi.shape[0]
+    A = np.zeros((n, n), np.bool_)
+    for a in range(n):
+        i = oi[a]
+        j = lj[a]
+        for b in range(a + 1, n):
+            kk = oi[b]
+            ll = lj[b]
+            if i == kk or j == ll:
+                continue
+            dx = pts[i, 0] - pts[kk, 0]
+            dy = pts[i, 1] - pts[kk, 1]
+            do = np.sqrt(dx * dx + dy * dy)
+            ux = dx / do
+            uy = dy / do
+            vo = (ux * ux * (C[i, 0, 0] + C[kk, 0, 0]) + 2 * ux * uy * (C[i, 0, 1] + C[kk, 0, 1])
+                  + uy * uy * (C[i, 1, 1] + C[kk, 1, 1]))
+            mx = pos[j, 0] - pos[ll, 0]
+            my = pos[j, 1] - pos[ll, 1]
+            dm = np.sqrt(mx * mx + my * my)
+            wx = mx / dm
+            wy = my / dm
+            # var of u^T (m_j - m_l): blocks jj + ll - jl - lj
+            s00 = Pm[2 * j, 2 * j] + Pm[2 * ll, 2 * ll] - 2 * Pm[2 * j, 2 * ll]
+            s11 = Pm[2 * j + 1, 2 * j + 1] + Pm[2 * ll + 1, 2 * ll + 1] - 2 * Pm[2 * j + 1, 2 * ll + 1]
+            s01 = (Pm[2 * j, 2 * j + 1] + Pm[2 * ll, 2 * ll + 1] - Pm[2 * j, 2 * ll + 1]
+                   - Pm[2 * ll, 2 * j + 1])
+            vm = wx * wx * s00 + 2 * wx * wy * s01 + wy * wy * s11
+            if vm < 0.0:
+                vm = 0.0
+            dd = do - dm
+            if dd * dd <= sig2 * (vo + vm):
+                A[a, b] = True
+                A[b, a] = True
+    return A

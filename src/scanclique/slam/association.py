@@ -237,13 +237,11 @@ def _pair_cov(pairs, Sz, R):
     """Innovation covariance (2m, 2m) and its row indices for pairs (obs, lm)."""
     obs = pairs[:, 0]
     rows = (2 * pairs[:, 1][:, None] + np.arange(2)).reshape(-1)
-    S = Sz[np.ix_(rows, rows)].copy()
+    S = Sz[np.ix_(rows, rows)]
     m = len(pairs)
-    same = obs[:, None] == obs[None, :]
-    Rb = np.zeros((m, 2, m, 2))
-    ii, jj = np.nonzero(same)
-    Rb[ii, :, jj, :] = R[obs[ii]]
-    S += Rb.reshape(2 * m, 2 * m)
+    ii, jj = np.nonzero(obs[:, None] == obs[None, :])
+    S4 = S.reshape(m, 2, m, 2)
+    S4[ii, :, jj, :] += R[obs[ii]]
     return S
 
 
@@ -378,7 +376,7 @@ def _jcbb(d2, nu, Sz, R, cfg, allowed=None):
     return out, nodes
 
 
-def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None):
+def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None, _slow_graph=False):
     """The correspondence graph of the observation and the predicted map (paper 5.2).
 
     Vertices: the pairs (observation i, landmark j) within the loose individual gate
@@ -397,14 +395,24 @@ def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None):
     if cfg.attribute_tolerance is not None and attributes is not None and pred.attributes is not None:
         ok &= np.abs(attributes[:, None] - pred.attributes[None, :]) <= cfg.attribute_tolerance
     oi, lj = np.nonzero(ok)
-    pts, pcov = _observation_points(z, R)
-    Do, Vo = point_distance_invariants(pts, pcov)
-    Dm, Vm = point_distance_invariants(pred.positions, pred.Pm)
-    diff = Do[np.ix_(oi, oi)] - Dm[np.ix_(lj, lj)]
-    var = Vo[np.ix_(oi, oi)] + Vm[np.ix_(lj, lj)]
-    A = diff * diff <= cfg.invariant_sigmas**2 * var
-    A &= oi[:, None] != oi[None, :]
-    A &= lj[:, None] != lj[None, :]
+    if _slow_graph:
+        # the NumPy reference (point_distance_invariants over all pairs)
+        pts, pcov = _observation_points(z, R)
+        Do, Vo = point_distance_invariants(pts, pcov)
+        Dm, Vm = point_distance_invariants(pred.positions, pred.Pm)
+        diff = Do[np.ix_(oi, oi)] - Dm[np.ix_(lj, lj)]
+        var = Vo[np.ix_(oi, oi)] + Vm[np.ix_(lj, lj)]
+        A = diff * diff <= cfg.invariant_sigmas**2 * var
+        A &= oi[:, None] != oi[None, :]
+        A &= lj[:, None] != lj[None, :]
+        return oi, lj, A
+    from ._kernels import correspondence_adjacency
+
+    A = correspondence_adjacency(
+        np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(R, dtype=float),
+        np.ascontiguousarray(pred.positions, dtype=float), np.ascontiguousarray(pred.Pm),
+        oi.astype(np.int64), lj.astype(np.int64), float(cfg.invariant_sigmas**2),
+    )
     return oi, lj, A
 
 
