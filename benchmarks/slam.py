@@ -57,8 +57,13 @@ def _vp_worker(args):
         "clutter": clutter,
         "metrics": {k: v for k, (v, _u) in m.items()},
         "units": {k: u for k, (_v, u) in m.items()},
-        "_plot": (pos[keep].tolist(), r.landmarks.tolist(), r.landmark_covariances.tolist(),
-                  Rm.tolist(), t.tolist()),
+        "_plot": (
+            pos[keep].tolist(),
+            r.landmarks.tolist(),
+            r.landmark_covariances.tolist(),
+            Rm.tolist(),
+            t.tolist(),
+        ),
     }
 
 
@@ -83,14 +88,17 @@ def _nees_worker(args):
             if lid >= 0:
                 votes.setdefault(lid, {}).setdefault(tree, 0)
                 votes[lid][tree] += 1
-    for lid, v in votes.items():
+    for v in votes.values():
         pairs_all += sum(v.values())
         pairs_ok += max(v.values())
     idx = np.flatnonzero(np.array([s.n_observations > 0 for s in run.steps]))
     return {
-        "method": method, "seed": seed, "nees_obs_steps": n[idx].tolist(),
+        "method": method,
+        "seed": seed,
+        "nees_obs_steps": n[idx].tolist(),
         "pos_rmse": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1)))),
-        "landmarks": len(r.landmarks), "trees": len(run.trees),
+        "landmarks": len(r.landmarks),
+        "trees": len(run.trees),
         "pair_consistency": pairs_ok / max(pairs_all, 1),
     }
 
@@ -103,7 +111,9 @@ def _nees_summary(records, M):
     lo, hi = chi2.ppf(0.025, 3 * M) / M, chi2.ppf(0.975, 3 * M) / M
     inside = float(np.mean((mean_t >= lo) & (mean_t <= hi)))
     return {
-        "runs": M, "band": [lo, hi], "anees": float(mean_t.mean()),
+        "runs": M,
+        "band": [lo, hi],
+        "anees": float(mean_t.mean()),
         "fraction_inside": inside,
         "pos_rmse": float(np.mean([r["pos_rmse"] for r in records])),
         "pair_consistency": float(np.mean([r["pair_consistency"] for r in records])),
@@ -150,8 +160,11 @@ def main(argv=None):
     head = "| clutter | method | " + " | ".join(c[1] for c in COLUMNS) + " |"
     lines += [head, "|" + "---|" * (len(COLUMNS) + 2)]
     for r in vp:
-        lines.append(f"| {r['clutter']} | {r['method']} | "
-                     + " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in COLUMNS) + " |")
+        lines.append(
+            f"| {r['clutter']} | {r['method']} | "
+            + " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in COLUMNS)
+            + " |"
+        )
     # ratios: clique against the best of the others, per clutter level
     ratio_lines = []
     for c in clutters:
@@ -159,20 +172,25 @@ def main(argv=None):
         if "clique" in rs and len(rs) > 1:
             for key in ("GPS RMSE (best SE(2) alignment)", "GPS RMSE (start alignment)"):
                 others = [rs[m][key] for m in rs if m != "clique"]
-                ratio_lines.append(f"clutter {c}: {key} clique / best other = "
-                                   f"{rs['clique'][key] / min(others):.3f}")
+                ratio_lines.append(
+                    f"clutter {c}: {key} clique / best other = "
+                    f"{rs['clique'][key] / min(others):.3f}"
+                )
     nees = {}
     for m in methods:
         recs = [s for s in sims if s["method"] == m]
         if recs:
             nees[m] = _nees_summary(recs, len(recs))
-    nees_lines = ["| method | runs | ANEES | 95 % band | fraction of steps inside | pos RMSE [m] | pair consistency | landmarks |",
-                  "|---|---|---|---|---|---|---|---|"]
+    nees_lines = [
+        "| method | runs | ANEES | 95 % band | fraction of steps inside | pos RMSE [m] | pair consistency | landmarks |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for m, s in nees.items():
         nees_lines.append(
             f"| {m} | {s['runs']} | {s['anees']:.2f} | [{s['band'][0]:.2f}, {s['band'][1]:.2f}] | "
             f"{100 * s['fraction_inside']:.1f} % | {s['pos_rmse']:.2f} | "
-            f"{100 * s['pair_consistency']:.2f} % | {s['landmarks']:.0f} |")
+            f"{100 * s['pair_consistency']:.2f} % | {s['landmarks']:.0f} |"
+        )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     # the figure: the maps at the lowest clutter level
@@ -185,23 +203,47 @@ def main(argv=None):
         for r in vp:
             if r["clutter"] == c0:
                 pos, lm, lc, Rm, t = r["_plot"]
-                runs.append((f"{r['method']} (clutter {c0})", np.array(pos),
-                             np.array(lm).reshape(-1, 2), np.array(lc).reshape(-1, 2, 2),
-                             (np.array(Rm), np.array(t))))
-        plot_maps(out.with_suffix(".png"), runs, np.asarray(read_gps("victoria-park")),
-                  title="EKF-SLAM on Victoria Park: NN, JCBB, clique association")
+                runs.append(
+                    (
+                        f"{r['method']} (clutter {c0})",
+                        np.array(pos),
+                        np.array(lm).reshape(-1, 2),
+                        np.array(lc).reshape(-1, 2, 2),
+                        (np.array(Rm), np.array(t)),
+                    )
+                )
+        plot_maps(
+            out.with_suffix(".png"),
+            runs,
+            np.asarray(read_gps("victoria-park")),
+            title="EKF-SLAM on Victoria Park: NN, JCBB, clique association",
+        )
     except Exception as exc:  # pragma: no cover - plotting optional
         print(f"figure not written: {exc}", file=sys.stderr)
     for r in vp:
         r.pop("_plot")
     result = {
-        "date": DATE, "git": git_state(), "machine": machine(detailed=True),
-        "seconds": time.perf_counter() - t0, "victoria_park": vp, "nees": nees,
+        "date": DATE,
+        "git": git_state(),
+        "machine": machine(detailed=True),
+        "seconds": time.perf_counter() - t0,
+        "victoria_park": vp,
+        "nees": nees,
         "nees_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in sims],
     }
     out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
-    md = ["# EKF-SLAM on Victoria Park (benchmarks/slam.py)", "", *lines, "", *ratio_lines, "",
-          "## NEES of the vehicle pose on simulated tree parks", "", *nees_lines, ""]
+    md = [
+        "# EKF-SLAM on Victoria Park (benchmarks/slam.py)",
+        "",
+        *lines,
+        "",
+        *ratio_lines,
+        "",
+        "## NEES of the vehicle pose on simulated tree parks",
+        "",
+        *nees_lines,
+        "",
+    ]
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     print("\n".join(lines))
     print()

@@ -48,6 +48,7 @@ def _parts(z, R, lm, map_cov, pose, pose_cov):
 
 def _hypotheses(cands, k):
     """All one-to-one hypotheses over per-observation candidate lists (None = unpaired)."""
+
     def rec(i, used):
         if i == k:
             yield ()
@@ -58,6 +59,7 @@ def _hypotheses(cands, k):
             if j not in used:
                 for tail in rec(i + 1, used | {j}):
                     yield (j,) + tail
+
     # materialise lazily but correctly: recursive generator
     return rec(0, frozenset())
 
@@ -200,10 +202,12 @@ def test_clique_jcbb_is_largest_compatible_within_the_cliques(seed):
     allowed = set()
     if len(oi):
         for cl in all_maximum_cliques(adj, limit=cfg.clique_limit).cliques:
-            allowed |= set(zip(oi[cl].tolist(), lj[cl].tolist()))
+            allowed |= set(zip(oi[cl].tolist(), lj[cl].tolist(), strict=False))
     gate1 = A.chi2_bound(2, cfg.gate_probability)
-    cands = [[j for j in range(len(lm)) if (i, j) in allowed and d2[i, j] <= gate1]
-             for i in range(len(z))]
+    cands = [
+        [j for j in range(len(lm)) if (i, j) in allowed and d2[i, j] <= gate1]
+        for i in range(len(z))
+    ]
     best = 0
     for h in _hypotheses(cands, len(z)):
         pairs = [(i, j) for i, j in enumerate(h) if j is not None]

@@ -38,8 +38,8 @@ def test_simulated_park_end_to_end(park, method):
     assert len(set(near.tolist())) >= 0.95 * len(near)
     # associations agree with the truth for nearly every pair
     votes = {}
-    for a, tr in zip(r.associations, park.truth):
-        for lid, tree in zip(a.tolist(), tr.tolist()):
+    for a, tr in zip(r.associations, park.truth, strict=False):
+        for lid, tree in zip(a.tolist(), tr.tolist(), strict=False):
             if lid >= 0:
                 votes.setdefault(lid, []).append(tree)
     agree = sum(max(v.count(t) for t in set(v)) for v in votes.values())
@@ -48,7 +48,7 @@ def test_simulated_park_end_to_end(park, method):
     # the joint distance of each step passes its own gate (the validation record)
     from scanclique.slam.association import chi2_bound
 
-    for d2, dof in zip(r.joint_d2, r.dof):
+    for d2, dof in zip(r.joint_d2, r.dof, strict=False):
         if dof:
             assert d2 <= chi2_bound(int(dof), CFG.association.gate_probability) + 1e-9
     assert np.all(np.linalg.eigvalsh(r.pose_covariances[-1]) > 0)
@@ -150,9 +150,9 @@ def _write_vp(d, run, gps_every=5):
             for r, b in s.observations:
                 fm.write(f"{s.time:.3f} {r:.5f} {b + math.pi / 2:.5f} 0.3\n")
     laser = slam.Ackermann()
-    pos = np.array([laser.sensor_pose(p)[:2] for p in run.poses[::gps_every * 8]])
+    pos = np.array([laser.sensor_pose(p)[:2] for p in run.poses[:: gps_every * 8]])
     with open(d / "gps.dat", "w") as fg:
-        for t, (x, y) in zip(run.times[::gps_every * 8], pos):
+        for t, (x, y) in zip(run.times[:: gps_every * 8], pos, strict=False):
             fg.write(f"{t:.3f} {x:.4f} {y:.4f}\n")
 
 
@@ -162,7 +162,9 @@ def test_cli_slam_on_simulated_directory(tmp_path, park):
     d = tmp_path / "vp"
     _write_vp(d, park)
     out = tmp_path / "out"
-    res = CliRunner().invoke(app, ["slam", str(d), "--association", "clique", "--out", str(out), "--json"])
+    res = CliRunner().invoke(
+        app, ["slam", str(d), "--association", "clique", "--out", str(out), "--json"]
+    )
     assert res.exit_code == 0, res.output
     rep = json.loads(res.stdout)
     assert rep["method"] == "clique"

@@ -33,8 +33,12 @@ MODELS = [
 
 @pytest.mark.parametrize("model", MODELS, ids=["ackermann", "unicycle"])
 @given(
-    x=st.floats(-50, 50), y=st.floats(-50, 50), th=st.floats(-3.1, 3.1),
-    v=st.floats(-3, 8), c=st.floats(-0.5, 0.5), dt=st.floats(0.01, 0.5),
+    x=st.floats(-50, 50),
+    y=st.floats(-50, 50),
+    th=st.floats(-3.1, 3.1),
+    v=st.floats(-3, 8),
+    c=st.floats(-0.5, 0.5),
+    dt=st.floats(0.01, 0.5),
 )
 @settings(max_examples=40, deadline=None)
 def test_motion_jacobians(model, x, y, th, v, c, dt):
@@ -57,6 +61,7 @@ def test_motion_jacobians(model, x, y, th, v, c, dt):
 
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0), (3.78, 0.5)])
+# ruff: noqa: B023 (the closures are called at once, inside their loop iteration)
 def test_observation_jacobians(offset):
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -71,6 +76,7 @@ def test_observation_jacobians(offset):
 
         np.testing.assert_allclose(Hx, _num_jac(fx, s0), atol=1e-5)
         for j in range(len(lm)):
+
             def fm(m, j=j):
                 zz = observe(s0, m[None], *offset)[0][0].copy()
                 zz[1] = z[j, 1] + wrap(zz[1] - z[j, 1])
@@ -80,10 +86,14 @@ def test_observation_jacobians(offset):
         # inverse observation: round trip and Jacobians
         m, Gx, Gz = inverse_observe(s0, z, *offset)
         np.testing.assert_allclose(m, lm, atol=1e-9)
-        np.testing.assert_allclose(Gx, _num_jac(lambda s: inverse_observe(s, z, *offset)[0], s0), atol=1e-5)
+        np.testing.assert_allclose(
+            Gx, _num_jac(lambda s: inverse_observe(s, z, *offset)[0], s0), atol=1e-5
+        )
         for j in range(len(lm)):
             np.testing.assert_allclose(
-                Gz[j], _num_jac(lambda zz: inverse_observe(s0, zz[None], *offset)[0][0], z[j]), atol=1e-5
+                Gz[j],
+                _num_jac(lambda zz: inverse_observe(s0, zz[None], *offset)[0][0], z[j]),
+                atol=1e-5,
             )
 
 

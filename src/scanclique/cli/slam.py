@@ -26,7 +26,8 @@ def slam(
         typer.Option("--out", help="Directory for trajectory.tum, landmarks.csv, report.json."),
     ] = None,
     clutter: Annotated[
-        int, typer.Option("--clutter", min=0, help="Spurious detections added per scan (benchmark).")
+        int,
+        typer.Option("--clutter", min=0, help="Spurious detections added per scan (benchmark)."),
     ] = 0,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the clutter.")] = 0,
     plot: Annotated[bool, typer.Option("--plot", help="Also write map.png into --out.")] = False,
@@ -57,8 +58,9 @@ def slam(
 
     def work():
         if not show:
-            return run_slam(data, association=association, out=out, clutter=clutter,
-                            seed=seed, plot=plot)
+            return run_slam(
+                data, association=association, out=out, clutter=clutter, seed=seed, plot=plot
+            )
         from rich.progress import Progress
 
         with Progress(console=_err_console(), transient=True) as bar:
@@ -67,8 +69,15 @@ def slam(
             def progress(done, total):
                 bar.update(task, completed=done, total=total)
 
-            return run_slam(data, association=association, out=out, clutter=clutter,
-                            seed=seed, plot=plot, progress=progress)
+            return run_slam(
+                data,
+                association=association,
+                out=out,
+                clutter=clutter,
+                seed=seed,
+                plot=plot,
+                progress=progress,
+            )
 
     run = _guard(work)
     if json_out:
@@ -80,7 +89,9 @@ def slam(
         rows.append((name, v, units))
     for name, path in run.files.items():
         rows.append((f"file: {name}", str(path), ""))
-    _console().print(_table(rows, f"EKF-SLAM on {data} ({association})", ("Metric", "Value", "Units")))
+    _console().print(
+        _table(rows, f"EKF-SLAM on {data} ({association})", ("Metric", "Value", "Units"))
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -299,8 +299,11 @@ def correspondence_adjacency(z, R, pos, Pm, oi, lj, sig2):
             do = np.sqrt(dx * dx + dy * dy)
             ux = dx / do
             uy = dy / do
-            vo = (ux * ux * (C[i, 0, 0] + C[kk, 0, 0]) + 2 * ux * uy * (C[i, 0, 1] + C[kk, 0, 1])
-                  + uy * uy * (C[i, 1, 1] + C[kk, 1, 1]))
+            vo = (
+                ux * ux * (C[i, 0, 0] + C[kk, 0, 0])
+                + 2 * ux * uy * (C[i, 0, 1] + C[kk, 0, 1])
+                + uy * uy * (C[i, 1, 1] + C[kk, 1, 1])
+            )
             mx = pos[j, 0] - pos[ll, 0]
             my = pos[j, 1] - pos[ll, 1]
             dm = np.sqrt(mx * mx + my * my)
@@ -308,9 +311,17 @@ def correspondence_adjacency(z, R, pos, Pm, oi, lj, sig2):
             wy = my / dm
             # var of u^T (m_j - m_l): blocks jj + ll - jl - lj
             s00 = Pm[2 * j, 2 * j] + Pm[2 * ll, 2 * ll] - 2 * Pm[2 * j, 2 * ll]
-            s11 = Pm[2 * j + 1, 2 * j + 1] + Pm[2 * ll + 1, 2 * ll + 1] - 2 * Pm[2 * j + 1, 2 * ll + 1]
-            s01 = (Pm[2 * j, 2 * j + 1] + Pm[2 * ll, 2 * ll + 1] - Pm[2 * j, 2 * ll + 1]
-                   - Pm[2 * ll, 2 * j + 1])
+            s11 = (
+                Pm[2 * j + 1, 2 * j + 1]
+                + Pm[2 * ll + 1, 2 * ll + 1]
+                - 2 * Pm[2 * j + 1, 2 * ll + 1]
+            )
+            s01 = (
+                Pm[2 * j, 2 * j + 1]
+                + Pm[2 * ll, 2 * ll + 1]
+                - Pm[2 * j, 2 * ll + 1]
+                - Pm[2 * ll, 2 * j + 1]
+            )
             vm = wx * wx * s00 + 2 * wx * wy * s01 + wy * wy * s11
             if vm < 0.0:
                 vm = 0.0

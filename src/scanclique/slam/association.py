@@ -392,7 +392,11 @@ def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None, _slow_
         Observation and landmark of each vertex, and the boolean adjacency matrix.
     """
     ok = d2 <= chi2_bound(2, cfg.clique_probability)
-    if cfg.attribute_tolerance is not None and attributes is not None and pred.attributes is not None:
+    if (
+        cfg.attribute_tolerance is not None
+        and attributes is not None
+        and pred.attributes is not None
+    ):
         ok &= np.abs(attributes[:, None] - pred.attributes[None, :]) <= cfg.attribute_tolerance
     oi, lj = np.nonzero(ok)
     if _slow_graph:
@@ -409,9 +413,13 @@ def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None, _slow_
     from ._kernels import correspondence_adjacency
 
     A = correspondence_adjacency(
-        np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(R, dtype=float),
-        np.ascontiguousarray(pred.positions, dtype=float), np.ascontiguousarray(pred.Pm),
-        oi.astype(np.int64), lj.astype(np.int64), float(cfg.invariant_sigmas**2),
+        np.ascontiguousarray(z, dtype=float),
+        np.ascontiguousarray(R, dtype=float),
+        np.ascontiguousarray(pred.positions, dtype=float),
+        np.ascontiguousarray(pred.Pm),
+        oi.astype(np.int64),
+        lj.astype(np.int64),
+        float(cfg.invariant_sigmas**2),
     )
     return oi, lj, A
 
@@ -446,7 +454,7 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
         blocked = ()
         amb = False
         if len(res.cliques) > 1:
-            sets = [set(zip(oi[cl].tolist(), lj[cl].tolist())) for cl in res.cliques]
+            sets = [set(zip(oi[cl].tolist(), lj[cl].tolist(), strict=False)) for cl in res.cliques]
             if any(x != sets[0] for x in sets[1:]):
                 amb = True
                 common = set.intersection(*sets)
@@ -468,7 +476,7 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
     best.sort(key=lambda p: p[1])
     sel = best[0][2]
     if len(best) > 1 and size > 0:
-        sets = [set(zip(oi[p[2]].tolist(), lj[p[2]].tolist())) for p in best]
+        sets = [set(zip(oi[p[2]].tolist(), lj[p[2]].tolist(), strict=False)) for p in best]
         if any(x != sets[0] for x in sets[1:]):
             # ambiguous: keep only the pairs every equally good hypothesis shares
             common = set.intersection(*sets)
@@ -481,7 +489,11 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
 
 
 def associate_predicted(
-    z, R, pred: Predicted, method: str = "clique", config: AssociationConfig | None = None,
+    z,
+    R,
+    pred: Predicted,
+    method: str = "clique",
+    config: AssociationConfig | None = None,
     attributes=None,
 ) -> Association:
     """Associate observations ``z`` (k, 2) with noise ``R`` ((2, 2) or (k, 2, 2)) to the
@@ -514,15 +526,31 @@ def associate_predicted(
     _new_or_rejected(out, d2, cfg, blocked)
     np_ = len(pairs)
     return Association(
-        out, D2, 2 * np_, amb, method, cands, csize if method == "clique" else np_,
+        out,
+        D2,
+        2 * np_,
+        amb,
+        method,
+        cands,
+        csize if method == "clique" else np_,
         time.thread_time() - t0,
     )
 
 
 def associate(
-    z, R, map_mean, map_cov, pose, pose_cov, method: str = "clique", *,
-    cross_cov=None, sensor=(0.0, 0.0), config: AssociationConfig | None = None,
-    attributes=None, map_attributes=None,
+    z,
+    R,
+    map_mean,
+    map_cov,
+    pose,
+    pose_cov,
+    method: str = "clique",
+    *,
+    cross_cov=None,
+    sensor=(0.0, 0.0),
+    config: AssociationConfig | None = None,
+    attributes=None,
+    map_attributes=None,
 ) -> Association:
     """Associate one batch of range-bearing observations with a map of point landmarks.
 
@@ -586,7 +614,9 @@ def associate(
 
     pred = predict_map(state, P, _S)
     if map_attributes is not None:
-        pred = Predicted(pred.z, pred.Sz, pred.positions, pred.Pm, np.asarray(map_attributes, float))
+        pred = Predicted(
+            pred.z, pred.Sz, pred.positions, pred.Pm, np.asarray(map_attributes, float)
+        )
     att = None if attributes is None else np.asarray(attributes, float)
     return associate_predicted(z, R, pred, method, config, att)
 

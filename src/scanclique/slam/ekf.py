@@ -161,9 +161,18 @@ class SlamResult:
 
     def __post_init__(self) -> None:
         for name in (
-            "times", "poses", "pose_covariances", "landmarks", "landmark_covariances",
-            "landmark_ids", "landmark_hits", "observation_times", "association_seconds",
-            "joint_d2", "dof", "ambiguous",
+            "times",
+            "poses",
+            "pose_covariances",
+            "landmarks",
+            "landmark_covariances",
+            "landmark_ids",
+            "landmark_hits",
+            "observation_times",
+            "association_seconds",
+            "joint_d2",
+            "dof",
+            "ambiguous",
         ):
             object.__setattr__(self, name, _ro(getattr(self, name)))
 
@@ -283,7 +292,9 @@ def ekf_slam(
     SlamResult
     """
     cfg = config or SlamConfig()
-    acfg = cfg.association if isinstance(cfg.association, AssociationConfig) else AssociationConfig()
+    acfg = (
+        cfg.association if isinstance(cfg.association, AssociationConfig) else AssociationConfig()
+    )
     t_start = time.perf_counter()
     c_start = time.process_time()
     R = cfg.R
@@ -322,7 +333,9 @@ def ekf_slam(
         if kern is not None:
             from ._kernels import predict_segment
 
-            predict_segment(kern[0], kern[1], xv, Pvv, Fcum, dts[a:b], held[a:b], qadd, poses, pcovs, a)
+            predict_segment(
+                kern[0], kern[1], xv, Pvv, Fcum, dts[a:b], held[a:b], qadd, poses, pcovs, a
+            )
         else:
             for k in range(a, b):
                 if dts[k] > 0 and not np.isnan(held[k, 0]):
@@ -365,14 +378,18 @@ def ekf_slam(
                 if f.n:
                     zall, _, _ = observe(f.x[:3], lm_all, sx, sy)
                     lim = (cfg.max_range or np.inf) + 5.0
-                    J = np.flatnonzero((zall[:, 0] <= lim) & (np.abs(zall[:, 1]) <= half_fov + 0.35))
+                    J = np.flatnonzero(
+                        (zall[:, 0] <= lim) & (np.abs(zall[:, 1]) <= half_fov + 0.35)
+                    )
                 else:
                     zall = np.zeros((0, 2))
                     J = np.zeros(0, int)
                 idx = np.r_[0, 1, 2, (3 + 2 * J[:, None] + np.arange(2)).reshape(-1)].astype(int)
                 Psub = P[np.ix_(idx, idx)]
                 zJ, Hx, Hm = observe(f.x[:3], lm_all[J], sx, sy)
-                pred = _predicted(zJ, Hx, Hm, Psub, lm_all[J], f.att[J] if att is not None else None)
+                pred = _predicted(
+                    zJ, Hx, Hm, Psub, lm_all[J], f.att[J] if att is not None else None
+                )
                 # 3. associate
                 a = associate_predicted(z, R, pred, association, acfg, att)
                 sec = a.seconds
@@ -408,8 +425,10 @@ def ekf_slam(
                 tentative = f.hits[: f.n] < cfg.confirm_hits
                 drop = np.flatnonzero(
                     tentative
-                    & ((f.misses[: f.n] >= cfg.max_misses)
-                       | (f.scan - f.born[: f.n] >= cfg.tentative_scans))
+                    & (
+                        (f.misses[: f.n] >= cfg.max_misses)
+                        | (f.scan - f.born[: f.n] >= cfg.tentative_scans)
+                    )
                 )
                 if len(drop):
                     f.remove(drop)
@@ -437,10 +456,23 @@ def ekf_slam(
     idx = np.arange(f.n)
     lcov = f.P[3:d, 3:d].reshape(f.n, 2, f.n, 2)[idx, :, idx, :].copy()
     return SlamResult(
-        times, poses, pcovs, lms, lcov, f.ids[: f.n].copy(), f.hits[: f.n].copy(),
-        np.asarray(obs_t), tuple(assoc_out), np.asarray(assoc_sec), np.asarray(jd2),
-        np.asarray(jdof, np.int64), np.asarray(amb, bool), association,
-        time.perf_counter() - t_start, cfg, time.process_time() - c_start,
+        times,
+        poses,
+        pcovs,
+        lms,
+        lcov,
+        f.ids[: f.n].copy(),
+        f.hits[: f.n].copy(),
+        np.asarray(obs_t),
+        tuple(assoc_out),
+        np.asarray(assoc_sec),
+        np.asarray(jd2),
+        np.asarray(jdof, np.int64),
+        np.asarray(amb, bool),
+        association,
+        time.perf_counter() - t_start,
+        cfg,
+        time.process_time() - c_start,
     )
 
 
@@ -453,6 +485,7 @@ def _predicted(zJ, Hx, Hm, Psub, positions, attributes) -> Predicted:
     Pvv = Psub[:3, :3]
     Pvm = Psub[:3, 3:]
     Pmm = Psub[3:, 3:]
+
     # block-diagonal Hm applied without forming it: (HmB M)[2j+a] = sum_b Hm[j,a,b] M[2j+b]
     def hm_left(M):  # HmB @ M, M (2n, c)
         Mr = M.reshape(n, 2, M.shape[1])
@@ -481,7 +514,7 @@ def _update(f: _Filter, z, glob, R, sx, sy):
     S = Hs @ PHt[cols] + np.kron(np.eye(m), R)
     S = 0.5 * (S + S.T)
     K = np.linalg.solve(S, PHt.T).T  # (d, 2m)
-    nu = (z - zhat)
+    nu = z - zhat
     nu[:, 1] = wrap(nu[:, 1])
     x[:d] += K @ nu.reshape(-1)
     x[2] = wrap(x[2])

@@ -21,7 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["gps_outliers", "GpsError", "gps_error", "align_se2", "duplicate_pairs", "sensor_positions", "nees"]
+__all__ = [
+    "gps_outliers",
+    "GpsError",
+    "gps_error",
+    "align_se2",
+    "duplicate_pairs",
+    "sensor_positions",
+    "nees",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,8 +111,12 @@ def gps_error(times, positions, gps, *, start_distance: float = 50.0) -> GpsErro
     Rb, tb, angb = align_se2(est, ref)
     e_best = np.hypot(*((est @ Rb.T + tb) - ref).T)
     return GpsError(
-        float(np.sqrt(np.mean(e_start**2))), float(e_start.max()),
-        float(np.sqrt(np.mean(e_best**2))), float(e_best.max()), len(ref), float(angb),
+        float(np.sqrt(np.mean(e_start**2))),
+        float(e_start.max()),
+        float(np.sqrt(np.mean(e_best**2))),
+        float(e_best.max()),
+        len(ref),
+        float(angb),
         (float(tb[0]), float(tb[1])),
     )
 

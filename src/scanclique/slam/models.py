@@ -76,7 +76,11 @@ class MotionModel:
         x, y, th = state
         c, s = math.cos(th), math.sin(th)
         return np.array(
-            [x + c * self.sensor_x - s * self.sensor_y, y + s * self.sensor_x + c * self.sensor_y, th]
+            [
+                x + c * self.sensor_x - s * self.sensor_y,
+                y + s * self.sensor_x + c * self.sensor_y,
+                th,
+            ]
         )
 
 
@@ -182,8 +186,13 @@ class Ackermann(MotionModel):
         if type(self) is not Ackermann:
             return None
         return 0, np.array(
-            [self.wheelbase, self.encoder_offset, self.sigma_speed, self.sigma_speed_rel,
-             self.sigma_steering]
+            [
+                self.wheelbase,
+                self.encoder_offset,
+                self.sigma_speed,
+                self.sigma_speed_rel,
+                self.sigma_steering,
+            ]
         )
 
 

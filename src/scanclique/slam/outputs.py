@@ -25,8 +25,16 @@ def write_tum(path, times, poses) -> Path:
     p = Path(path)
     th = np.asarray(poses)[:, 2]
     rows = np.column_stack(
-        [times, poses[:, 0], poses[:, 1], np.zeros(len(th)), np.zeros(len(th)),
-         np.zeros(len(th)), np.sin(th / 2), np.cos(th / 2)]
+        [
+            times,
+            poses[:, 0],
+            poses[:, 1],
+            np.zeros(len(th)),
+            np.zeros(len(th)),
+            np.zeros(len(th)),
+            np.sin(th / 2),
+            np.cos(th / 2),
+        ]
     )
     np.savetxt(p, rows, fmt="%.6f", header="time x y z qx qy qz qw", comments="# ")
     return p
@@ -36,8 +44,10 @@ def write_landmarks(path, ids, landmarks, covariances, hits) -> Path:
     p = Path(path)
     with open(p, "w") as fh:
         fh.write("id,x,y,var_x,cov_xy,var_y,hits\n")
-        for i, m, c, h in zip(ids, landmarks, covariances, hits):
-            fh.write(f"{int(i)},{m[0]:.4f},{m[1]:.4f},{c[0, 0]:.6g},{c[0, 1]:.6g},{c[1, 1]:.6g},{int(h)}\n")
+        for i, m, c, h in zip(ids, landmarks, covariances, hits, strict=False):
+            fh.write(
+                f"{int(i)},{m[0]:.4f},{m[1]:.4f},{c[0, 0]:.6g},{c[0, 1]:.6g},{c[1, 1]:.6g},{int(h)}\n"
+            )
     return p
 
 
@@ -88,14 +98,14 @@ def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park"):
 
     n = len(runs)
     fig, axes = plt.subplots(1, n, figsize=(6 * n, 6), squeeze=False)
-    for ax, (label, pos, lms, covs, (Rm, t)) in zip(axes[0], runs):
+    for ax, (label, pos, lms, covs, (Rm, t)) in zip(axes[0], runs, strict=False):
         if gps is not None:
             ax.plot(gps[:, 1], gps[:, 2], ".", color="0.6", ms=1.5, label="GPS")
         p = pos @ Rm.T + t
         ax.plot(p[:, 0], p[:, 1], "-", color="tab:blue", lw=0.7, label="estimate")
         lm = lms @ Rm.T + t
         ax.plot(lm[:, 0], lm[:, 1], "+", color="tab:green", ms=4, label=f"{len(lm)} landmarks")
-        for m, c in zip(lm, covs):
+        for m, c in zip(lm, covs, strict=False):
             _ellipse(ax, m, Rm @ c @ Rm.T, "tab:green")
         ax.set_title(label)
         ax.set_aspect("equal")

@@ -190,7 +190,7 @@ def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
                 str(path), lineno, f"expected {n} numbers ({' '.join(columns)}), found {len(parts)}"
             )
         vals = []
-        for name, p in zip(columns, parts):
+        for name, p in zip(columns, parts, strict=False):
             try:
                 v = float(p)
             except ValueError:
@@ -216,8 +216,10 @@ def load_victoria_park(source: str | os.PathLike = DATASET_NAME) -> VictoriaPark
     bad = np.flatnonzero(meas[:, 1] <= 0)
     if len(bad):
         raise ParseError(
-            str(d / "measurements.dat"), _line_of(d / "measurements.dat", int(bad[0])),
-            f"range must be positive, found {meas[bad[0], 1]}", field="range",
+            str(d / "measurements.dat"),
+            _line_of(d / "measurements.dat", int(bad[0])),
+            f"range must be positive, found {meas[bad[0], 1]}",
+            field="range",
         )
     return VictoriaPark(meas, inputs, gps, d)
 

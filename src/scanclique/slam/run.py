@@ -1,6 +1,9 @@
 """One SLAM run on a data set, with its metrics and files: what ``scanclique slam`` does.
 
->>> # run = run_slam("victoria-park", association="clique", out="runs/vp")  # doctest: +SKIP
+Examples
+--------
+>>> run = run_slam("victoria-park", association="clique", out="runs/vp")  # doctest: +SKIP
+>>> run.metrics["landmarks"]  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -8,7 +11,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,8 +32,15 @@ def victoria_park_model() -> Ackermann:
     return Ackermann(wheelbase=2.83, encoder_offset=0.76, laser_a=3.78, laser_b=0.5)
 
 
-def inject_clutter(steps, n: int, *, max_range: float, fov: float = math.pi, seed: int = 0,
-                   attribute_range=(0.05, 0.6)) -> list[Step]:
+def inject_clutter(
+    steps,
+    n: int,
+    *,
+    max_range: float,
+    fov: float = math.pi,
+    seed: int = 0,
+    attribute_range=(0.05, 0.6),
+) -> list[Step]:
     """The steps with ``n`` spurious detections added to every batch observation, uniform
     in the sensor's field of view (range uniform in [1 m, ``max_range``], bearing in
     [-fov/2, fov/2]), attributes uniform in ``attribute_range``; their order shuffled."""
@@ -85,9 +94,13 @@ class SlamRun:
         return {
             "method": r.method,
             "metrics": {k: {"value": v, "units": u} for k, (v, u) in self.metrics.items()},
-            "gps": None if self.gps is None else {
-                "rmse_start": self.gps.rmse_start, "max_start": self.gps.max_start,
-                "rmse_best": self.gps.rmse_best, "max_best": self.gps.max_best,
+            "gps": None
+            if self.gps is None
+            else {
+                "rmse_start": self.gps.rmse_start,
+                "max_start": self.gps.max_start,
+                "rmse_best": self.gps.rmse_best,
+                "max_best": self.gps.max_best,
                 "fixes": self.gps.fixes,
             },
             "ambiguous_times": r.observation_times[r.ambiguous].tolist(),
@@ -105,8 +118,12 @@ def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0):
         g = gps_error(result.times, pos, gps_fixes)
         ok = gps_fixes[~gps_outliers(gps_fixes)]
         ok = ok[(ok[:, 0] >= result.times[0]) & (ok[:, 0] <= result.times[-1])]
-        est = np.column_stack([np.interp(ok[:, 0], result.times, pos[:, 0]),
-                               np.interp(ok[:, 0], result.times, pos[:, 1])])
+        est = np.column_stack(
+            [
+                np.interp(ok[:, 0], result.times, pos[:, 0]),
+                np.interp(ok[:, 0], result.times, pos[:, 1]),
+            ]
+        )
         Rm, t, _ = align_se2(est, ok[:, 1:])
         align = (Rm, t)
     pairs, members = duplicate_pairs(result.landmarks, 1.0)
@@ -158,8 +175,9 @@ def run_slam(
     steps = read_victoria_park(source)
     gps = read_gps(source)
     if clutter:
-        steps = inject_clutter(steps, clutter, max_range=cfg.max_range or 30.0,
-                               fov=cfg.sensor_fov, seed=seed)
+        steps = inject_clutter(
+            steps, clutter, max_range=cfg.max_range or 30.0, fov=cfg.sensor_fov, seed=seed
+        )
     model = victoria_park_model()
     result = ekf_slam(steps, model, association=association, config=cfg, progress=progress)
     g, m, align = summarise(result, model, gps, clutter)
@@ -171,16 +189,21 @@ def run_slam(
 
         files = {
             "trajectory": write_tum(d / "trajectory.tum", result.times, result.poses),
-            "landmarks": write_landmarks(d / "landmarks.csv", result.landmark_ids,
-                                         result.landmarks, result.landmark_covariances,
-                                         result.landmark_hits),
+            "landmarks": write_landmarks(
+                d / "landmarks.csv",
+                result.landmark_ids,
+                result.landmarks,
+                result.landmark_covariances,
+                result.landmark_hits,
+            ),
         }
         if plot:
             pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
             files["map"] = plot_maps(
                 d / "map.png",
                 [(f"{association}", pos, result.landmarks, result.landmark_covariances, align)],
-                gps, title=f"EKF-SLAM ({association}) on Victoria Park",
+                gps,
+                title=f"EKF-SLAM ({association}) on Victoria Park",
             )
         run.files.update(files)
         run.files["report"] = d / "report.json"

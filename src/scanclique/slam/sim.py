@@ -141,7 +141,8 @@ def simulate_park(
             next_scan += scan_dt
             z, _, _ = observe(x, trees, sx, sy)
             vis = np.flatnonzero(
-                (z[:, 0] <= max_range) & (np.abs(z[:, 1]) <= 0.5 * cfg.sensor_fov)
+                (z[:, 0] <= max_range)
+                & (np.abs(z[:, 1]) <= 0.5 * cfg.sensor_fov)
                 & (rng.random(len(z)) < p_detect)
             )
             zt = z[vis] + rng.multivariate_normal(np.zeros(2), R, len(vis))
@@ -149,8 +150,10 @@ def simulate_park(
             ids = vis.astype(np.int64)
             if clutter:
                 zc = np.column_stack(
-                    [rng.uniform(1.0, max_range, clutter),
-                     rng.uniform(-0.5 * cfg.sensor_fov, 0.5 * cfg.sensor_fov, clutter)]
+                    [
+                        rng.uniform(1.0, max_range, clutter),
+                        rng.uniform(-0.5 * cfg.sensor_fov, 0.5 * cfg.sensor_fov, clutter),
+                    ]
                 )
                 zt = np.vstack([zt, zc])
                 ids = np.r_[ids, np.full(clutter, -1, np.int64)]
