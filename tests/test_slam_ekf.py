@@ -163,13 +163,13 @@ def test_cli_slam_on_simulated_directory(tmp_path, park):
     _write_vp(d, park)
     out = tmp_path / "out"
     res = CliRunner().invoke(
-        app, ["slam", str(d), "--association", "clique", "--out", str(out), "--json"]
+        app, ["slam", str(d), "--association", "clique", "--out", str(out), "--json", "--plot"]
     )
     assert res.exit_code == 0, res.output
     rep = json.loads(res.stdout)
     assert rep["method"] == "clique"
     assert rep["metrics"]["GPS RMSE (best SE(2) alignment)"]["value"] < 1.5
-    for f in ("trajectory.tum", "landmarks.csv", "report.json"):
+    for f in ("trajectory.tum", "landmarks.csv", "report.json", "map.png"):
         assert (out / f).is_file()
     tum = np.loadtxt(out / "trajectory.tum")
     assert tum.shape[1] == 8

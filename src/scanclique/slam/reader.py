@@ -134,7 +134,7 @@ def resolve_victoria_park(source: str | os.PathLike = DATASET_NAME) -> Path:
     s = os.fspath(source)
     if s == DATASET_NAME:
         d = datasets.data_dir() / DATASET_NAME
-        looked = f"{DATASET_NAME}/ in {datasets._looked_in()}"
+        looked = f"{DATASET_NAME}/ in " + ", ".join(str(c) for c in datasets.data_dir_candidates())
     else:
         d = Path(s).expanduser()
         looked = str(d)
