@@ -257,6 +257,14 @@ def main(argv=None) -> int:
             results.append(r)
             previous.pop(("csail", "full"), None)
             print("\n".join(table([r])[2:]), flush=True)
+    if js.is_file():  # rows another run wrote meanwhile (one file per date)
+        try:
+            for r in json.loads(js.read_text()).get("results", []):
+                key = (r["log"], r["row"])
+                if all((x["log"], x["row"]) != key for x in results):
+                    previous[key] = r
+        except (ValueError, KeyError):
+            pass
     allres = list(previous.values()) + results
     order = {k: i for i, k in enumerate(("fr079-raw", "intel-raw", "csail"))}
     allres.sort(key=lambda r: (order.get(r["log"], 9), ROWS.index(r["row"]) if r["row"] in ROWS else 9))

@@ -161,13 +161,15 @@ def verify(
     sigma_floor: tuple[float, float],
     front_end=None,
     quick: bool = False,
+    strict: bool = False,
 ) -> tuple[Pose2 | None, np.ndarray | None, str, float, str]:
     """Match scan ``j`` against scan ``i`` and validate the match (§7) against the current
     estimate ``est_i^-1 est_j`` with standard deviations ``sigma`` (m, rad).
 
     ``quick``: accept through the cheap form of the test first
     (:func:`scanclique.mapping.frontend._quick_accept`; for the local neighbours, whose
-    prior is the well-known chain).
+    prior is the well-known chain). ``strict`` (appearance candidates): the match must be
+    accepted without the prior too, and the prior may not choose another hypothesis.
 
     Returns ``(pose, covariance, verdict, score, reason)``; pose and covariance are None
     unless the verdict is ``accepted``.
@@ -179,7 +181,15 @@ def verify(
         if q is not None:
             pose = q if front_end is None else refine_pose(pi, pj, q, front_end)
             return pose, floored(m.covariance, *sigma_floor), "accepted", float(m.score), ""
+    if strict:
+        # appearance candidates: the match must stand on its own (no rival anywhere, §7),
+        # and the prior may only veto it, never choose another hypothesis
+        v0 = validate_match(m)
+        if not v0.accepted:
+            return None, None, v0.verdict, float(m.score), "; ".join(v0.reasons)
     v = validate_match(m, est_i, est_j, noise)
+    if strict and v.accepted and v.hypothesis != 0:
+        return None, None, "ambiguous", float(m.score), "the prior chose another hypothesis"
     reason = "; ".join(v.reasons)
     if v.accepted and v.pose is not None:
         cov = v.covariance if v.covariance is not None else m.covariance

@@ -272,10 +272,13 @@ class _Mapper:
             if local:
                 sigma = (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
             if source == "appearance":
-                sigma = (1e3, math.pi)  # the estimate says nothing: appearance only
+                # beyond the estimate's radius, but not anywhere: a look-alike place of a
+                # symmetric building (a corridor seen the other way) is still refused
+                sigma = (max(2.0 * sigma[0], lc.max_radius / 2.0),
+                         min(max(2.0 * sigma[1], math.radians(15.0)), math.radians(40.0)))  # fmt: skip
             pose, cov, verdict, score, reason = _loops.verify(
                 self.kf_prep[i], self.kf_prep[kidx], est_i, est_j, sigma, self.cfg.match,
-                self.floor, self.fe, quick=local,
+                self.floor, self.fe, quick=local, strict=source == "appearance",
             )  # fmt: skip
             if pose is None:
                 self.closures.append(
