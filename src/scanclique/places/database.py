@@ -1,7 +1,7 @@
 """The place database: add observations as places, query a scan for the places it sees.
 
 >>> import tempfile, os, numpy as np, scanclique as sc
->>> pair = sc.sim.simulate_pair(np.random.default_rng(3))
+>>> pair = sc.sim.simulate_pair(np.random.default_rng(2))
 >>> path = os.path.join(tempfile.mkdtemp(), "places.db")
 >>> with PlaceDB(path) as db:
 ...     pid = db.add(pair.scan_a, name="room")
