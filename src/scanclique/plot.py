@@ -457,10 +457,58 @@ def _counts(features: Features) -> str:
     return f"{len(features)} features\n{', '.join(parts) or 'none'}"
 
 
-def save_figure(fig, path: str | os.PathLike, dpi: int = 130) -> Path:
-    """Save ``fig`` to ``path`` (format from the suffix; parent directories are created)."""
+FIGURE_SUFFIXES = frozenset(
+    {".png", ".pdf", ".svg", ".svgz", ".eps", ".ps", ".jpg", ".jpeg", ".tif", ".tiff", ".webp"}
+)
+"""File name endings :func:`save_figure` writes (matplotlib picks the format from them)."""
+
+
+def check_figure_path(path: str | os.PathLike, *, create_dirs: bool = False) -> Path:
+    """``path`` as a :class:`~pathlib.Path` a figure can be written to, or an error.
+
+    The rules: the name ends in one of :data:`FIGURE_SUFFIXES`; it is not an existing
+    directory; its directory exists (it is never created: a typo must not make a new
+    directory tree). Cheap, and needs no matplotlib, so commands check ``--plot`` before
+    they do any work.
+
+    Raises
+    ------
+    scanclique.errors.ArgumentError
+        Naming the path and the rule it breaks.
+    """
+    from .errors import ArgumentError
+
+    if not isinstance(path, (str, os.PathLike)):
+        raise ArgumentError(f"figure path must be a file path, got {path!r}")
     p = Path(path)
-    if p.parent and not p.parent.exists():
+    if p.is_dir():
+        raise ArgumentError(f"{p} is a directory: give a file name such as {p / 'figure.png'}")
+    suffix = p.suffix.lower()
+    if suffix not in FIGURE_SUFFIXES:
+        what = f"ends in {p.suffix!r}" if p.suffix else "has no suffix"
+        raise ArgumentError(
+            f"{p}: {what}; a figure file must end in one of {', '.join(sorted(FIGURE_SUFFIXES))}"
+        )
+    parent = p.parent if str(p.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise ArgumentError(f"{p}: {parent} is not a directory")
+    if not create_dirs and not parent.is_dir():
+        raise ArgumentError(f"{p}: directory {parent} does not exist (it is not created)")
+    return p
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 130, *, create_dirs: bool = True) -> Path:
+    """Save ``fig`` to ``path`` (format from the suffix, checked by
+    :func:`check_figure_path`; missing parent directories are created when
+    ``create_dirs``, the default for scripts; the commands check ``--plot`` with
+    ``create_dirs=False`` first)."""
+    p = check_figure_path(path, create_dirs=create_dirs)
+    if create_dirs and not p.parent.exists():
         p.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(p, dpi=dpi)
+    try:
+        fig.savefig(p, dpi=dpi)
+    except OSError as exc:
+        from .errors import ArgumentError
+
+        raise ArgumentError(f"{p}: cannot write the figure: {exc.strerror or exc}") from None
     return p

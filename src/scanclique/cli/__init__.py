@@ -156,10 +156,20 @@ def _plot_module():
     return plot
 
 
+def _check_plot_path(path: Path | None) -> None:
+    """Refuse a ``--plot`` path before any work (see
+    :func:`scanclique.plot.check_figure_path`): one ``error:`` line, exit code 2."""
+    if path is None:
+        return
+    from ..plot import check_figure_path
+
+    _guard(lambda: check_figure_path(path))
+
+
 def _save_config(cfg: Any, path: Path, comment: str) -> None:
     from ..io.config import write_config
 
-    _guard(lambda: write_config(cfg, path, comment=comment))
+    _guard(lambda: write_config(path, cfg, comment=comment))
     _note(f"configuration written to {path}")
 
 
@@ -170,8 +180,65 @@ def _invocation() -> str:
 # ---------------------------------------------------------------------------------------
 # The typer app
 # ---------------------------------------------------------------------------------------
+def _usage_hint(exc) -> str:
+    """What to add to a usage error: a negative index is parsed as an option by click."""
+    msg = exc.format_message()
+    opt = getattr(exc, "option_name", "") or ""
+    if type(exc).__name__ == "NoSuchOption" and opt.lstrip("-").isdigit():
+        msg = f"{opt} is not an option: scan indices start at 0 (a negative index?)"
+    ctx = getattr(exc, "ctx", None)
+    where = ctx.command_path if ctx is not None else "scanclique"
+    return f"{msg} (see '{where} -h')"
+
+
+def _flag_type_hidden() -> None:
+    """Plain flags show no ``<bool>`` in --help (typer prints a type for every option)."""
+    from typer.core import TyperOption
+
+    orig = TyperOption.display_type_rich
+    if getattr(orig, "_scanclique", False):
+        return
+
+    def display_type_rich(self, ctx):
+        if getattr(self, "is_flag", False) or getattr(self, "count", False):
+            return None
+        return orig(self, ctx)
+
+    display_type_rich._scanclique = True  # type: ignore[attr-defined]
+    TyperOption.display_type_rich = display_type_rich  # type: ignore[method-assign]
+
+
+class _Group(typer.core.TyperGroup):
+    """The ``scanclique`` group: usage errors (an unknown option, a bad value, a negative
+    index) end with one ``error:`` line and exit code 2 instead of typer's box."""
+
+    def main(self, *args, **kwargs):
+        import typer.core
+
+        click = getattr(typer.core, "_click", None)  # typer >= 0.2x vendors click
+        if click is None:  # pragma: no cover - older typer on click
+            import click
+        abort = getattr(typer.core, "Abort", None) or click.exceptions.Abort
+        _flag_type_hidden()
+        kwargs["standalone_mode"] = False
+        try:
+            rv = super().main(*args, **kwargs)
+        except abort:
+            _err_console().print("error: aborted", markup=False)
+            sys.exit(1)
+        except click.exceptions.ClickException as exc:
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                exc.show()  # the help text, as with --help
+            else:
+                msg = f"error: {_usage_hint(exc)}"
+                _err_console().print(msg, soft_wrap=True, markup=False)
+            sys.exit(exc.exit_code)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
     name="scanclique",
+    cls=_Group,
     no_args_is_help=True,
     add_completion=False,
     rich_markup_mode="markdown",
@@ -300,7 +367,7 @@ _CORE_COMMANDS: tuple[str, ...] = ("match", "features", "clique", "demo", "valid
 #: adds its typer command(s) to ``app``. A command module imports only typer, rich and the
 #: standard library at module level (heavy imports go inside the command), so that
 #: ``scanclique --help`` and ``--version`` stay light.
-COMMAND_MODULES: tuple[str, ...] = ("slam", "places")
+COMMAND_MODULES: tuple[str, ...] = ("slam", "mapping", "places")
 
 
 def _register_commands() -> None:

@@ -27,9 +27,30 @@ def clique(
             "--time-limit", min=0.0, help="Seconds; past it the best clique so far (optimal: no)."
         ),
     ] = None,
+    node_limit: Annotated[
+        int | None,
+        typer.Option(
+            "--node-limit",
+            min=1,
+            help="Search nodes; past it the best clique so far (optimal: no). The same on "
+            "every machine, unlike --time-limit.",
+        ),
+    ] = None,
+    weights: Annotated[
+        bool | None,
+        typer.Option(
+            "--weights/--no-weights",
+            show_default=False,
+            help="Use the file's vertex weights ('n v w' lines: maximum-weight clique) or "
+            "ignore them (default: use them when the file has any).",
+        ),
+    ] = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Maximum clique of a DIMACS graph with the library's exact solver (paper §5.3).
+
+    With vertex weights in the file the clique of largest total weight is found (unless
+    --no-weights).
 
     **Examples**
 
@@ -41,14 +62,26 @@ def clique(
     """
     from ..clique import solve_file
 
-    res = _guard(lambda: solve_file(file, all=all_, time_limit=time_limit))
+    res = _guard(
+        lambda: solve_file(
+            file, all=all_, time_limit=time_limit, node_limit=node_limit, weights=weights
+        )
+    )
     if json_out:
         _print_json(res)
         return
-    rows = [
-        ("graph", f"{res['n']} vertices, {res['m']} edges", ""),
-        ("ω (clique number)", str(res["omega"]), "vertices"),
-        ("optimal", "yes" if res["optimal"] else "no (time limit)", ""),
+    optimal = res["optimal"]
+    why = {"node_limit": "node limit", "time_limit": "time limit"}.get(res.get("reason"), "")
+    rows = [("graph", f"{res['n']} vertices, {res['m']} edges", "")]
+    if res.get("weighted"):
+        what = "maximum-weight clique" if optimal else "heaviest clique found"
+        rows.append((what, f"{res['size']} vertices, weight {res['weight']:g}", ""))
+    elif optimal:
+        rows.append(("ω (clique number)", str(res["omega"]), "vertices"))
+    else:
+        rows.append(("largest clique found", str(res["size"]), "vertices"))
+    rows += [
+        ("optimal", "yes" if optimal else f"no ({why or 'search cut short'})", ""),
         ("clique", " ".join(map(str, res["clique"])), "1-based"),
         ("search nodes", str(res["nodes"]), ""),
         ("search time", f"{1e3 * res['elapsed']:.1f}", "ms"),

@@ -10,6 +10,7 @@ import typer
 from . import (
     ConfigOpt,
     PaperOpt,
+    _check_plot_path,
     _console,
     _guard,
     _plot_module,
@@ -40,6 +41,7 @@ def demo(
     from .. import datasets
     from ..tools import DEMO_INDICES, DEMO_SEED, load_config, match_rows, run_demo
 
+    _check_plot_path(plot)
     cfg = _guard(lambda: load_config(config, paper))
     con = _console()
     run = _guard(lambda: run_demo(cfg))

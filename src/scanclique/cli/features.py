@@ -13,6 +13,7 @@ from . import (
     MaxBeamsOpt,
     MaxRangeOpt,
     PaperOpt,
+    _check_plot_path,
     _console,
     _guard,
     _note,
@@ -54,6 +55,7 @@ def features(
     from ..tools import feature_rows, features_to_dict, load_config, load_scan
     from ..tools.loading import read_options
 
+    _check_plot_path(plot)
     cfg = _guard(lambda: load_config(config, paper))
     opts = read_options(max_range, max_beams)
     scan, name, notes = _guard(lambda: load_scan(source, index, **opts))

@@ -15,6 +15,7 @@ from . import (
     PaperOpt,
     PerMetreOpt,
     PerRadianOpt,
+    _check_plot_path,
     _console,
     _guard,
     _invocation,
@@ -86,6 +87,7 @@ def match(
     """
     from ..tools import load_config, match_rows, run_match
 
+    _check_plot_path(plot)
     cfg = _guard(lambda: load_config(config, paper))
     noise = _noise(odom_per_metre, odom_per_radian)
     run = _guard(

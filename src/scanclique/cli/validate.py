@@ -19,6 +19,7 @@ from . import (
     _err_console,
     _guard,
     _noise,
+    _note,
     _print_json,
     _table,
 )
@@ -91,6 +92,8 @@ def validate(
     if json_out:
         _print_json(run.to_dict())
         return
+    for n in run.notes:
+        _note(n)
     con = _console()
     columns = ("Pose", "accepted", "rejected", "odometry", "ambiguous", "too few")
     what = "with odometry" if odometry else "without odometry"

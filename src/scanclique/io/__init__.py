@@ -50,6 +50,8 @@ from .text import (
 __all__ = [
     "read_scans",
     "read_scans_at",
+    "odometry_is_reference",
+    "poses_carried",
     "ScanSelection",
     "iter_carmen",
     "LineSource",
@@ -290,3 +292,38 @@ def read_scans_at(
     creader = _CarmenReader(lines, strict, max_beams, max_range)
     got = {i: scan for i, _, scan in creader.scans(want.__contains__, last)}
     return ScanSelection(spath, got, creader.n_scans, creader.no_return)
+
+
+def odometry_is_reference(scans, tol: float = 1e-9) -> bool:
+    """Whether every scan carries both poses and its odometry equals its reference pose
+    (within ``tol`` in x, y and theta): the odometry fields then repeat the corrected
+    pose, and validating against "odometry" would use ground truth. False for no scans."""
+    scans = list(scans)
+    if not scans:
+        return False
+    for s in scans:
+        o, r = s.odometry, s.reference
+        if o is None or r is None:
+            return False
+        if abs(o.x - r.x) > tol or abs(o.y - r.y) > tol or abs(o.theta - r.theta) > tol:
+            return False
+    return True
+
+
+def poses_carried(scans, has_reference: bool = True) -> str:
+    """Which poses the scans carry, in words, for tables: ``"reference and odometry"``,
+    ``"reference only (the odometry fields repeat it)"``, ``"odometry only"``,
+    ``"reference only"`` or ``"none"``. ``has_reference=False`` (a registered raw log,
+    whose ``x y theta`` are odometry too) counts reference poses as odometry."""
+    scans = list(scans)
+    has_o = bool(scans) and all(s.odometry is not None for s in scans)
+    has_r = bool(scans) and all(s.reference is not None for s in scans)
+    if not has_reference:
+        return "odometry only" if has_o or has_r else "none"
+    if has_r and has_o:
+        if odometry_is_reference(scans):
+            return "reference only (the odometry fields repeat it)"
+        return "reference and odometry"
+    if has_r:
+        return "reference only"
+    return "odometry only" if has_o else "none"

@@ -752,8 +752,9 @@ def parse_carmen(
     for _, kind, scan in reader.scans():
         scans.append(scan)
         kinds.append(kind)
+    params, skipped = reader.ctx.params, reader.skipped
     return CarmenLog(
-        lines.path, tuple(scans), tuple(kinds), reader.ctx.params, reader.skipped, reader.odom
+        lines.path, tuple(scans), tuple(kinds), params, skipped, reader.odom, reader.no_return
     )
 
 

@@ -277,14 +277,45 @@ def dumps_config(config: MatchConfig | None = None, comment: str | None = None) 
     return toml_dumps(config_to_dict(cfg), header=header.rstrip("\n"))
 
 
-def write_config(config: MatchConfig, path: str | os.PathLike, comment: str | None = None) -> Path:
+def write_config(path, config, comment: str | None = None) -> Path:
     """Write ``config`` to ``path`` as TOML (parent directories must exist); returns the path.
+
+    The arguments come in the order of every writer of :mod:`scanclique.io` (path first:
+    ``write_scans_text(path, scans)``, ``write_scans_npz(path, scans)``,
+    ``write_dimacs(path, graph)``). The old order ``write_config(config, path)`` still
+    works and emits a :class:`DeprecationWarning`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file, overwritten.
+    config : MatchConfig
+    comment : str, optional
+        Written as ``#`` lines at the top.
 
     Raises
     ------
     ConfigError
         If the file cannot be written.
+    ArgumentError
+        ``config`` is not a :class:`MatchConfig` or ``path`` not a path.
     """
+    from ..errors import ArgumentError
+
+    if isinstance(path, MatchConfig) and isinstance(config, (str, os.PathLike)):
+        import warnings
+
+        warnings.warn(
+            "write_config(config, path) is deprecated: use write_config(path, config), the "
+            "order of the other writers",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        path, config = config, path
+    if not isinstance(config, MatchConfig):
+        raise ArgumentError(f"config must be a MatchConfig, got {type(config).__name__}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise ArgumentError(f"path must be a file path, got {path!r}")
     p = Path(path)
     try:
         p.write_text(dumps_config(config, comment), encoding="utf-8")

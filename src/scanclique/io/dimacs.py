@@ -91,25 +91,12 @@ def _int_field(path, lineno, tok, field):
         raise ParseError(path, lineno, f"expected an integer, found {tok!r}", field) from None
 
 
-MAX_VERTICES = 20_000
-"""Default bound on the vertex count ``N`` of a DIMACS file: an ``N x N`` adjacency takes
-``N**2`` bytes (400 MB at the bound); the second DIMACS challenge's largest graphs have
-4000 vertices."""
-
-
 MAX_COMMENTS = 1000
 """``c`` lines kept in :attr:`DimacsGraph.comments` (later ones are read and dropped)."""
 MAX_COMMENT_CHARS = 1000
 
 
-def _bytes(n: float) -> str:
-    for unit, k in (("PiB", 2**50), ("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20)):
-        if n >= k:
-            return f"{n / k:.1f} {unit}"
-    return f"{int(n)} bytes"
-
-
-def read_dimacs(path: str | os.PathLike, *, max_vertices: int = MAX_VERTICES) -> DimacsGraph:
+def read_dimacs(path: str | os.PathLike, *, max_vertices: int | None = None) -> DimacsGraph:
     """Read a DIMACS ``.clq`` (``p edge``) file, streamed line by line.
 
     Memory: the edges as two int64 columns (16 bytes per ``e`` line) and ``8 N`` bytes of
@@ -120,8 +107,10 @@ def read_dimacs(path: str | os.PathLike, *, max_vertices: int = MAX_VERTICES) ->
     ----------
     path : str or path-like
         The file (a regular file: FIFOs and devices are refused).
-    max_vertices : int
-        Largest accepted ``N`` (default :data:`MAX_VERTICES`).
+    max_vertices : int, optional
+        Largest accepted ``N``: the clique solver's bound
+        (:func:`scanclique.clique.check_vertex_count`: ``MAX_VERTICES``, or
+        ``SCANCLIQUE_MAX_VERTICES`` from the environment), checked on the ``p`` line.
 
     Returns
     -------
@@ -131,16 +120,18 @@ def read_dimacs(path: str | os.PathLike, *, max_vertices: int = MAX_VERTICES) ->
     Raises
     ------
     ParseError
-        An unknown line type, a missing or repeated ``p`` line, a non-integer field, ``N``
-        above ``max_vertices``, more edge lines than ``N (N - 1)``, a vertex outside
-        ``1..N`` or a self loop; the message names the file, line and field.
+        An unknown line type, a missing or repeated ``p`` line, a non-integer field, more
+        edge lines than ``N (N - 1)``, a vertex outside ``1..N`` or a self loop; the message
+        names the file, line and field.
+    GraphError
+        ``N`` above ``max_vertices`` (the message gives the memory its adjacency would
+        need), checked before anything is allocated.
     scanclique.errors.DataNotFoundError
         The file does not exist.
     """
+    from ..clique.graphs import check_vertex_count
     from .text import LineSource
 
-    if isinstance(max_vertices, bool) or not isinstance(max_vertices, int) or max_vertices < 0:
-        raise GraphError(f"max_vertices must be a non-negative integer, got {max_vertices!r}")
     src = LineSource(path)
     path_s = src.path
     n = -1
@@ -193,15 +184,7 @@ def read_dimacs(path: str | os.PathLike, *, max_vertices: int = MAX_VERTICES) ->
             m_declared = _int_field(path_s, lineno, toks[3], "M")
             if n < 0 or m_declared < 0:
                 raise ParseError(path_s, lineno, "N and M must be non-negative", "p")
-            if n > max_vertices:
-                raise ParseError(
-                    path_s,
-                    lineno,
-                    f"N = {n} vertices exceeds the limit max_vertices={max_vertices} (its "
-                    f"adjacency matrix would take {_bytes(float(n) * n)}); pass a larger "
-                    "max_vertices to accept it",
-                    "N",
-                )
+            check_vertex_count(n, source=f"{path_s}:{lineno}: p line", max_vertices=max_vertices)
             max_lines = n * (n - 1)
         elif tag == "n" and toks[0] == "n":
             if n < 0:

@@ -63,6 +63,8 @@ def match_rows(run: MatchRun) -> list[tuple[str, str, str]]:
     add = rows.append
     add(("scan A", run.names[0], ""))
     add(("scan B", run.names[1], ""))
+    if run.poses:
+        add(("poses in the log", run.poses, ""))
     if m.pose is None:
         add(("pose", f"none: {m.reason}", ""))
     else:

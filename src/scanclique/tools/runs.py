@@ -29,16 +29,17 @@ import numpy as np
 from .. import datasets
 from ..config import MatchConfig, config_to_dict
 from ..errors import DataNotFoundError, ScanError, ScanIndexError
+from ..eval.success import RIGHT_ROTATION, RIGHT_TRANSLATION, is_right, is_success
 from ..geometry import Pose2
+from ..io import odometry_is_reference, poses_carried
 from ..match import ScanMatch, match_prepared, match_scans, prepare_scan
+from ..pairsets import pair_sets
 from ..scan import Scan
 from ..validation import (
     ACCEPTED,
     VERDICTS,
     OdometryNoise,
     Validation,
-    is_right,
-    pair_sets,
     validate_match,
 )
 from .loading import _label, load_scan_pair, odometry_path, read_options
@@ -58,8 +59,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: A pair is a success when the estimated pose is this close to the reference (DESIGN.md).
-SUCCESS_TRANSLATION = 0.20  # metres
-SUCCESS_ROTATION_DEG = 2.0
+SUCCESS_TRANSLATION = RIGHT_TRANSLATION  # metres (the one rule: scanclique.eval.success)
+SUCCESS_ROTATION_DEG = math.degrees(RIGHT_ROTATION)
 DEMO_INDICES = (120, 121)
 DEMO_SEED = 7
 
@@ -89,6 +90,10 @@ class MatchRun:
     validation : Validation or None
         The verdict on the match (paper §7; with the odometry when asked for). None when
         the run was built without one; :meth:`checked` computes it then.
+    poses : str
+        Which poses the scans carry (:func:`scanclique.io.poses_carried`): ``"reference
+        and odometry"``, ``"odometry only"``, ``"reference only (the odometry fields
+        repeat it)"``, ...
     """
 
     scan_a: Scan
@@ -99,6 +104,7 @@ class MatchRun:
     notes: tuple[str, ...] = ()
     reference: Pose2 | None = field(default=None)
     validation: Validation | None = field(default=None)
+    poses: str = ""
 
     def checked(self) -> Validation:
         """:attr:`validation`, or the verdict without odometry when there is none."""
@@ -120,7 +126,7 @@ class MatchRun:
         if e is None:
             return "pose found; no reference pose to compare with"
         t, r = e
-        ok = t <= SUCCESS_TRANSLATION and math.degrees(r) <= SUCCESS_ROTATION_DEG
+        ok = is_success(t, r)
         return (
             f"error {t:.3f} m, {math.degrees(r):.2f} deg vs {against}: "
             f"{'success' if ok else 'FAILURE'} "
@@ -142,9 +148,46 @@ class MatchRun:
             else {"translation_m": e[0], "rotation_rad": e[1], "rotation_deg": math.degrees(e[1])}
         )
         out["notes"] = list(self.notes)
+        out["poses"] = self.poses
         out["validation"] = self.checked().to_dict()
         out["config"] = config_to_dict(self.config)
         return out
+
+
+def _registered(source) -> datasets.Dataset | None:
+    """The registered data set ``source`` names or whose file it is, else None."""
+    try:
+        if isinstance(source, str) and not os.path.exists(source):
+            key = datasets._canonical(source)
+            return datasets.DATASETS[key] if key else None
+        name = os.path.basename(os.fspath(source))
+    except TypeError:
+        return None
+    for ds in datasets.DATASETS.values():
+        if os.path.basename(ds.relpath) == name:
+            return ds
+    return None
+
+
+def _pose_notes(source, scans, odometry: bool) -> tuple[bool, str, list[str]]:
+    """(has_reference, poses carried, notes) of the scans of a run."""
+    ds = _registered(source)
+    has_ref = ds is None or ds.has_reference
+    notes: list[str] = []
+    if not has_ref:
+        notes.append(
+            f"{ds.name} carries odometry only: its x y theta are odometry, not a reference "
+            f"pose (its reference is {ds.relations or 'not in the log'}); no error is computed"
+        )
+    elif odometry and odometry_is_reference(scans):
+        msg = (
+            "the odometry of these scans equals their reference pose (the log's odometry "
+            "fields repeat the corrected pose): --odometry validates against ground truth, "
+            "not raw odometry"
+        )
+        log.warning(msg)
+        notes.append(msg)
+    return has_ref, poses_carried(scans, has_ref), notes
 
 
 def _reference(a: Scan, b: Scan) -> Pose2 | None:
@@ -178,6 +221,8 @@ def run_match(
     opts = read_options(max_range, max_beams)
     scan_a, scan_b, names, notes = load_scan_pair(source, a, b, **opts)
     m = match_scans(scan_a, scan_b, cfg)
+    has_ref, poses, pose_notes = _pose_notes(source, (scan_a, scan_b), odometry)
+    notes = [*notes, *pose_notes]
     if odometry:
         for scan, name in ((scan_a, names[0]), (scan_b, names[1])):
             if scan.odometry is None:
@@ -186,7 +231,8 @@ def run_match(
         v = validate_match(m, scan_a.odometry, scan_b.odometry, noise, path=path)
     else:
         v = validate_match(m)
-    return MatchRun(scan_a, scan_b, m, names, cfg, tuple(notes), _reference(scan_a, scan_b), v)
+    ref = _reference(scan_a, scan_b) if has_ref else None
+    return MatchRun(scan_a, scan_b, m, names, cfg, tuple(notes), ref, v, poses)
 
 
 def run_demo(config: MatchConfig | None = None, data: bool = True) -> MatchRun:
@@ -202,12 +248,24 @@ def run_demo(config: MatchConfig | None = None, data: bool = True) -> MatchRun:
         else:
             run = run_match(path, *DEMO_INDICES, config=cfg)
             names = tuple(f"intel:{i}" for i in DEMO_INDICES)
-            return MatchRun(run.scan_a, run.scan_b, run.match, names, cfg, run.notes, run.reference)
+            return MatchRun(
+                run.scan_a,
+                run.scan_b,
+                run.match,
+                names,
+                cfg,
+                run.notes,
+                run.reference,
+                poses=run.poses,
+            )
     from ..sim import simulate_pair
 
     pair = simulate_pair(np.random.default_rng(DEMO_SEED))
     m = match_scans(pair.scan_a, pair.scan_b, cfg)
-    return MatchRun(pair.scan_a, pair.scan_b, m, ("sim:a", "sim:b"), cfg, (), pair.pose_a_b)
+    poses = poses_carried((pair.scan_a, pair.scan_b))
+    return MatchRun(
+        pair.scan_a, pair.scan_b, m, ("sim:a", "sim:b"), cfg, (), pair.pose_a_b, poses=poses
+    )
 
 
 def _std(m: ScanMatch) -> dict | None:
@@ -234,12 +292,15 @@ class ValidateRun:
     odometry : bool
         Whether the log's odometry was used.
     noise : OdometryNoise
+    notes : tuple of str
+        Messages for the user (the log's odometry repeats its reference poses, ...).
     """
 
     name: str
     records: tuple[dict, ...]
     odometry: bool
     noise: OdometryNoise
+    notes: tuple[str, ...] = ()
 
     def counts(self, set_name: str | None = None) -> dict:
         """``{(right, verdict): count}`` plus ``precision`` and ``recall`` of
@@ -273,6 +334,7 @@ class ValidateRun:
 
         return {
             "log": self.name,
+            "notes": list(self.notes),
             "odometry": self.odometry,
             "noise": {f: getattr(self.noise, f) for f in self.noise.__dataclass_fields__},
             "all": summary(None),
@@ -295,7 +357,7 @@ def run_validate(
     max_beams: int | None = None,
 ) -> ValidateRun:
     """Match and validate the pair sets of a log with reference poses (what
-    ``scanclique validate`` prints; :func:`scanclique.validation.pair_sets`).
+    ``scanclique validate`` prints; :func:`scanclique.pairsets.pair_sets`).
 
     Parameters
     ----------
@@ -322,6 +384,12 @@ def run_validate(
     cfg = config or MatchConfig()
     noise = noise or OdometryNoise()
     scans = datasets.load_log(source, **read_options(max_range, max_beams))
+    has_ref, _, notes = _pose_notes(source, scans, odometry)
+    if not has_ref:
+        raise ScanError(
+            f"{os.fspath(source)}: carries no reference pose (its x y theta are odometry): "
+            "validate needs reference poses"
+        )
     if odometry:
         for k, scan in enumerate(scans):
             if scan.odometry is None:
@@ -363,4 +431,4 @@ def run_validate(
         )
         if progress is not None:
             progress(n_done, len(jobs))
-    return ValidateRun(_label(source), tuple(records), odometry, noise)
+    return ValidateRun(_label(source), tuple(records), odometry, noise, tuple(notes))
