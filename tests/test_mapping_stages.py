@@ -93,10 +93,12 @@ def _slow_grid(scans, poses, cfg, shape, origin):
     r = cfg.resolution
     lo = np.asarray(origin)
     for s, p in zip(scans, poses, strict=True):
-        rng = np.where(s.valid, s.ranges, cfg.max_range)
-        hit = s.valid & (rng <= cfg.max_range)
+        keep = np.ones(s.n_beams, bool) if cfg.free_on_no_return else s.valid
+        rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
+        hit = s.valid[keep] & (rng <= cfg.max_range)
         rng = np.minimum(rng, cfg.max_range)
-        E = p.transform(np.column_stack((rng * np.cos(s.angles), rng * np.sin(s.angles))))
+        ang = s.angles[keep]
+        E = p.transform(np.column_stack((rng * np.cos(ang), rng * np.sin(ang))))
         x0, y0 = np.floor((np.array([p.x, p.y]) - lo) / r).astype(int)
         for (x1, y1), h in zip(np.floor((E - lo) / r).astype(int), hit, strict=True):
             x, y = x0, y0
@@ -121,13 +123,14 @@ def _slow_grid(scans, poses, cfg, shape, origin):
     return g
 
 
-def test_occupancy_kernel_agrees_with_slow_reference():
+@pytest.mark.parametrize("free_on_no_return", [False, True])
+def test_occupancy_kernel_agrees_with_slow_reference(free_on_no_return):
     from scanclique.sim import office_world, simulate_trajectory
 
     rng = np.random.default_rng(4)
     scans = simulate_trajectory(rng, office_world(rng, length=10.0), 3, n_beams=91)
     poses = [scans[0].reference.inverse() @ s.reference for s in scans]
-    cfg = OccupancyConfig(resolution=0.1, max_range=12.0)
+    cfg = OccupancyConfig(resolution=0.1, max_range=12.0, free_on_no_return=free_on_no_return)
     grid = occupancy_grid(scans, poses, cfg)
     slow = _slow_grid(scans, poses, cfg, grid.shape, grid.origin)
     np.testing.assert_allclose(grid.log_odds, slow, atol=1e-4)

@@ -183,7 +183,9 @@ class BackEndConfig:
 class OccupancyConfig:
     """The occupancy grid (issue 12, part 4): ``resolution`` m per cell, log-odds added per
     hit and per pass, clamped to ``clamp``; beams longer than ``max_range`` are cut (and
-    mark only free space); every ``scan_stride``-th scan is cast."""
+    mark only free space); no-return beams (max range, invalid) are skipped unless
+    ``free_on_no_return`` (then free up to ``max_range``: a window or an open door would
+    paint free space beyond the walls); every ``scan_stride``-th scan is cast."""
 
     resolution: float = 0.05
     log_odds_hit: float = 0.85
@@ -192,6 +194,7 @@ class OccupancyConfig:
     max_range: float = 30.0
     scan_stride: int = 1
     margin: float = 1.0
+    free_on_no_return: bool = False
 
     def __post_init__(self) -> None:
         _positive(self, "resolution", "log_odds_hit", "clamp", "max_range", "scan_stride")

@@ -4,8 +4,9 @@ Every beam of every cast scan walks the cells from the sensor to its end point (
 line, Bresenham 1965): the cells it passes are evidence of free space (``log_odds_miss``
 added), the end cell of a valid return evidence of an obstacle (``log_odds_hit``); the sum
 is clamped to ``[-clamp, clamp]`` (Thrun, Burgard and Fox, *Probabilistic Robotics*, §9.2,
-the inverse sensor model in log-odds form). A beam with no return (max range) or longer
-than ``max_range`` marks free space only, up to ``max_range``.
+the inverse sensor model in log-odds form). A return beyond ``max_range`` marks free
+space only, up to ``max_range``; a beam with no return is skipped (or, with
+``free_on_no_return``, marks free space up to ``max_range``).
 
 The kernel is compiled with numba on first use (``@njit(cache=True)``), never at import.
 The grid's cell ``(row, col)`` covers ``x in [x0 + col r, x0 + (col + 1) r)`` and
@@ -127,10 +128,12 @@ def occupancy_grid(
     starts, ends, hits = [], [], []
     for k in idx:
         s, p = scans[k], poses[k]
-        rng = np.where(s.valid, s.ranges, cfg.max_range)
-        hit = s.valid & (rng <= cfg.max_range)
+        keep = np.ones(s.n_beams, bool) if cfg.free_on_no_return else s.valid
+        rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
+        hit = s.valid[keep] & (rng <= cfg.max_range)
         rng = np.minimum(rng, cfg.max_range)
-        pts = np.column_stack((rng * np.cos(s.angles), rng * np.sin(s.angles)))
+        ang = s.angles[keep]
+        pts = np.column_stack((rng * np.cos(ang), rng * np.sin(ang)))
         ends.append(p.transform(pts))
         starts.append(np.repeat([[p.x, p.y]], len(pts), axis=0))
         hits.append(hit)
