@@ -95,6 +95,8 @@ def _worker(args):
                 "ambiguous": m.ambiguous,
                 "score": m.score,
                 "pose": None if m.pose is None else [m.pose.x, m.pose.y, m.pose.theta],
+                "clique_nodes": m.clique_nodes,
+                "stopped": m.stopped,
             }
         )
     return out

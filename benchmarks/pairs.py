@@ -9,19 +9,15 @@ those of the library, :mod:`scanclique.pairsets` (the same as ``scanclique valid
   reference relative pose (so that the two scans really see the same place).
 
 A pair *succeeds* when the estimated relative pose is within 0.20 m and 2 degrees of the
-reference ``ref_a.inverse() @ ref_b`` (:func:`scanclique.validation.is_right`).
+reference ``ref_a.inverse() @ ref_b`` (:func:`scanclique.eval.success.is_right`).
 """
 
 from __future__ import annotations
 
 from scanclique import pairsets
+from scanclique.eval.success import RIGHT_ROTATION as SUCCESS_ROTATION
+from scanclique.eval.success import RIGHT_TRANSLATION as SUCCESS_TRANSLATION
+from scanclique.eval.success import is_success
 from scanclique.pairsets import *  # noqa: F403 (this module re-exports the library's pair sets)
-from scanclique.validation import RIGHT_ROTATION as SUCCESS_ROTATION
-from scanclique.validation import RIGHT_TRANSLATION as SUCCESS_TRANSLATION
 
 __all__ = ["SUCCESS_TRANSLATION", "SUCCESS_ROTATION", *pairsets.__all__, "is_success"]
-
-
-def is_success(t_err: float, r_err: float) -> bool:
-    """True within 0.20 m (``t_err``) and 2 degrees (``r_err``, radians) of the reference."""
-    return t_err <= SUCCESS_TRANSLATION and r_err <= SUCCESS_ROTATION

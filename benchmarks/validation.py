@@ -73,16 +73,16 @@ from common import chunks, machine, pool_map, results_path  # noqa: E402
 import scanclique as sc  # noqa: E402
 from scanclique.config import FeatureConfig, config_to_dict  # noqa: E402
 from scanclique.datasets import DataNotFoundError, load_log, relations_path  # noqa: E402
+from scanclique.eval.success import is_right  # noqa: E402
 from scanclique.geometry import Pose2, wrap_angle  # noqa: E402
 from scanclique.match import match_prepared, pose_score, prepare_scan  # noqa: E402
+from scanclique.pairsets import pair_sets  # noqa: E402
 from scanclique.refine import icp_point_to_line  # noqa: E402
 from scanclique.validation import (  # noqa: E402
     ACCEPTED,
     VERDICTS,
     OdometryNoise,
     feature_estimate,
-    is_right,
-    pair_sets,
     validate_match,
 )
 

@@ -400,3 +400,31 @@ def test_validation_reads_the_match_configuration():
     m2 = match_scans(p.scan_a, p.scan_b, strict)
     assert m2.pose == m.pose  # the validation section does not change the match
     assert validate_match(m2).verdict == TOO_FEW_FEATURES
+
+
+def test_warm_up_runs_once_and_changes_no_result():
+    from scanclique import match as M
+
+    p = sim_pair(2)
+    first = match_scans(p.scan_a, p.scan_b)
+    assert M._warm_seconds is not None  # the first match in the process warmed up
+    assert M.warm_up() == 0.0  # and it is not done again
+    again = match_scans(p.scan_a, p.scan_b)
+    assert again.pose == first.pose and again.clique_size == first.clique_size
+
+
+def test_a_node_budget_decides_the_result_and_says_so():
+    import dataclasses
+
+    p = sim_pair(3)
+    full = match_scans(p.scan_a, p.scan_b)
+    assert full.stopped is None and full.clique_nodes > 0
+    tight = dataclasses.replace(
+        MatchConfig(), clique=dataclasses.replace(MatchConfig().clique, node_limit=3)
+    )
+    runs = [match_scans(p.scan_a, p.scan_b, tight) for _ in range(2)]
+    assert all(m.stopped == "node_limit" for m in runs)
+    assert runs[0].clique_nodes == runs[1].clique_nodes
+    assert [h.pose for h in runs[0].hypotheses] == [h.pose for h in runs[1].hypotheses]
+    assert len(runs[0].hypotheses) < len(full.hypotheses)
+    assert runs[0].to_dict()["stopped"] == "node_limit"

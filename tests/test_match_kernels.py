@@ -122,7 +122,10 @@ def test_maximum_of_an_induced_subgraph(n, density, keep, seed):
     if len(verts) == 0:
         verts = np.array([n - 1])
     sub = A[np.ix_(verts, verts)]
-    r = K._maximum_of(bitsets_from_adjacency(A), verts, time.perf_counter(), 10.0)
+    r, nodes, status = K._maximum_of(
+        bitsets_from_adjacency(A), verts, time.perf_counter() + 10.0, 10**9
+    )
+    assert status == 0 and nodes >= 0  # finished within the budgets
     assert np.all(np.diff(r) > 0) and r.min() >= 0 and r.max() < len(verts)
     assert all(sub[u, v] for u, v in itertools.combinations(r.tolist(), 2))
     omega = max(len(q) for q in bron_kerbosch(sub)) if len(verts) <= 40 else None

@@ -21,8 +21,10 @@ from typer.testing import CliRunner
 import scanclique as sc
 from scanclique import cli
 from scanclique.errors import ConfigError, ScanCliqueError, ScanError
+from scanclique.eval.success import is_right
 from scanclique.geometry import Pose2, wrap_angle
 from scanclique.io import write_scans_text
+from scanclique.pairsets import pair_sets
 from scanclique.pose import MappedFeatures, estimate_pose_lsq
 from scanclique.sim import World, simulate_pair, simulate_scan, simulate_trajectory
 from scanclique.validation import (
@@ -41,10 +43,8 @@ from scanclique.validation import (
     constellation_std,
     feature_estimate,
     flag_inconsistent,
-    is_right,
     mahalanobis_sq,
     odometry_prior,
-    pair_sets,
     pose_difference,
     triple_consistency,
     validate_match,

@@ -26,7 +26,7 @@ import sys
 import time
 from types import ModuleType
 
-__all__ = ["LOAD_SECONDS", "KernelModule", "kernel_module", "load"]
+__all__ = ["LOAD_SECONDS", "KernelModule", "cache_is_cold", "kernel_module", "load"]
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +42,21 @@ def _prepare_cache() -> None:
     except ImportError:
         return
     ensure_cache()
+
+
+def cache_is_cold(module: str = "_match_kernels") -> bool:
+    """True when the kernels of ``module`` have never been compiled into the current
+    kernel cache (the first run after installing, or after any kernel source changed):
+    the next match compiles them, which takes a minute or more. A caller that talks to
+    a person says so before it starts (``scanclique`` does, on stderr)."""
+    try:
+        from ._kernels import ensure_cache
+    except ImportError:  # pragma: no cover - the package is always there
+        return False
+    from pathlib import Path
+
+    root = Path(ensure_cache())
+    return not any(root.rglob(f"{module}.*.nbi"))
 
 
 def load(name: str) -> ModuleType:

@@ -24,14 +24,27 @@ covariances ``(Np, 2, 2)``, lines ``(Nl, 2)`` as ``(rho, alpha)`` with covarianc
 ``k`` of a feature graph is point ``k`` when ``k < Np`` and line ``k - Np`` otherwise.
 """
 
+# ruff: noqa: E402 (ensure_cache() runs before numba caches anything)
 from __future__ import annotations
 
 import math
 
+from ._kernels import ensure_cache
+
+ensure_cache()
+
 import numba
 import numpy as np
 
-from . import _clique_kernels as CK
+from ._kernels.bitset import ctpop, now, setbit
+from ._kernels.clique_search import maximum_until, search_until
+from ._kernels.codes import Status
+from ._kernels.ordering import induced_rows
+
+#: statuses of the hypothesis search (:func:`hypothesis_cliques`), as compile-time ints
+_FINISHED = int(Status.FINISHED)
+_TIME_LIMIT = int(Status.TIME_LIMIT)
+_NODE_LIMIT = int(Status.NODE_LIMIT)
 
 _njit = numba.njit(cache=True, nogil=True)
 #: for the helpers called once per point: inlined into the caller at numba IR level, so
@@ -1062,23 +1075,26 @@ def _append(store, count, clique):  # pragma: no cover - compiled
 
 
 @_njit
-def _maximum_of(A, verts, t0, time_limit):  # pragma: no cover - compiled
+def _maximum_of(A, verts, deadline, node_limit):  # pragma: no cover - compiled
     """A maximum clique of the subgraph of ``A`` induced by ``verts`` (at least one), as
     positions in ``verts``, sorted: the lean path of ``clique.max_clique``
-    (:func:`scanclique._clique_kernels.solve_bits`). The best found when the clock
-    (``time.perf_counter`` seconds since ``t0``) passes ``time_limit``."""
+    (:func:`scanclique._kernels.clique_search.maximum_until`), and the search nodes it
+    used and its status. The best found when ``node_limit`` nodes are spent or the clock
+    passes ``deadline`` (the outer guard)."""
     m = verts.shape[0]
     alive = np.zeros(A.shape[1], np.uint64)
     for v in verts:
-        CK._setbit(alive, v)
+        setbit(alive, v)
     out = np.empty(m, np.int64)
-    size, _, _ = CK.solve_bits(CK._induced_rows(A, verts, m, alive), m, 0, t0 + time_limit, out)
-    return out[:size]
+    size, nodes, status = maximum_until(
+        induced_rows(A, verts, m, alive), m, 0, deadline, node_limit, out
+    )
+    return out[:size], nodes, status
 
 
 @_njit
 def hypothesis_cliques(
-    A, n, limit, peel, per_vertex, min_size, time_limit, t0, opts
+    A, n, limit, peel, per_vertex, min_size, node_limit, deadline, opts
 ):  # pragma: no cover - compiled
     """The cliques that become association hypotheses, in one compiled call.
 
@@ -1090,17 +1106,28 @@ def hypothesis_cliques(
        of a maximum clique is skipped when step 1 listed every maximum clique (its
        clique would be one of them).
 
-    All within ``time_limit`` seconds of ``t0`` (``time.perf_counter`` clock). Returns
-    ``(data, indptr, count, omega, optimal, complete)``: clique ``i`` is
+    The budget that decides the result is ``node_limit`` search nodes for all steps
+    together (the same graph gives the same cliques on every machine); ``deadline``
+    (``time.perf_counter`` clock, ``inf`` for none) is an outer guard only. Returns
+    ``(data, indptr, count, omega, optimal, complete, stop, nodes)``: clique ``i`` is
     ``data[indptr[i]:indptr[i + 1]]`` (sorted labels), each distinct clique of at least
     ``min_size`` vertices once, in the order found; ``optimal`` when omega was proven,
-    ``complete`` when step 1 listed every maximum clique.
+    ``complete`` when step 1 listed every maximum clique; ``stop`` the status that cut
+    the search short (``NODE_LIMIT`` or ``TIME_LIMIT``), ``FINISHED`` when nothing did;
+    ``nodes`` the search nodes used.
     """
     store = (np.empty(64, np.int64), np.zeros(16, np.int64))
     count = 0
-    best, _, status, found, status_all = CK.solve(A, n, 0, 2, limit, time_limit, t0, opts)
+    best, used, status, found, status_all = search_until(
+        A, n, 0, 2, limit, deadline, node_limit, opts
+    )
     optimal = status == 0
     complete = optimal and status_all == 0
+    stop = _FINISHED
+    if status == _NODE_LIMIT or status_all == _NODE_LIMIT:
+        stop = _NODE_LIMIT
+    elif status == _TIME_LIMIT or status_all == _TIME_LIMIT:
+        stop = _TIME_LIMIT
     omega = best.shape[0]
     in_max = np.zeros(n, np.bool_)
     for r in range(found.shape[0]):
@@ -1121,9 +1148,18 @@ def hypothesis_cliques(
         for j in range(indptr[count]):
             alive[data[j]] = False
         left = np.flatnonzero(alive)
-        if left.shape[0] < min_size or CK._now() - t0 >= time_limit:
+        if left.shape[0] < min_size:
             break
-        r = _maximum_of(A, left, t0, time_limit)
+        if used >= node_limit:
+            stop = _NODE_LIMIT
+            break
+        if now() >= deadline:
+            stop = _TIME_LIMIT
+            break
+        r, k, st = _maximum_of(A, left, deadline, node_limit - used)
+        used += k
+        if st != _FINISHED and stop == _FINISHED:
+            stop = st
         if r.shape[0] < min_size:
             break
         store = _append(store, count, np.sort(left[r]))
@@ -1133,14 +1169,18 @@ def hypothesis_cliques(
         deg = np.zeros(n, np.int64)
         for v in range(n):
             for w in range(A.shape[1]):
-                deg[v] += np.int64(CK._ctpop(A[v, w]))
+                deg[v] += np.int64(ctpop(A[v, w]))
         order = np.argsort(-deg, kind="mergesort")
         one = np.uint64(1)
         for q in range(min(per_vertex, n)):
             v = order[q]
             if deg[v] + 1 < min_size:
                 break
-            if CK._now() - t0 >= time_limit:
+            if used >= node_limit:
+                stop = _NODE_LIMIT
+                break
+            if now() >= deadline:
+                stop = _TIME_LIMIT
                 break
             if complete and in_max[v]:
                 continue
@@ -1150,7 +1190,12 @@ def hypothesis_cliques(
                 if (A[v, u >> 6] >> np.uint64(u & 63)) & one:
                     nb[m] = u
                     m += 1
-            r = np.empty(0, np.int64) if m == 0 else _maximum_of(A, nb, t0, time_limit)
+            r = np.empty(0, np.int64)
+            if m > 0:
+                r, k, st = _maximum_of(A, nb, deadline, node_limit - used)
+                used += k
+                if st != _FINISHED and stop == _FINISHED:
+                    stop = st
             if r.shape[0] + 1 >= min_size:
                 c = np.empty(r.shape[0] + 1, np.int64)
                 c[: r.shape[0]] = nb[r]
@@ -1159,7 +1204,7 @@ def hypothesis_cliques(
                 count += 1
     data, indptr = store
     data, indptr, count = _distinct_cliques(data, indptr, count, min_size)
-    return data, indptr, count, omega, optimal, complete
+    return data, indptr, count, omega, optimal, complete, stop, used
 
 
 @_njit

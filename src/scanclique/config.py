@@ -254,8 +254,13 @@ class CorrespondenceConfig:
 class CliqueConfig:
     """Paper §5.3: the maximum clique search.
 
-    ``time_limit`` (seconds) bounds the whole search; past it the best cliques found are
-    used and the result says ``optimal=False``. ``max_hypotheses`` bounds how many maximum
+    ``node_limit`` (search nodes, for all of a match's clique searches together) is the
+    budget that decides results: the same scans give the same hypotheses on every machine
+    and every run, compiled kernels warm or cold. Past it the best cliques found are used
+    (``ScanMatch.stopped == "node_limit"``; ``optimal=False`` when omega was not proven).
+    ``time_limit`` (seconds) is an outer guard only, for machines far slower than
+    expected: when it bites, ``ScanMatch.stopped == "time_limit"`` says so (kernel
+    loading never counts against it). ``max_hypotheses`` bounds how many maximum
     cliques are turned into pose hypotheses (several maximum cliques are the paper's §7
     symmetry). ``peel`` more hypotheses come from removing the vertices of the cliques
     found so far and taking the maximum clique of what remains: disjoint associations,
@@ -266,13 +271,14 @@ class CliqueConfig:
     """
 
     time_limit: float = 2.0
+    node_limit: int = 2_000_000
     max_hypotheses: int = 8
     peel: int = 3
     per_vertex: int = 40
 
     def __post_init__(self) -> None:
         _check_types(self)
-        _positive(self, "time_limit", "max_hypotheses")
+        _positive(self, "time_limit", "node_limit", "max_hypotheses")
         _nonneg(self, "peel", "per_vertex")
 
 

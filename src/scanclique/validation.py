@@ -24,8 +24,9 @@ of a GPS constellation). This module does all of it, as pure functions over a
 * :func:`triple_consistency` and :func:`flag_inconsistent` — matches A→B, B→C against
   A→C: a cycle that does not close within its covariance flags the match that breaks
   the most cycles.
-* :func:`pair_sets` and :func:`is_right` — the scan pairs with known truth on which the
-  verdicts are measured (``scanclique validate``, ``benchmarks/validation.py``).
+
+The scan pairs with known truth on which the verdicts are measured and the success rule
+live with the evaluation code (:mod:`scanclique.pairsets`, :mod:`scanclique.eval.success`).
 
 Poses are ``T_a_b``: they map points of B's sensor frame into A's
 (``p_a = R(theta) p_b + (x, y)``); covariances are of ``(x, y, theta)`` of ``T_a_b``, in
@@ -63,7 +64,6 @@ from .config import ValidationConfig
 from .errors import ConfigError, ScanError
 from .geometry import Pose2
 from .match import Hypothesis, ScanMatch, distinct_poses, near_rival
-from .pairsets import pair_sets
 from .pose import (
     PoseEstimate,
     estimate_pose_lsq_pairs,
@@ -107,8 +107,6 @@ __all__ = [
     "compose_covariance",
     "triple_consistency",
     "flag_inconsistent",
-    "is_right",
-    "pair_sets",
 ]
 
 ACCEPTED = "accepted"
@@ -957,14 +955,3 @@ def flag_inconsistent(
 # Pairs with known truth (for scanclique validate and benchmarks/validation.py; the pair
 # sets themselves are in scanclique.pairsets)
 # ---------------------------------------------------------------------------------------
-RIGHT_TRANSLATION = 0.20  # metres
-RIGHT_ROTATION = math.radians(2.0)
-
-
-def is_right(pose: Pose2 | None, reference: Pose2) -> bool:
-    """True when ``pose`` is within 0.20 m and 2 degrees of ``reference`` (the success
-    criterion of the benchmarks)."""
-    if pose is None:
-        return False
-    t, r = pose.distance_to(reference)
-    return t <= RIGHT_TRANSLATION and r <= RIGHT_ROTATION
