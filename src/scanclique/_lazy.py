@@ -59,6 +59,24 @@ def cache_is_cold(module: str = "_match_kernels") -> bool:
     return not any(root.rglob(f"{module}.*.nbi"))
 
 
+_announced = False
+
+
+def _announce(name: str) -> None:
+    """One warning per process, before the first kernel module loads into a cold cache
+    (``scanclique`` shows warnings on stderr): a first run compiles for minutes, and
+    should say so rather than look hung."""
+    global _announced
+    if _announced or "_kernels" not in name:
+        return
+    _announced = True
+    if cache_is_cold(name.rsplit(".", 1)[-1]):
+        log.warning(
+            "compiling the numba kernels: first run only, about 2-4 minutes on an idle "
+            "2-core machine (longer when it is busy); later runs load them in about a second"
+        )
+
+
 def load(name: str) -> ModuleType:
     """Import module ``name`` (fully qualified), timing the first import."""
     mod = sys.modules.get(name)
@@ -66,6 +84,7 @@ def load(name: str) -> ModuleType:
         return mod
     t0 = time.perf_counter()
     _prepare_cache()
+    _announce(name)
     mod = importlib.import_module(name)
     LOAD_SECONDS[name] = time.perf_counter() - t0
     log.debug("loaded %s in %.2f s", name, LOAD_SECONDS[name])
