@@ -323,3 +323,21 @@ def test_too_many_pairings_are_refused_before_allocating():
 
     with pytest.raises(GraphError, match="9000000 nodes.*max_nodes=20000"):
         correspondence_graph(labels_only(big), labels_only(big), CorrespondenceConfig())
+
+
+def test_a_scan_with_too_many_features_is_refused_before_its_graph_is_built():
+    from scanclique.config import CorrespondenceConfig
+    from scanclique.errors import GraphError as _GraphError
+    from scanclique.features import Features
+    from scanclique.graph import feature_graph
+
+    n = 50
+    f = Features(
+        np.column_stack((np.arange(n, dtype=float), np.ones(n))), np.zeros(n, np.int8),
+        np.tile(np.eye(2) * 1e-4, (n, 1, 1)), np.arange(n), np.zeros((0, 2)),
+        np.zeros((0, 2, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2), int),
+        np.zeros(0, int), np.zeros((0, 2), int),
+    )  # fmt: skip
+    assert feature_graph(f).n_nodes == n
+    with pytest.raises(_GraphError, match="feature graph of 50 features.*max_features=49"):
+        feature_graph(f, CorrespondenceConfig(max_features=49))

@@ -234,6 +234,11 @@ class CorrespondenceConfig:
     max_nodes : int
         Refuse to build a correspondence graph with more nodes than this
         (a :class:`~scanclique.errors.GraphError` names the sizes).
+    max_features : int
+        Refuse to build the feature graph of a scan with more features than this: its
+        invariant and tolerance layers take ``48 N²`` bytes (190 MB at 2000). Laser scans
+        give tens of features; a pathological one that gives thousands is refused before
+        anything of that size is allocated.
     """
 
     point_point: float = 0.30
@@ -243,10 +248,11 @@ class CorrespondenceConfig:
     parallel_offset: bool = True
     adaptive: float = 0.0
     max_nodes: int = 20000
+    max_features: int = 2000
 
     def __post_init__(self) -> None:
         _check_types(self)
-        _positive(self, "point_point", "point_line", "line_line", "max_nodes")
+        _positive(self, "point_point", "point_line", "line_line", "max_nodes", "max_features")
         _nonneg(self, "adaptive")
 
 
@@ -488,12 +494,15 @@ class MatchConfig:
                 )
 
     def preparation(self) -> tuple:
-        """The sections that shape a prepared scan (features, feature graph, raw-point
-        sample): two prepared scans can be matched together only when these agree."""
+        """What shapes a prepared scan (the features, the feature graph's invariants and
+        tolerances, the raw-point sample): two prepared scans can be matched together,
+        and under a configuration, only when these agree (the limits ``max_nodes`` and
+        ``max_features`` may differ)."""
+        c = self.correspondence
         return (
             self.clustering,
             self.features,
-            self.correspondence,
+            (c.point_point, c.point_line, c.line_line, c.signed, c.parallel_offset, c.adaptive),
             self.refine.sample_points,
         )
 

@@ -156,6 +156,13 @@ def feature_graph(
     cfg = config or _DEFAULT_CORRESPONDENCE
     typed = (feature_config or _DEFAULT_FEATURES).typed_edges
     P, L = features.n_points, features.n_lines
+    N = P + L
+    if N > cfg.max_features:  # refused before the (3, N, N) layers are allocated
+        raise GraphError(
+            f"feature graph of {N} features ({P} points, {L} lines) would take "
+            f"{48 * N * N / 2**20:.0f} MiB, more than correspondence.max_features="
+            f"{cfg.max_features} allows; raise the limit or extract fewer features"
+        )
     xy = np.asarray(features.points_xy, dtype=np.float64)
     label = np.asarray(features.points_label, dtype=np.int8)
     cov = np.asarray(features.points_cov, dtype=np.float64)
