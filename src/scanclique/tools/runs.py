@@ -182,10 +182,10 @@ def _pose_notes(source, scans, odometry: bool) -> tuple[bool, str, list[str]]:
     elif odometry and odometry_is_reference(scans):
         msg = (
             "the odometry of these scans equals their reference pose (the log's odometry "
-            "fields repeat the corrected pose): --odometry validates against ground truth, "
-            "not raw odometry"
+            "fields repeat the corrected pose): validating against the odometry uses ground "
+            "truth, not raw odometry"
         )
-        log.warning(msg)
+        log.warning(msg, extra={"user_note": True})  # the CLI prints it as a note
         notes.append(msg)
     return has_ref, poses_carried(scans, has_ref), notes
 
