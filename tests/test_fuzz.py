@@ -15,8 +15,11 @@ Coverage-guided fuzzing of the readers with atheris (optional, ``pip install ath
 Bounds (what the tests below hold the library to):
 
 * a reader never allocates more than ``max_beams`` (100 000) ranges for one message, and a
-  count above it is a ``ParseError`` naming ``num_readings``; a file is held in memory
-  whole (its size bounds the memory, a few times over);
+  count above it is a ``ParseError`` naming ``num_readings``; files are streamed line by
+  line (the memory bounds are tested under an address-space limit in
+  ``tests/test_hostile.py``); every reader is fuzzed here: CARMEN (plain, gzip, bzip2),
+  scan text, ``.npz``, DIMACS and TOML, and ``read_scans_at`` must agree with
+  ``read_scans``;
 * the correspondence graph is refused (``GraphError``) above ``max_nodes`` pairings; below
   it, its adjacency takes ``n²`` bytes (400 MB at the default 20 000);
 * the clique search returns within its time limit (plus setup) with ``optimal=False``;
