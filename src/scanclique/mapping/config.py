@@ -65,7 +65,8 @@ class FrontEndConfig:
         (score, fitness) and it lies within ``icp_gate`` sigma of the prior
         (:func:`scanclique.mapping.frontend.icp_fallback`); only then the prior itself.
         Without odometry, an ICP pose scoring at least ``icp_ungated_score`` is accepted
-        whatever the constant-velocity prediction says.
+        outside the gate of the constant-velocity prediction, when within
+        ``icp_ungated_max_turn`` rad and ``icp_ungated_max_shift`` m of it.
     """
 
     keyframe_distance: float = 0.30
@@ -94,6 +95,8 @@ class FrontEndConfig:
     icp_min_fitness: float = 0.6
     icp_gate: float = 4.0
     icp_ungated_score: float = 0.75
+    icp_ungated_max_turn: float = math.radians(90.0)
+    icp_ungated_max_shift: float = 1.0
 
     def __post_init__(self) -> None:
         _positive(

@@ -201,8 +201,10 @@ def icp_fallback(
     (per coordinate) of at least one of the ``priors`` (wheel odometry and the
     constant-velocity prediction of the chain: two independent motion estimates, so that
     a wheel slip or a reversing robot whose odometry disagrees with the scans does not
-    break the chain), or scores at least ``ungated`` (without odometry: a turn no velocity
-    model predicts, that the raw scans confirm); its covariance is ``2 x`` the floor plus a hundredth of the
+    break the chain), or scores at least ``ungated`` and lies within
+    ``fe.icp_ungated_max_turn`` / ``icp_ungated_max_shift`` of the first prior (without
+    odometry: a sharp turn no velocity model predicts, that the raw scans confirm, but no
+    half-turn: a corridor turned by 180 degrees matches as well); its covariance is ``2 x`` the floor plus a hundredth of the
     first prior's. None otherwise."""
     best = None
     for seed in seeds:
@@ -228,8 +230,14 @@ def icp_fallback(
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         if np.all(np.abs(d) <= fe.icp_gate * np.sqrt(np.diag(prior_cov))):
             inside = True
-    if not inside and not (ungated is not None and score >= ungated):
-        return None
+    if not inside:
+        if ungated is None or score < ungated:
+            return None
+        # ungated (no odometry): still a plausible motion from the first prior; a corridor
+        # turned by 180 degrees explains the scans as well as the right pose does
+        d = priors[0][0].inverse() @ pose
+        if abs(d.theta) > fe.icp_ungated_max_turn or math.hypot(d.x, d.y) > fe.icp_ungated_max_shift:
+            return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
     return Step(pose, cov, ICP, "icp", float(score))
 
