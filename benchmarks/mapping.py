@@ -178,6 +178,31 @@ def run_csail() -> dict | None:
     }
 
 
+def time_optimisation(n: int = 5000, loops: int = 500, seed: int = 0) -> dict:
+    """Wall time of the batch back end (:func:`scanclique.mapping.backend.optimize`) on a
+    synthetic pose graph of ``n`` poses (a noisy chain around a few laps) and ``loops``
+    closures."""
+    from scanclique.mapping.backend import optimize  # noqa: PLC0415
+
+    rng = np.random.default_rng(seed)
+    truth = [Pose2(5 * math.cos(k / 100), 5 * math.sin(k / 100), k / 100 + math.pi / 2) for k in range(n)]
+    P = np.diag([0.02**2, 0.02**2, math.radians(0.5) ** 2])
+    edges, guess = [], [truth[0]]
+    for k in range(n - 1):
+        Z = (truth[k].inverse() @ truth[k + 1]) @ Pose2(*(rng.normal(0, [0.01, 0.01, 0.003])))
+        edges.append((k, k + 1, Z, P, False))
+        guess.append(guess[-1] @ Z)
+    period = int(round(2 * math.pi * 100))
+    for _ in range(loops):
+        i = int(rng.integers(0, n - period))
+        j = i + period * int(rng.integers(1, max(2, (n - i) // period)))
+        j = min(j, n - 1)
+        edges.append((i, j, truth[i].inverse() @ truth[j], P, True))
+    t = time.perf_counter()
+    optimize(guess, edges)
+    return {"poses": n, "closures": loops, "seconds": time.perf_counter() - t}
+
+
 def _warm_up() -> float:
     from scanclique.sim import office_world, simulate_trajectory  # noqa: PLC0415
 
@@ -227,6 +252,9 @@ def main(argv=None) -> int:
     stem = Path(args.out) if args.out else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
     warm = _warm_up()
     print(f"warm-up (numba kernels, a simulated drive): {warm:.1f} s", flush=True)
+    opt = time_optimisation()
+    print(f"pose-graph optimisation (LM, GTSAM): {opt['poses']} poses, {opt['closures']} closures: "
+          f"{opt['seconds']:.2f} s", flush=True)  # fmt: skip
     results: list[dict] = []
     previous = {}
     js = stem.with_suffix(".json")
@@ -292,6 +320,7 @@ def main(argv=None) -> int:
                 "versions": versions(("numpy", "numba", "gtsam", "scipy")),
                 "git": git_state(),
                 "warm_up_seconds": warm,
+                "optimisation": opt,
                 "results": allres,
                 "anchors": ANCHORS,
             },
