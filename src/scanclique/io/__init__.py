@@ -12,6 +12,7 @@ Nothing downstream of the readers parses files.
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -70,6 +71,8 @@ __all__ = [
     "FLASER_MAX_RANGE",
     "DEFAULT_MAX_BEAMS",
 ]
+
+_logger = logging.getLogger(__name__)
 
 _ZIP_MAGIC = b"PK\x03\x04"
 _EMPTY_ZIP_MAGIC = b"PK\x05\x06"
@@ -197,7 +200,10 @@ def read_scans(
     if fmt == "text":
         return parse_scans_text(lines, strict=strict, max_beams=max_beams)
     log = parse_carmen(lines, strict=strict, max_beams=max_beams, max_range=max_range)
-    return list(log.scans)
+    scans = list(log.scans)
+    if scans:
+        _logger.info("%s: %d scans, poses: %s", spath, len(scans), poses_carried(scans))
+    return scans
 
 
 @dataclass(frozen=True, slots=True, eq=False)
