@@ -11,6 +11,7 @@ outputs (trajectory.tum, graph.g2o, map.pgm/map.yaml, map.png, report.json).
 from .config import BackEndConfig, FrontEndConfig, LoopConfig, MapConfig, OccupancyConfig
 from .loops import LoopClosure
 from .pipeline import Edge, MapResult, map_scans
+from .run import MapRun, run_map
 
 __all__ = [
     "BackEndConfig",
@@ -20,6 +21,8 @@ __all__ = [
     "LoopConfig",
     "MapConfig",
     "MapResult",
+    "MapRun",
     "OccupancyConfig",
     "map_scans",
+    "run_map",
 ]
