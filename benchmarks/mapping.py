@@ -250,6 +250,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="results stem (default benchmarks/results/mapping-DATE)")
     args = ap.parse_args(argv)
     stem = Path(args.out) if args.out else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
+    git_at_start = git_state()
     warm = _warm_up()
     print(f"warm-up (numba kernels, a simulated drive): {warm:.1f} s", flush=True)
     opt = time_optimisation()
@@ -318,7 +319,7 @@ def main(argv=None) -> int:
                 "date": DATE,
                 "machine": machine(detailed=True),
                 "versions": versions(("numpy", "numba", "gtsam", "scipy")),
-                "git": git_state(),
+                "git": git_at_start,
                 "warm_up_seconds": warm,
                 "optimisation": opt,
                 "results": allres,
