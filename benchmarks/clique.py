@@ -5,6 +5,7 @@ One command::
     .venv/bin/python benchmarks/clique.py                  # everything (hours: peers time out)
     .venv/bin/python benchmarks/clique.py --graphs brock200_1 sanr200_0.9 --time-limit 20
     .venv/bin/python benchmarks/clique.py --no-dimacs --pairs 5 --large 4 --time-limit 10
+    .venv/bin/python benchmarks/clique.py --compare before.json after.json   # two runs of ours
 
 Graphs
     * the 27 DIMACS instances of ``$SCANCLIQUE_DATA/dimacs`` (default ``../shared/data``
@@ -592,7 +593,16 @@ def main(argv=None) -> int:
     ap.add_argument("--no-limit-check", action="store_true", help="skip the time-limit check")
     ap.add_argument("--out-dir", default=str(REPO / "benchmarks" / "results"))
     ap.add_argument("--no-save", action="store_true", help="print only")
+    ap.add_argument(
+        "--compare",
+        nargs=2,
+        metavar=("BEFORE", "AFTER"),
+        help="compare our solver in two saved runs (.json): clique numbers and time ratios",
+    )
     args = ap.parse_args(argv)
+    if args.compare:
+        print(compare_runs(*(json.loads(Path(p).read_text()) for p in args.compare)))
+        return 0
 
     t_start = time.perf_counter()
     load_start = [round(x, 2) for x in os.getloadavg()]
@@ -652,6 +662,53 @@ def main(argv=None) -> int:
         (out / f"clique-{date}.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
         print(f"\nwrote {out / f'clique-{date}.md'} and .json", file=sys.stderr)
     return 0
+
+
+def compare_runs(before: dict, after: dict) -> str:
+    """Our solver in two saved runs (e.g. before and after a change): whether every graph
+    has the same clique number and status, and the geometric mean of the CPU-time ratio
+    after / before per section and by size (graphs both runs solved)."""
+
+    def ours(doc):
+        out = {}
+        for key in ("dimacs", "pipeline", "large"):
+            for r in doc["sections"].get(key, {}).get("rows", []):
+                out[(key, r["graph"])] = (r["n"], r["results"]["ours"])
+        return out
+
+    a, b = ours(before), ours(after)
+    common = sorted(set(a) & set(b))
+    differ = [
+        g
+        for g in common
+        if (a[g][1].get("omega"), a[g][1]["status"]) != (b[g][1].get("omega"), b[g][1]["status"])
+    ]
+    lines = [
+        f"before: commit {str(before['git']['commit'])[:10]}, load {before['load_average_start']}"
+        f"; after: commit {str(after['git']['commit'])[:10]}, load {after['load_average_start']}",
+        f"graphs in both runs: {len(common)}; same clique number and status: "
+        f"{len(common) - len(differ)}; different: {', '.join(map(':'.join, differ)) or 'none'}",
+        "",
+        "| graphs | solved by both | time after / before, geometric mean | median | min | max |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    groups = [(k, lambda g, k=k: g[0] == k) for k in ("dimacs", "pipeline", "large")]
+    groups += [
+        ("correspondence, up to 64 vertices", lambda g: g[0] != "dimacs" and a[g][0] <= 64),
+        ("correspondence, above 64 vertices", lambda g: g[0] != "dimacs" and a[g][0] > 64),
+    ]
+    for name, keep in groups:
+        rs = sorted(
+            b[g][1]["seconds"] / a[g][1]["seconds"]
+            for g in common
+            if keep(g) and a[g][1]["status"] == "ok" and b[g][1]["status"] == "ok"
+        )
+        if rs:
+            lines.append(
+                f"| {name} | {len(rs)} | {_gmean(rs):.3f} | {rs[len(rs) // 2]:.3f} | "
+                f"{rs[0]:.3f} | {rs[-1]:.3f} |"
+            )
+    return "\n".join(lines)
 
 
 TITLES = {
