@@ -74,10 +74,14 @@ def true_places(scans, queries) -> dict[int, set]:
     tree = cKDTree(pos)
     out = {}
     for i in queries:
-        near = [j for j in tree.query_ball_point(pos[i], REVISIT_MAX_DISTANCE)
-                if abs(j - i) >= REVISIT_MIN_GAP]
+        near = [
+            j
+            for j in tree.query_ball_point(pos[i], REVISIT_MAX_DISTANCE)
+            if abs(j - i) >= REVISIT_MIN_GAP
+        ]
         out[i] = {
-            j for j in sorted(near)
+            j
+            for j in sorted(near)
             if overlap(scans[j], scans[i], reference_pose(scans, j, i)) >= REVISIT_MIN_OVERLAP
         }
     return out
@@ -112,9 +116,9 @@ def pr_curve(answers: list[dict], n_true: int) -> dict:
 
 def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True) -> dict:
     from scanclique.datasets import load_log
+    from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
     from scanclique.places.verify import ACCEPT_MIN_SCORE
-    from scanclique.pairsets import REVISIT_MIN_GAP
 
     scans = load_log(name)
     n = len(scans)
@@ -149,14 +153,26 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
         hits = db.query(p, k=candidates, candidates=candidates, exclude=exclude)
         q_ms.append(1e3 * (time.perf_counter() - t1))
         best = hits[0] if hits and hits[0].verdict == ACCEPTED else None
-        rec = {"i": i, "has_true": has_true, "answered": best is not None, "right": False,
-               "score": 0.0, "verdicts": [h.verdict for h in hits]}
+        rec = {
+            "i": i,
+            "has_true": has_true,
+            "answered": best is not None,
+            "right": False,
+            "score": 0.0,
+            "verdicts": [h.verdict for h in hits],
+        }
         if best is not None:
             place = scans[best.place_id - 1]
             t_err, r_err = (place.reference @ best.pose).distance_to(q.reference)
-            rec.update(place=best.place_id - 1, score=best.score, t_err=t_err, r_err=r_err,
-                       right=bool(t_err <= RIGHT_T and r_err <= RIGHT_R), rank=best.rank,
-                       n_features=best.n_features)
+            rec.update(
+                place=best.place_id - 1,
+                score=best.score,
+                t_err=t_err,
+                r_err=r_err,
+                right=bool(t_err <= RIGHT_T and r_err <= RIGHT_R),
+                rank=best.rank,
+                n_features=best.n_features,
+            )
         records.append(rec)
         if progress and (qn + 1) % 50 == 0:
             el = time.perf_counter() - t0
@@ -192,9 +208,23 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
         "add_ms_median": float(np.median(add_ms)),
         "build_s": build_s,
         "wrong": [r for r in answers if not r["right"]],
-        "answers": [{k: r.get(k) for k in ("i", "place", "has_true", "right", "score",
-                                           "n_features", "rank", "t_err", "r_err")}
-                    for r in answers],
+        "answers": [
+            {
+                k: r.get(k)
+                for k in (
+                    "i",
+                    "place",
+                    "has_true",
+                    "right",
+                    "score",
+                    "n_features",
+                    "rank",
+                    "t_err",
+                    "r_err",
+                )
+            }
+            for r in answers
+        ],
         "curve": {k: curve[k] for k in ("precision", "recall", "threshold")},
     }
 
@@ -206,8 +236,11 @@ def scale(sizes: list[int], n_queries: int, tmp: Path, progress=True) -> list[di
     from scanclique.datasets import load_log
     from scanclique.places import PlaceDB
 
-    pool = [(name, k, s) for name in ("freiburg", "intel", "csail")
-            for k, s in enumerate(load_log(name))]
+    pool = [
+        (name, k, s)
+        for name in ("freiburg", "intel", "csail")
+        for k, s in enumerate(load_log(name))
+    ]
     rng = np.random.default_rng(0)
     qidx = rng.choice(len(pool), size=n_queries, replace=False)
     path = tmp / "scale.db"
@@ -238,17 +271,19 @@ def scale(sizes: list[int], n_queries: int, tmp: Path, progress=True) -> list[di
             pre_ms.append(1e3 * (time.perf_counter() - t))
         reader.close()
         st = db.store.stats()
-        out.append({
-            "places": size,
-            "add_ms_median": float(np.median(add_ms)),
-            "add_ms_p95": float(np.percentile(add_ms, 95)),
-            "query_ms_median": float(np.median(q_ms)),
-            "query_ms_p95": float(np.percentile(q_ms, 95)),
-            "prefilter_ms_median": float(np.median(pre_ms)),
-            "prefilter_ms_p95": float(np.percentile(pre_ms, 95)),
-            "file_mb": (st["file_bytes"] + st["wal_bytes"]) / 1e6,
-            "bytes_per_place": (st["file_bytes"] + st["wal_bytes"]) / size,
-        })
+        out.append(
+            {
+                "places": size,
+                "add_ms_median": float(np.median(add_ms)),
+                "add_ms_p95": float(np.percentile(add_ms, 95)),
+                "query_ms_median": float(np.median(q_ms)),
+                "query_ms_p95": float(np.percentile(q_ms, 95)),
+                "prefilter_ms_median": float(np.median(pre_ms)),
+                "prefilter_ms_p95": float(np.percentile(pre_ms, 95)),
+                "file_mb": (st["file_bytes"] + st["wal_bytes"]) / 1e6,
+                "bytes_per_place": (st["file_bytes"] + st["wal_bytes"]) / size,
+            }
+        )
         if progress:
             print(f"  scale: {out[-1]}", file=sys.stderr)
     db.close()
@@ -275,11 +310,13 @@ def scale_out(every: int, candidates: int, workers: int) -> dict:
     t = time.perf_counter()
     runs["processes"] = find_loops(scans, candidates=candidates, min_gap=min_gap, workers=workers)
     runs["processes"].seconds["wall"] = time.perf_counter() - t
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=":0") as cluster:
+    with LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as cluster:
         t = time.perf_counter()
-        runs["dask"] = find_loops(scans, candidates=candidates, min_gap=min_gap,
-                                  scheduler=cluster.scheduler_address)
+        runs["dask"] = find_loops(
+            scans, candidates=candidates, min_gap=min_gap, scheduler=cluster.scheduler_address
+        )
         runs["dask"].seconds["wall"] = time.perf_counter() - t
     ref = runs["serial"].keys()
     base = runs["serial"].seconds["wall"]
@@ -316,7 +353,8 @@ def report(res: dict) -> str:
     lines = []
     if "recognition" in res:
         lines += [
-            "## Recognition (FLIRT/GFLIP protocol: all places >= 50 scans away; right: 0.5 m, 0.2 rad)",
+            "## Recognition (FLIRT/GFLIP protocol: all places >= 50 scans away; "
+            "right: 0.5 m, 0.2 rad)",
             "",
             "| log | queries | with true place | accepted (validation) | precision | recall | "
             "default (score >= 0.5): precision | recall | recall@99%P | recall@100%P | "
@@ -343,7 +381,8 @@ def report(res: dict) -> str:
         ]
         for r in res["scale"]:
             lines.append(
-                f"| {r['places']} | {_f(r['add_ms_median'], '.2f')} | {_f(r['add_ms_p95'], '.2f')} | "
+                f"| {r['places']} | {_f(r['add_ms_median'], '.2f')} | "
+                f"{_f(r['add_ms_p95'], '.2f')} | "
                 f"{_f(r['query_ms_median'], '.1f')} | {_f(r['query_ms_p95'], '.1f')} | "
                 f"{_f(r['prefilter_ms_median'], '.2f')} | {_f(r['prefilter_ms_p95'], '.2f')} | "
                 f"{_f(r['file_mb'], '.1f')} | {_f(r['bytes_per_place'], '.0f')} |"
@@ -377,8 +416,13 @@ def figure(rec: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 4.2))
     for r in rec:
         c = r["curve"]
-        ax.plot(c["recall"], c["precision"], marker=".", ms=3,
-                label=f"{r['log']} (r@99% {r['recall_at_99']:.2f})")
+        ax.plot(
+            c["recall"],
+            c["precision"],
+            marker=".",
+            ms=3,
+            label=f"{r['log']} (r@99% {r['recall_at_99']:.2f})",
+        )
     ax.set_xlabel("recall (queries with a true place)")
     ax.set_ylabel("precision (accepted answers)")
     ax.set_xlim(0, 1)
@@ -403,16 +447,24 @@ def main(argv=None) -> None:
     ap.add_argument("--loops-every", type=int, default=3)
     ap.add_argument("--loops-candidates", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--full", action="store_true",
-                    help="every scan a query, all freiburg scans in the loop search")
+    ap.add_argument(
+        "--full",
+        action="store_true",
+        help="every scan a query, all freiburg scans in the loop search",
+    )
     ap.add_argument("--out", default=None, help="results JSON (default benchmarks/results/)")
     a = ap.parse_args(argv)
     if a.full:
         a.query_every, a.loops_every = 1, 1
     stages = set(a.stages.split(","))
     out_json = results_path(a.out, f"places-{DATE}.json")
-    res = {"date": DATE, "args": vars(a), "machine": machine(detailed=True),
-           "versions": versions(("numpy", "scipy", "numba", "distributed")), "git": git_state()}
+    res = {
+        "date": DATE,
+        "args": vars(a),
+        "machine": machine(detailed=True),
+        "versions": versions(("numpy", "scipy", "numba", "distributed")),
+        "git": git_state(),
+    }
     from scanclique import __version__
 
     res["versions"]["scanclique"] = __version__
@@ -420,16 +472,20 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory() as tmpd:
         tmp = Path(tmpd)
         if "recognition" in stages:
-            res["recognition"] = [recognition(n, a.query_every, a.candidates, tmp)
-                                  for n in a.logs.split(",")]
+            res["recognition"] = [
+                recognition(n, a.query_every, a.candidates, tmp) for n in a.logs.split(",")
+            ]
             for r in res["recognition"]:
-                print(f"{r['log']:9s} queries {r['queries']:5d} true {r['with_true_place']:5d} "
-                      f"answered {r['answered']:5d} precision {_f(r['precision'])} recall "
-                      f"{_f(r['recall'])} default P {_f(r['default_precision'])} R "
-                      f"{_f(r['default_recall'])} r@99 {_f(r['recall_at_99'])} r@100 "
-                      f"{_f(r['recall_at_100'])} prefilter@10 {_f(r['prefilter_recall_10'])} "
-                      f"@50 {_f(r['prefilter_recall_50'])} query ms {r['query_ms_median']:.1f} "
-                      f"(p95 {r['query_ms_p95']:.1f})", flush=True)
+                print(
+                    f"{r['log']:9s} queries {r['queries']:5d} true {r['with_true_place']:5d} "
+                    f"answered {r['answered']:5d} precision {_f(r['precision'])} recall "
+                    f"{_f(r['recall'])} default P {_f(r['default_precision'])} R "
+                    f"{_f(r['default_recall'])} r@99 {_f(r['recall_at_99'])} r@100 "
+                    f"{_f(r['recall_at_100'])} prefilter@10 {_f(r['prefilter_recall_10'])} "
+                    f"@50 {_f(r['prefilter_recall_50'])} query ms {r['query_ms_median']:.1f} "
+                    f"(p95 {r['query_ms_p95']:.1f})",
+                    flush=True,
+                )
         if "scale" in stages:
             res["scale"] = scale([int(x) for x in a.sizes.split(",")], a.scale_queries, tmp)
         if "scale_out" in stages:
@@ -439,7 +495,8 @@ def main(argv=None) -> None:
     out_json.write_text(json.dumps(res, indent=1, default=float))
     md = report(res)
     out_json.with_suffix(".md").write_text(
-        f"# places benchmark {DATE}\n\n`python benchmarks/places.py {' '.join(argv or sys.argv[1:])}`"
+        f"# places benchmark {DATE}\n\n"
+        f"`python benchmarks/places.py {' '.join(argv or sys.argv[1:])}`"
         f" at {res['git']['commit']}, {res['machine']['cpus']} CPUs, load "
         f"{res['machine']['load_average']}, {res['seconds']:.0f} s\n\n" + md
     )

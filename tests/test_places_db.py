@@ -44,8 +44,9 @@ def test_query_recognises_the_place_and_its_pose(tmp_path, worlds):
                     ref = db.get(h.place_id).scan.reference
                     assert (ref @ h.pose).distance_to(q.reference)[0] < 0.2
             # ranked: verdict first, then score
-            keys = [({"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict], -h.score)
-                    for h in hits]
+            keys = [
+                ({"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict], -h.score) for h in hits
+            ]
             assert keys == sorted(keys)
 
 

@@ -32,8 +32,10 @@ def wavy_scan(seed: int, n: int = 181) -> Scan:
     """A cheap scan with structure: ranges of a few random sinusoids and steps."""
     rng = np.random.default_rng(seed)
     t = np.linspace(0, 1, n)
-    r = 4 + sum(rng.uniform(0.2, 1.0) * np.sin(2 * np.pi * (k + 1) * t + rng.uniform(0, 6))
-                for k in range(4))
+    r = 4 + sum(
+        rng.uniform(0.2, 1.0) * np.sin(2 * np.pi * (k + 1) * t + rng.uniform(0, 6))
+        for k in range(4)
+    )
     r += np.where(rng.random(n) < 0.02, -2.0, 0.0).cumsum() * 0  # keep continuous
     r[rng.integers(0, n, 3)] = np.nan
     return Scan.from_ranges(r, timestamp=float(seed), source=f"wavy:{seed}")

@@ -91,7 +91,9 @@ def add(
         _print_json(run.to_dict())
         return
     _console().print(f"added {run.added} places to {db} ({run.total} in the database)")
-    _console().print(_table(run.rows(), f"scanclique places add {run.label}", ("Metric", "Value", "Units")))
+    _console().print(
+        _table(run.rows(), f"scanclique places add {run.label}", ("Metric", "Value", "Units"))
+    )
 
 
 @places_app.command("query")
@@ -106,7 +108,9 @@ def query(
     ] = None,
     min_score: Annotated[
         float | None,
-        typer.Option("--min-score", help="Accept only matches scoring at least this (default 0.5)."),
+        typer.Option(
+            "--min-score", help="Accept only matches scoring at least this (default 0.5)."
+        ),
     ] = None,
     config: ConfigOpt = None,
     paper: PaperOpt = False,
@@ -236,7 +240,9 @@ def loops(
     if json_out:
         _print_json(run.to_dict())
         return
-    _console().print(_table(run.rows(), f"scanclique loops {run.label}", ("Metric", "Value", "Units")))
+    _console().print(
+        _table(run.rows(), f"scanclique loops {run.label}", ("Metric", "Value", "Units"))
+    )
     if out is not None:
         _console().print(f"pairs written to {out}")
 

@@ -233,7 +233,9 @@ class PlaceDB:
             stored = json.loads(m.get("config", ""))
             stored_cfg = config_from_dict(stored)
         except (ValueError, ConfigError) as exc:
-            raise PlaceDatabaseError(f"{where}: meta.config is not a valid configuration ({exc})")
+            raise PlaceDatabaseError(
+                f"{where}: meta.config is not a valid configuration ({exc})"
+            ) from None
         if given is None:
             return stored_cfg
         diff = config_differences(stored, given)

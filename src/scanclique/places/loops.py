@@ -249,11 +249,13 @@ class _Runner:
                     f"--scheduler needs dask.distributed ({exc}): pip install 'scanclique[scale]'"
                 ) from None
             try:
-                self.client = scheduler if hasattr(scheduler, "submit") else Client(
-                    scheduler, timeout="10s"
+                self.client = (
+                    scheduler if hasattr(scheduler, "submit") else Client(scheduler, timeout="10s")
                 )
             except (OSError, TimeoutError) as exc:
-                raise ScanCliqueError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+                raise ScanCliqueError(
+                    f"cannot reach the Dask scheduler {scheduler}: {exc}"
+                ) from None
             self._own_client = not hasattr(scheduler, "submit")
             self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
             self.scans_future = self.client.scatter([list(scans)], broadcast=True)[0]
@@ -287,9 +289,7 @@ class _Runner:
             futs = [self.pool.submit(fn, self.token, c) for c in chunks]
         else:
             futs = [
-                self.client.submit(
-                    fn, self.token, c, self.scans_future, *self.args, pure=False
-                )
+                self.client.submit(fn, self.token, c, self.scans_future, *self.args, pure=False)
                 for c in chunks
             ]
         index = {f: k for k, f in enumerate(futs)}
@@ -363,7 +363,11 @@ def find_loops(
     ScanCliqueError
         The scheduler cannot be reached.
     """
-    for name, v, lo in (("candidates", candidates, 1), ("min_gap", min_gap, 1), ("workers", workers, 0)):
+    for name, v, lo in (
+        ("candidates", candidates, 1),
+        ("min_gap", min_gap, 1),
+        ("workers", workers, 0),
+    ):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise ConfigError(f"find_loops: {name} must be an integer >= {lo}, got {v!r}")
     cfg = config or MatchConfig()
@@ -399,8 +403,14 @@ def find_loops(
         # 3. verification
         t = time.perf_counter()
         pairs = [(i, j) for i, j, _, _ in cand]
-        pchunks = _chunks(pairs, 8 * runner.workers if runner.backend != "serial" else max(1, len(pairs) // 64))
-        results = [r for part in runner.map(_verify_task, pchunks, tick("verify", len(pairs))) for r in part]
+        pchunks = _chunks(
+            pairs, 8 * runner.workers if runner.backend != "serial" else max(1, len(pairs) // 64)
+        )
+        results = [
+            r
+            for part in runner.map(_verify_task, pchunks, tick("verify", len(pairs)))
+            for r in part
+        ]
         seconds["verify"] = time.perf_counter() - t
         backend, used = runner.backend, runner.workers
     finally:

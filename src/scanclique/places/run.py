@@ -157,7 +157,11 @@ class QueryRun:
         return [
             ("places in the database", str(self.places), ""),
             ("candidates verified", str(len(self.hits)), ""),
-            ("accepted / ambiguous / rejected", f"{n[ACCEPTED]} / {n[AMBIGUOUS]} / {n[REJECTED]}", ""),
+            (
+                "accepted / ambiguous / rejected",
+                f"{n[ACCEPTED]} / {n[AMBIGUOUS]} / {n[REJECTED]}",
+                "",
+            ),
             ("query time", f"{1e3 * self.seconds:.1f}", "ms"),
         ]
 

@@ -350,8 +350,7 @@ class PlaceStore:
                     row = c.execute("SELECT id FROM places WHERE name = ?", (name,)).fetchone()
                     if row is not None:
                         raise PlaceDatabaseError(
-                            f"{self._where}: the name {name!r} is already used by place "
-                            f"{row[0]}"
+                            f"{self._where}: the name {name!r} is already used by place {row[0]}"
                         )
                 cur = c.execute(
                     "INSERT INTO places (name, source, timestamp, range_min, range_max, ref_x, "
@@ -458,7 +457,9 @@ class PlaceStore:
                 source=source,
             )
         except Exception as exc:  # a ScanError from a record that is not a scan
-            raise PlaceDatabaseError(f"{self._where}: place {pid}: corrupted scan ({exc})") from None
+            raise PlaceDatabaseError(
+                f"{self._where}: place {pid}: corrupted scan ({exc})"
+            ) from None
         return PlaceRecord(pid, name, scan, int(nf), float(added), arr)
 
     def stats(self) -> dict:
