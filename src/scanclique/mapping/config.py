@@ -137,6 +137,11 @@ class LoopConfig:
         Pairwise consistency maximisation runs over the closures of this many keyframes.
     pcm_gate : float
         Probability of the chi-square gate (3 dof) of pairwise consistency.
+    min_score : float
+        A loop closure's match needs at least this raw-scan agreement
+        (:func:`scanclique.match.pose_score`; the matcher's own floor is 0.1): a revisit
+        seen from afar, or a look-alike place, often maps a few features at a pose the
+        scans hardly support.
     appearance : bool
         Also propose candidates by appearance (``scanclique.places.signature``) when that
         module exists.
@@ -154,6 +159,7 @@ class LoopConfig:
     separation: int = 5
     pcm_batch: int = 10
     pcm_gate: float = 0.99
+    min_score: float = 0.3
     appearance: bool = True
 
     def __post_init__(self) -> None:

@@ -50,7 +50,7 @@ class LoopClosure:
     ``pose`` maps points of scan ``j`` into scan ``i`` (None when the match had none);
     ``covariance`` of its ``(x, y, theta)``; ``verdict`` is the §7 verdict
     (``accepted``, ``rejected_odometry`` meaning here *rejected by the estimate's prior*,
-    ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``; ``accepted`` whether it
+    ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"`` or ``"low_score"``; ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the
     local chain (not a loop); ``source`` ``"estimate"`` or ``"appearance"``; ``score``
     the raw-scan agreement; ``reason`` in words."""

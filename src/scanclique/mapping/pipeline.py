@@ -280,6 +280,9 @@ class _Mapper:
                 self.kf_prep[i], self.kf_prep[kidx], est_i, est_j, sigma, self.cfg.match,
                 self.floor, self.fe, quick=local, strict=source == "appearance",
             )  # fmt: skip
+            if pose is not None and not local and score < lc.min_score:
+                pose, verdict = None, "low_score"
+                reason = f"raw-scan score {score:.2f} < loops.min_score={lc.min_score:g}"
             if pose is None:
                 self.closures.append(
                     LoopClosure(self.kf[i], self.kf[kidx], None, None, verdict, False, local,
