@@ -268,3 +268,20 @@ def test_second_process_reads_while_first_adds(tmp_path, db_path):
         ids, _ = reader.candidates(q, n=1)
         assert reader.store.names(ids)[int(ids[0])] == "s3"
     assert seen[-1] >= seen[0] and len(set(seen)) > 1  # it saw places arrive
+
+
+def test_other_signature_version_refused(db_path):
+    PlaceDB(db_path).close()
+    con = sqlite3.connect(db_path)
+    con.execute("UPDATE meta SET value='1' WHERE key='signature_version'")
+    con.commit()
+    con.close()
+    with pytest.raises(PlaceDatabaseError, match="signatures of version 1"):
+        PlaceDB(db_path)
+
+
+def test_readonly_refuses_add(db_path):
+    with PlaceDB(db_path) as db:
+        db.add(wavy_scan(0))
+    with PlaceDB(db_path, readonly=True) as db, pytest.raises(PlaceDatabaseError):
+        db.add(wavy_scan(1))
