@@ -22,6 +22,7 @@ split point, so a beam may appear twice in one run, as it does in the reference.
 from __future__ import annotations
 
 import math
+import typing
 from typing import NamedTuple
 
 import numba
@@ -65,31 +66,16 @@ class Params(NamedTuple):
 
 
 def params(cfg, ccfg) -> Params:
-    """:class:`Params` from a ``FeatureConfig`` and a ``ClusterConfig``."""
+    """:class:`Params` from a ``FeatureConfig`` and a ``ClusterConfig``: each field is
+    the config field of the same name (the cluster section's first), cast to the
+    field's type, so the two cannot drift apart (a field with no config field of its
+    name raises ``AttributeError`` at the first extraction)."""
+    cluster = set(type(ccfg).__dataclass_fields__)
     return Params(
-        float(ccfg.c1),
-        float(ccfg.c2),
-        int(ccfg.max_gap_beams),
-        bool(cfg.foreground_edges),
-        bool(cfg.foreground_points),
-        bool(cfg.lines),
-        bool(cfg.corners),
-        float(cfg.point_max_extent),
-        float(cfg.split_distance),
-        float(cfg.split_ratio),
-        int(cfg.line_min_points),
-        float(cfg.line_min_length),
-        float(cfg.line_max_gap),
-        float(cfg.line_gap_ratio),
-        float(cfg.line_max_rms),
-        float(cfg.merge_angle),
-        float(cfg.merge_distance),
-        float(cfg.corner_min_angle),
-        float(cfg.corner_reach),
-        float(cfg.range_sigma),
-        float(cfg.min_edge_jump),
-        int(cfg.min_cluster_beams),
-        float(cfg.crowd_radius),
+        *(
+            t(getattr(ccfg if name in cluster else cfg, name))
+            for name, t in typing.get_type_hints(Params).items()
+        )
     )
 
 

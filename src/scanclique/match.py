@@ -293,6 +293,17 @@ def pose_score(
     return _score(pa, pb, pose.x, pose.y, pose.theta, cfg)
 
 
+def _feature_arrays(f: Features):
+    return _K.FeatureArrays(
+        int(f.n_points), f.points_xy, f.points_cov, f.lines_rho_alpha, f.lines_cov
+    )
+
+
+def _cloud_arrays(p: PreparedScan):
+    c = p.cloud
+    return _K.CloudArrays(c.index, c.points, c.normals, p.angle_index, p.free, p.sample)
+
+
 def _scan_args(p: PreparedScan) -> tuple:
     return (p.cloud.index, p.cloud.points, p.angle_index, p.free, p.sample)
 
@@ -518,16 +529,29 @@ def _refine_candidates(
     used = np.empty(n, dtype=np.int64)
     maha = np.empty(len(flat))
     _K.refine_candidates(
-        flat, indptr, fa.n_points, fb.n_points,
-        fa.points_xy, fa.points_cov, fa.lines_rho_alpha, fa.lines_cov,
-        fb.points_xy, fb.points_cov, fb.lines_rho_alpha, fb.lines_cov,
-        pa.cloud.index, pa.cloud.points, pa.cloud.normals, pa.angle_index, pa.free, pa.sample,
-        *_scan_args(pb),
-        cfg.pose.min_pairs, cfg.pose.outlier_mahalanobis, r.inlier_distance, r.conflict_weight,
-        r.conflict_margin, r.conflict_ratio,
-        r.enabled, r.iterations, r.max_correspondence, r.inlier_distance,
-        ok, x_est, info, ssr, used, maha, score_est, x_icp, score_icp,
-    )  # fmt: skip
+        flat,
+        indptr,
+        _feature_arrays(fa),
+        _feature_arrays(fb),
+        _cloud_arrays(pa),
+        _cloud_arrays(pb),
+        _K.ScoreParams(
+            float(r.inlier_distance),
+            float(r.conflict_weight),
+            float(r.conflict_margin),
+            float(r.conflict_ratio),
+        ),
+        # the ICP's correspondence distance shrinks to the score's inlier distance
+        _K.RefineParams(
+            int(cfg.pose.min_pairs),
+            float(cfg.pose.outlier_mahalanobis),
+            bool(r.enabled),
+            int(r.iterations),
+            float(r.max_correspondence),
+            float(r.inlier_distance),
+        ),
+        _K.RefineOut(ok, x_est, info, ssr, used, maha, score_est, x_icp, score_icp),
+    )
     out = []
     for i, h in enumerate(distinct):
         if not ok[i]:
