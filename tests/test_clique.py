@@ -943,3 +943,19 @@ def random_graph_like_child() -> np.ndarray:
     rng = np.random.default_rng(7)
     a = np.triu(rng.random((100, 100)) < 0.5, 1)
     return a | a.T
+
+
+def test_stale_stamped_caches_are_pruned(tmp_path):
+    # directories of other stamps beside the current one go once unwritten for a day
+    from scanclique._kernels import _prune
+
+    keep, old, recent, other = (tmp_path / n for n in ("kernels-a", "kernels-b", "kernels-c", "x"))
+    for d in (keep, old, recent, other):
+        (d / "sub").mkdir(parents=True)
+        (d / "sub" / "f.nbi").write_text("")
+    day_ago = time.time() - 2 * 86400
+    for d in (old, other):
+        for p in (d, d / "sub", d / "sub" / "f.nbi"):
+            os.utime(p, (day_ago, day_ago))
+    _prune(keep)
+    assert keep.exists() and recent.exists() and other.exists() and not old.exists()
