@@ -33,7 +33,7 @@ def test_round_trip_file_with_changed_values(tmp_path):
         features=dataclasses.replace(cfg.features, corner_min_angle=math.radians(33.3)),
         pose=PoseConfig(method="median", min_pairs=4),
     )
-    path = write_config(cfg, tmp_path / "run.toml", comment="a comment\nover two lines")
+    path = write_config(tmp_path / "run.toml", cfg, comment="a comment\nover two lines")
     text = path.read_text()
     assert text.startswith("# scanclique configuration")
     assert "# over two lines" in text
@@ -111,7 +111,7 @@ def test_missing_file_and_undecodable_file(tmp_path):
 
 def test_write_to_a_directory_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError, match="cannot write"):
-        write_config(MatchConfig(), tmp_path)
+        write_config(tmp_path, MatchConfig())
 
 
 def test_toml_dumps_rejects_none():

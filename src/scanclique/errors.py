@@ -16,6 +16,8 @@ __all__ = [
     "DataNotFoundError",
     "GraphError",
     "ScanIndexError",
+    "PlaceDatabaseError",
+    "ArgumentError",
 ]
 
 
