@@ -1,7 +1,7 @@
 """Compiled kernels (numba), one module per concern, and the cache they share.
 
 Private. The public faces are :mod:`scanclique.clique` (the maximum clique engine) and the
-pipeline stages. The clique engine's kernels live here:
+pipeline stages. The clique engine's kernels:
 
 ========================  ===============================================================
 ``bitset``                word primitives (popcount, trailing zeros), the kernel clock,
@@ -16,6 +16,22 @@ pipeline stages. The clique engine's kernels live here:
 ``top``                   the k largest maximal cliques (Bron–Kerbosch)
 ``codes``                 modes, statuses and options as ``IntEnum`` (no numba)
 ========================  ===============================================================
+
+The matcher's (gathered in :mod:`scanclique._match_kernels`), and the correspondence graph's:
+
+========================  ===============================================================
+``algebra``               angle wrapping, 3x3 solves, 2x2 eigenvectors
+``neighbours``            nearest neighbours by bearing window, normals, scan arrays
+``score``                 the raw-scan score of poses (agreement, free-space conflicts)
+``icp``                   point-to-line ICP
+``pose``                  poses from mapped features (paper §6), consistency, covariance
+``hypotheses``            a match's clique hypotheses under a node budget (paper §5.3)
+``refine``                the best few hypotheses: estimate, score, ICP, score
+``search``                the raw-scan pose search (orientation histograms, Hough votes)
+``correspondence``        the edges of the correspondence graph (paper §5.2)
+========================  ===============================================================
+
+The feature kernels (paper §4, §5.1) are :mod:`scanclique._feature_kernels`.
 
 The cache stamp
 ---------------
