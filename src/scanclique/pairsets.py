@@ -24,6 +24,7 @@ __all__ = [
     "REVISIT_MIN_OVERLAP",
     "REVISIT_OVERLAP_DISTANCE",
     "reference_pose",
+    "relative_reference",
     "overlap",
     "evenly",
     "consecutive_pairs",
@@ -37,9 +38,20 @@ REVISIT_MIN_OVERLAP = 0.5
 REVISIT_OVERLAP_DISTANCE = 0.2  # metres
 
 
+def relative_reference(a: Scan, b: Scan) -> Pose2 | None:
+    """Reference pose of scan b's frame in scan a's frame (maps b's points into a), the
+    truth a match of the pair is judged against; None when either has no reference."""
+    if a.reference is None or b.reference is None:
+        return None
+    return a.reference.inverse() @ b.reference
+
+
 def reference_pose(scans: Sequence[Scan], i: int, j: int) -> Pose2:
-    """Reference pose of scan j's frame in scan i's frame (maps j's points into i)."""
-    return scans[i].reference.inverse() @ scans[j].reference
+    """Reference pose of scan j's frame in scan i's frame (:func:`relative_reference`)."""
+    ref = relative_reference(scans[i], scans[j])
+    if ref is None:
+        raise ScanError(f"scans {i} and {j}: a reference pose is missing")
+    return ref
 
 
 def overlap(

@@ -33,7 +33,7 @@ from ..eval.success import RIGHT_ROTATION, RIGHT_TRANSLATION, is_right, is_succe
 from ..geometry import Pose2
 from ..io import odometry_is_reference, poses_carried
 from ..match import ScanMatch, match_prepared, match_scans, prepare_scan
-from ..pairsets import pair_sets
+from ..pairsets import pair_sets, relative_reference
 from ..scan import Scan
 from ..validation import (
     ACCEPTED,
@@ -190,12 +190,6 @@ def _pose_notes(source, scans, odometry: bool) -> tuple[bool, str, list[str]]:
     return has_ref, poses_carried(scans, has_ref), notes
 
 
-def _reference(a: Scan, b: Scan) -> Pose2 | None:
-    if a.reference is None or b.reference is None:
-        return None
-    return a.reference.inverse() @ b.reference
-
-
 def run_match(
     source: str | os.PathLike,
     a: str | int | None = None,
@@ -231,7 +225,7 @@ def run_match(
         v = validate_match(m, scan_a.odometry, scan_b.odometry, noise, path=path)
     else:
         v = validate_match(m)
-    ref = _reference(scan_a, scan_b) if has_ref else None
+    ref = relative_reference(scan_a, scan_b) if has_ref else None
     return MatchRun(scan_a, scan_b, m, names, cfg, tuple(notes), ref, v, poses)
 
 
