@@ -40,10 +40,14 @@ def test_add_query_info(tmp_path, log):
     assert d["added"] == 0 and d["skipped"] == 6 and d["total"] == 6
     r = invoke("places", "query", db, log, 5, "--top", "2", "--json")
     assert r.exit_code == 0, r.output
+    for h in json.loads(r.stdout)["hits"]:  # the simulated office has few features
+        assert h["verdict"] == "accepted" or "min_features=5" in h["reason"]
+    r = invoke("places", "query", db, log, 5, "--top", "2", "--min-features", "3", "--json")
+    assert r.exit_code == 0, r.output
     hits = json.loads(r.stdout)["hits"]
     assert len(hits) == 2 and hits[0]["verdict"] == "accepted"
     assert hits[0]["name"] in ("drive.txt:4", "drive.txt:6")
-    r = invoke("places", "query", db, log, 5)
+    r = invoke("places", "query", db, log, 5, "--min-features", "3")
     assert r.exit_code == 0 and "accepted" in r.output
     r = invoke("places", "info", db, "--check", "--json")
     d = json.loads(r.stdout)

@@ -112,6 +112,12 @@ def query(
             "--min-score", help="Accept only matches scoring at least this (default 0.5)."
         ),
     ] = None,
+    min_features: Annotated[
+        int | None,
+        typer.Option(
+            "--min-features", min=2, help="Accept only matches mapping this many features (5)."
+        ),
+    ] = None,
     config: ConfigOpt = None,
     paper: PaperOpt = False,
     json_out: JsonOpt = False,
@@ -127,12 +133,13 @@ def query(
     ```
     """
     from ..places.run import run_query
-    from ..places.verify import ACCEPT_MIN_SCORE
+    from ..places.verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE
 
     cfg = _config(config, paper)
     ms = ACCEPT_MIN_SCORE if min_score is None else min_score
+    mf = ACCEPT_MIN_FEATURES if min_features is None else min_features
     run = _guard(lambda: run_query(db, source, index, k=top, candidates=candidates, config=cfg,
-                                   min_score=ms))  # fmt: skip
+                                   min_score=ms, min_features=mf))  # fmt: skip
     if json_out:
         _print_json(run.to_dict())
         return

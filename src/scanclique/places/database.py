@@ -1,7 +1,7 @@
 """The place database: add observations as places, query a scan for the places it sees.
 
 >>> import tempfile, os, numpy as np, scanclique as sc
->>> pair = sc.sim.simulate_pair(np.random.default_rng(2))
+>>> pair = sc.sim.simulate_pair(np.random.default_rng(4))
 >>> path = os.path.join(tempfile.mkdtemp(), "places.db")
 >>> with PlaceDB(path) as db:
 ...     pid = db.add(pair.scan_a, name="room")
@@ -49,7 +49,7 @@ from ..scan import Scan
 from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
 from .store import PlaceRecord, PlaceStore
-from .verify import ACCEPT_MIN_SCORE, REJECTED, VERDICT_RANK, verify_pair
+from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, REJECTED, VERDICT_RANK, verify_pair
 
 __all__ = ["PlaceDB", "PlaceHit", "PREPARE_KEYS", "feature_arrays"]
 
@@ -177,6 +177,9 @@ class PlaceDB:
     min_score : float
         Accepted matches below this raw-scan score are rejected (:func:`.verify_pair`;
         default :data:`.verify.ACCEPT_MIN_SCORE`).
+    min_features : int
+        Accepted matches mapping fewer features are rejected (default
+        :data:`.verify.ACCEPT_MIN_FEATURES`).
     cache : int
         Prepared places kept in memory (most recently used).
 
@@ -195,6 +198,7 @@ class PlaceDB:
         readonly: bool = False,
         durable: bool = False,
         min_score: float = ACCEPT_MIN_SCORE,
+        min_features: int = ACCEPT_MIN_FEATURES,
         cache: int = 4096,
     ) -> None:
         given = None if config is None else config_to_dict(config)
@@ -212,6 +216,7 @@ class PlaceDB:
             self.store.close()
             raise
         self.min_score = float(min_score)
+        self.min_features = int(min_features)
         self.index = SignatureIndex(SIGNATURE_SIZE)
         self._last = 0
         self._cache: OrderedDict[int, PreparedScan] = OrderedDict()
@@ -358,7 +363,13 @@ class PlaceDB:
             self._names.update(self.store.names(missing))
         hits = []
         for rank, (pid, d) in enumerate(zip(ids.tolist(), dist.tolist(), strict=True)):
-            v = verify_pair(self.prepared(pid), p, self.config, min_score=self.min_score)
+            v = verify_pair(
+                self.prepared(pid),
+                p,
+                self.config,
+                min_score=self.min_score,
+                min_features=self.min_features,
+            )
             hits.append(
                 PlaceHit(
                     pid,

@@ -46,7 +46,7 @@ from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
 from .signature import SIGNATURE_SIZE, scan_signature
-from .verify import ACCEPT_MIN_SCORE, ACCEPTED, verify_pair
+from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, verify_pair
 
 __all__ = ["Loop", "LoopSearch", "find_loops", "loop_candidates"]
 
@@ -140,14 +140,14 @@ class LoopSearch:
 _STATE: dict = {"token": None}
 
 
-def _install(token: str, scans, config_dict: dict, min_score: float) -> None:
+def _install(token: str, scans, config_dict: dict, limits: tuple) -> None:
     if _STATE.get("token") != token:
         _STATE.clear()
         _STATE.update(
             token=token,
             scans=list(scans),
             config=config_from_dict(config_dict),
-            min_score=float(min_score),
+            limits=(float(limits[0]), int(limits[1])),
             prepared={},
         )
 
@@ -160,31 +160,31 @@ def _prepared(i: int):
     return p
 
 
-def _signature_task(token, indices, scans=None, config_dict=None, min_score=0.0):
+def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0)):
     """Signatures of the scans ``indices`` (``(n, SIGNATURE_SIZE)``)."""
     if scans is not None:
-        _install(token, scans, config_dict, min_score)
+        _install(token, scans, config_dict, limits)
     return np.array([scan_signature(_prepared(int(i))) for i in indices]).reshape(
         -1, SIGNATURE_SIZE
     )
 
 
-def _verify_task(token, pairs, scans=None, config_dict=None, min_score=0.0):
+def _verify_task(token, pairs, scans=None, config_dict=None, limits=(0.0, 0)):
     """Verification of the pairs ``(i, j)``: tuples ``(verdict, x, y, theta, score,
     n_features)`` (pose None when rejected)."""
     if scans is not None:
-        _install(token, scans, config_dict, min_score)
+        _install(token, scans, config_dict, limits)
     out = []
-    cfg, ms = _STATE["config"], _STATE["min_score"]
+    cfg, (ms, mf) = _STATE["config"], _STATE["limits"]
     for i, j in pairs:
-        v = verify_pair(_prepared(int(j)), _prepared(int(i)), cfg, min_score=ms)
+        v = verify_pair(_prepared(int(j)), _prepared(int(i)), cfg, min_score=ms, min_features=mf)
         p = None if v.pose is None else (v.pose.x, v.pose.y, v.pose.theta)
         out.append((v.verdict, p, v.score, v.n_features))
     return out
 
 
-def _pool_init(token, scans, config_dict, min_score):
-    _install(token, scans, config_dict, min_score)
+def _pool_init(token, scans, config_dict, limits):
+    _install(token, scans, config_dict, limits)
 
 
 # ---------------------------------------------------------------------------------------
@@ -234,9 +234,9 @@ def _chunks(items: list, n_chunks: int) -> list[list]:
 class _Runner:
     """Runs the two parallel steps on one backend."""
 
-    def __init__(self, scans, cfg, min_score, workers, scheduler):
+    def __init__(self, scans, cfg, limits, workers, scheduler):
         self.token = uuid.uuid4().hex
-        self.args = (config_to_dict(cfg), float(min_score))
+        self.args = (config_to_dict(cfg), (float(limits[0]), int(limits[1])))
         self.scans = scans
         self.workers = workers
         self.pool = self.client = self.scans_future = None
@@ -328,6 +328,7 @@ def find_loops(
     workers: int = 1,
     scheduler=None,
     min_score: float = ACCEPT_MIN_SCORE,
+    min_features: int = ACCEPT_MIN_FEATURES,
     progress: Callable[[str, int, int], None] | None = None,
 ) -> LoopSearch:
     """The all-pairs revisit search of a log (module docstring).
@@ -345,7 +346,7 @@ def find_loops(
         Local worker processes (1: this process; 0: one per CPU).
     scheduler : str or distributed.Client, optional
         A Dask scheduler address (``tcp://host:8786``) or client: run there instead.
-    min_score : float
+    min_score, min_features : float, int
         As for :func:`.verify.verify_pair`.
     progress : callable, optional
         ``progress(stage, done, total)`` as work completes (``"signatures"``,
@@ -376,7 +377,7 @@ def find_loops(
     t0 = time.perf_counter()
     seconds = {}
     n = len(scans)
-    runner = _Runner(scans, cfg, min_score, workers, scheduler)
+    runner = _Runner(scans, cfg, (min_score, min_features), workers, scheduler)
     try:
         nchunk = 1 if runner.backend == "serial" else 4 * runner.workers
 

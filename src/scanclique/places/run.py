@@ -27,7 +27,7 @@ from ..config import MatchConfig
 from ..scan import Scan
 from .database import PlaceDB
 from .loops import LoopSearch, find_loops
-from .verify import ACCEPT_MIN_SCORE, ACCEPTED, AMBIGUOUS, REJECTED
+from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, AMBIGUOUS, REJECTED
 
 __all__ = ["AddRun", "QueryRun", "LoopsRun", "run_add", "run_query", "run_info", "run_loops"]
 
@@ -187,6 +187,7 @@ def run_query(
     candidates: int | None = None,
     config: MatchConfig | None = None,
     min_score: float = ACCEPT_MIN_SCORE,
+    min_features: int = ACCEPT_MIN_FEATURES,
 ) -> QueryRun:
     """Query the database at ``path`` with scan ``index`` of ``source``."""
     from ..errors import ScanIndexError
@@ -198,7 +199,7 @@ def run_query(
             f"(0..{len(scans) - 1})"
         )
     q = scans[index]
-    with PlaceDB(path, config, readonly=True, min_score=min_score) as db:
+    with PlaceDB(path, config, readonly=True, min_score=min_score, min_features=min_features) as db:
         t = time.perf_counter()
         hits = db.query(q, k=k, candidates=candidates)
         seconds = time.perf_counter() - t
