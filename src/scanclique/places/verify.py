@@ -63,9 +63,9 @@ ACCEPT_MIN_SCORE = 0.5
 #: least this many mapped features agree with the pose. Pairwise validation asks for 3
 #: (``ValidationConfig.min_features``) because odometry can veto an alias; a place query
 #: has no odometry, and the chance that a constellation repeats elsewhere in a building
-#: falls fast with its size (paper §7). On the three shared logs, 51 of the 71 wrong
-#: answers that pass the score test map 3 or 4 features, against 29 of 924 right ones
-#: (``benchmarks/places.py``, with the value 3).
+#: falls fast with its size (paper §7). On the three shared logs, 39 of the 51 wrong
+#: answers that pass the score test map 3 or 4 features, against 48 of the 924 right
+#: ones (``benchmarks/places.py`` at cf7172d, where 3 sufficed).
 ACCEPT_MIN_FEATURES = 5
 #: order of verdicts when ranking hits (best first)
 VERDICT_RANK = {ACCEPTED: 0, AMBIGUOUS: 1, REJECTED: 2}
