@@ -54,6 +54,7 @@ __all__ = [
     "distinct_poses",
     "near_rival",
     "warm_up",
+    "warm_up_seconds",
 ]
 
 log = logging.getLogger(__name__)
@@ -929,6 +930,12 @@ def warm_up() -> float:
         search_pose(pa, pb, cfg)
     _warm_seconds = time.perf_counter() - t0
     log.info("kernels loaded in %.1f s", _warm_seconds)
+    return _warm_seconds
+
+
+def warm_up_seconds() -> float | None:
+    """Seconds :func:`warm_up` took in this process (loading, on a first run compiling,
+    the kernels), None before it ran; reported apart from the stages' times."""
     return _warm_seconds
 
 

@@ -107,6 +107,11 @@ def match_rows(run: MatchRun) -> list[tuple[str, str, str]]:
         total += sec
         add((f"time {stage}", _num(1e3 * sec, ".1f"), "ms"))
     add(("time total", _num(1e3 * total, ".1f"), "ms"))
+    from ..match import warm_up_seconds
+
+    load = warm_up_seconds()
+    if load is not None:  # loading (or compiling) the kernels, before any stage's clock
+        add(("kernel loading", _num(load, ".2f"), "s"))
     if m.pose is not None and m.reason:
         add(("note", m.reason, ""))
     ref = run.reference
