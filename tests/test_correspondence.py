@@ -341,3 +341,29 @@ def test_a_scan_with_too_many_features_is_refused_before_its_graph_is_built():
     assert feature_graph(f).n_nodes == n
     with pytest.raises(_GraphError, match="feature graph of 50 features.*max_features=49"):
         feature_graph(f, CorrespondenceConfig(max_features=49))
+
+
+def test_a_raised_max_nodes_beyond_memory_is_a_graph_error_not_a_crash():
+    """Issue 15 item 5: ``max_nodes = 10**9`` with thousands of features must end in a
+    GraphError naming the memory, whatever the machine holds (run under an address-space
+    limit, so that the allocation fails here as it would on a small machine)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import resource, numpy as np\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (2 * 2**30, 2 * 2**30))\n"
+        "from scanclique.config import CorrespondenceConfig\n"
+        "from scanclique.correspondence import correspondence_graph\n"
+        "from scanclique.errors import GraphError\n"
+        "from scanclique.graph import FeatureGraph\n"
+        "z = np.zeros((3, 1, 1)); lab = np.zeros(200_000, np.int64)\n"
+        "g = FeatureGraph(lab, lab, z, z, np.zeros(3, bool), len(lab))\n"
+        "try:\n"
+        "    correspondence_graph(g, g, CorrespondenceConfig(max_nodes=10**12))\n"
+        "except GraphError as e:\n"
+        "    print('GraphError', e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.startswith("GraphError") and "GiB" in out.stdout, out.stdout

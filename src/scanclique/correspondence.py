@@ -130,8 +130,14 @@ def correspondence_graph(
             f"invariant tests), more than max_nodes={cfg.max_nodes}; raise the limit or "
             "extract fewer features"
         )
-    pairs = candidate_pairs(graph_a.labels, graph_b.labels)
-    adj = np.zeros((n, n), dtype=np.bool_)
+    try:
+        pairs = candidate_pairs(graph_a.labels, graph_b.labels)
+        adj = np.zeros((n, n), dtype=np.bool_)
+    except MemoryError:  # a max_nodes raised beyond what this machine holds
+        raise GraphError(
+            f"correspondence graph of {n} nodes needs {n * n / 2**30:.1f} GiB for its "
+            f"adjacency, more than this machine can allocate (max_nodes={cfg.max_nodes})"
+        ) from None
     if n > 1:
         _K.edges(
             np.ascontiguousarray(pairs[:, 0]),
