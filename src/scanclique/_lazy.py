@@ -44,11 +44,11 @@ def _prepare_cache() -> None:
     ensure_cache()
 
 
-def cache_is_cold(module: str = "_match_kernels") -> bool:
-    """True when the kernels of ``module`` have never been compiled into the current
-    kernel cache (the first run after installing, or after any kernel source changed):
-    the next match compiles them, which takes a minute or more. A caller that talks to
-    a person says so before it starts (``scanclique`` does, on stderr)."""
+def cache_is_cold() -> bool:
+    """True when nothing has been compiled into the current kernel cache yet (the first
+    run after installing, or after any kernel source changed: the cache is stamped with
+    their hash): the next match compiles the kernels, which takes minutes. A caller that
+    talks to a person says so before it starts (``scanclique`` does, on stderr)."""
     try:
         from ._kernels import ensure_cache
     except ImportError:  # pragma: no cover - the package is always there
@@ -56,7 +56,7 @@ def cache_is_cold(module: str = "_match_kernels") -> bool:
     from pathlib import Path
 
     root = Path(ensure_cache())
-    return not any(root.rglob(f"{module}.*.nbi"))
+    return next(root.rglob("*.nbi"), None) is None
 
 
 _announced = False
@@ -70,7 +70,7 @@ def _announce(name: str) -> None:
     if _announced or "_kernels" not in name:
         return
     _announced = True
-    if cache_is_cold(name.rsplit(".", 1)[-1]):
+    if cache_is_cold():
         log.warning(
             "compiling the numba kernels: first run only, about 2-4 minutes on an idle "
             "2-core machine (longer when it is busy); later runs load them in about a second"
