@@ -3,10 +3,11 @@
 Brute force in NumPy: the squared Euclidean distances from a query signature to every
 stored one by one matrix-vector product (``|x|² - 2 x·q + |q|²``, by a single-threaded
 ``einsum``), then a partial sort (``np.partition``) of the ``k`` smallest. Signatures
-are kept in ``float32``; distances are exact up to that rounding (about 1e-7 relative), and ties are broken by place id so
-that every run ranks alike. At 50 000 places of :data:`~.signature.SIGNATURE_SIZE`
-values the matrix is 18 MB and one search costs a few milliseconds, so an approximate
-index (faiss, HNSW) would not pay here; ``benchmarks/places.py`` measures it.
+are kept in ``float32``; distances are exact up to that rounding (about 1e-7 relative),
+and ties are broken by place id so that every run ranks alike. At 50 000 places of
+:data:`~.signature.SIGNATURE_SIZE` values the matrix is 42 MB and one search costs a few
+milliseconds, so an approximate index (faiss, HNSW) would not pay here;
+``benchmarks/places.py`` measures it.
 
 Examples
 --------
