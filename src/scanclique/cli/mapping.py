@@ -37,9 +37,6 @@ def map_cmd(
     plot: Annotated[
         bool, typer.Option("--plot", help="Also write map.png with the trajectory and closures.")
     ] = False,
-    workers: Annotated[
-        int | None, typer.Option("--workers", min=1, help="Processes for loop verification.")
-    ] = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Map a log: trajectory.tum, graph.g2o, map.pgm + map.yaml (ROS map_server),
@@ -86,7 +83,6 @@ def map_cmd(
                 topic=topic,
                 plot=plot,
                 progress=tick,
-                workers=workers,
             )
         )
     if json_out:

@@ -125,13 +125,10 @@ def run_map(
     plot: bool = True,
     config: MapConfig | None = None,
     progress: Callable[[int, int, int], None] | None = None,
-    workers: int | None = None,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
-    ``report.json`` (and ``map.png`` when ``plot``) into ``out``.
-
-    ``workers``: accepted for the command line; loop verification runs in this process
-    (see the note in the report).
+    ``report.json`` (and ``map.png`` when ``plot``) into ``out``. Loop verification runs
+    in this process (parallel verification is not built yet).
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
