@@ -185,7 +185,9 @@ def time_optimisation(n: int = 5000, loops: int = 500, seed: int = 0) -> dict:
     from scanclique.mapping.backend import optimize  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
-    truth = [Pose2(5 * math.cos(k / 100), 5 * math.sin(k / 100), k / 100 + math.pi / 2) for k in range(n)]
+    truth = [
+        Pose2(5 * math.cos(k / 100), 5 * math.sin(k / 100), k / 100 + math.pi / 2) for k in range(n)
+    ]
     P = np.diag([0.02**2, 0.02**2, math.radians(0.5) ** 2])
     edges, guess = [], [truth[0]]
     for k in range(n - 1):
@@ -247,9 +249,15 @@ def main(argv=None) -> int:
     ap.add_argument("--rows", default=",".join(ROWS))
     ap.add_argument("--csail", action=argparse.BooleanOptionalAction, default=True)
     ap.add_argument("--limit", type=int, default=None, help="first N scans only (a quick look)")
-    ap.add_argument("--out", default=None, help="results stem (default benchmarks/results/mapping-DATE)")
+    ap.add_argument(
+        "--out", default=None, help="results stem (default benchmarks/results/mapping-DATE)"
+    )
     args = ap.parse_args(argv)
-    stem = Path(args.out) if args.out else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
+    stem = (
+        Path(args.out)
+        if args.out
+        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
+    )
     git_at_start = git_state()
     warm = _warm_up()
     print(f"warm-up (numba kernels, a simulated drive): {warm:.1f} s", flush=True)
@@ -296,7 +304,9 @@ def main(argv=None) -> int:
             pass
     allres = list(previous.values()) + results
     order = {k: i for i, k in enumerate(("fr079-raw", "intel-raw", "csail"))}
-    allres.sort(key=lambda r: (order.get(r["log"], 9), ROWS.index(r["row"]) if r["row"] in ROWS else 9))
+    allres.sort(
+        key=lambda r: (order.get(r["log"], 9), ROWS.index(r["row"]) if r["row"] in ROWS else 9)
+    )
     lines = table(allres)
     print()
     print("\n".join(lines))
@@ -330,7 +340,16 @@ def main(argv=None) -> int:
         )
         + "\n"
     )
-    md = ["# Mapping benchmark " + DATE, "", *lines, "", *ratios, "", "Published anchors (same metric):", ""]
+    md = [
+        "# Mapping benchmark " + DATE,
+        "",
+        *lines,
+        "",
+        *ratios,
+        "",
+        "Published anchors (same metric):",
+        "",
+    ]
     for name, rows in ANCHORS.items():
         for who, t, r in rows:
             md.append(f"- {name}: {who}: {t} m, {r} deg")

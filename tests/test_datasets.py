@@ -104,7 +104,9 @@ def test_missing_data_message(no_data):
 
 
 def test_unknown_name():
-    with pytest.raises(DataNotFoundError, match="registered are csail, fr079-raw, freiburg, intel, intel-raw"):
+    with pytest.raises(
+        DataNotFoundError, match="registered are csail, fr079-raw, freiburg, intel, intel-raw"
+    ):
         dataset_path("victoria")
 
 

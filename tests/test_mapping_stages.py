@@ -32,10 +32,14 @@ def test_pcm_keeps_the_consistent_closures():
 
     def chain(a, b):
         D = abs(b - a) * 0.6
-        return truth[a].inverse() @ truth[b], np.diag([(0.02 + 0.02 * D) ** 2] * 2 + [(0.01 + 0.005 * D) ** 2])
+        return truth[a].inverse() @ truth[b], np.diag(
+            [(0.02 + 0.02 * D) ** 2] * 2 + [(0.01 + 0.005 * D) ** 2]
+        )
 
     P = np.diag([0.02**2, 0.02**2, math.radians(0.5) ** 2])
-    good = [(i, j, truth[i].inverse() @ truth[j], P) for i, j in ((0, 20), (2, 22), (5, 25), (1, 27))]
+    good = [
+        (i, j, truth[i].inverse() @ truth[j], P) for i, j in ((0, 20), (2, 22), (5, 25), (1, 27))
+    ]
     bad = [
         (3, 23, (truth[3].inverse() @ truth[23]) @ Pose2(1.5, 0.0, 0.3), P),
         (4, 24, (truth[4].inverse() @ truth[24]) @ Pose2(0.0, -2.0, -0.5), P),
@@ -69,7 +73,10 @@ def test_optimize_a_loop_with_one_outlier():
         Z = (truth[k].inverse() @ truth[k + 1]) @ Pose2(0.01, 0.0, 0.004)  # biased odometry
         edges.append((k, k + 1, Z, P * 4, False))
         guesses.append(guesses[-1] @ Z)
-    right = [(0, 19, truth[0].inverse() @ truth[19], P, True), (2, 17, truth[2].inverse() @ truth[17], P, True)]
+    right = [
+        (0, 19, truth[0].inverse() @ truth[19], P, True),
+        (2, 17, truth[2].inverse() @ truth[17], P, True),
+    ]
     wrong = [(3, 14, (truth[3].inverse() @ truth[14]) @ Pose2(1.5, -1.0, 0.4), P, True)]
     g0 = [truth[0].inverse() @ g for g in guesses]
     t0 = [truth[0].inverse() @ t for t in truth]
@@ -169,7 +176,9 @@ def test_outputs_round_trip(tmp_path):
     graph, initial = gtsam.readG2o(str(tmp_path / "graph.g2o"), False)
     assert initial.size() == len(scans) and graph.size() == len(r.edges)
     p5 = initial.atPose2(5)
-    assert p5.x() == pytest.approx(r.poses[5].x, abs=1e-6) and p5.theta() == pytest.approx(r.poses[5].theta, abs=1e-6)
+    assert p5.x() == pytest.approx(r.poses[5].x, abs=1e-6) and p5.theta() == pytest.approx(
+        r.poses[5].theta, abs=1e-6
+    )
     # the written information matrices weigh the edges as the result's covariances do
     e = r.edges[0]
     f = graph.at(0)

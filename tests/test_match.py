@@ -354,7 +354,9 @@ def test_prepared_scans_of_another_configuration_are_refused(section, change):
 
     p = sim_pair(1)
     base = MatchConfig()
-    other = dataclasses.replace(base, **{section: dataclasses.replace(getattr(base, section), **change)})
+    other = dataclasses.replace(
+        base, **{section: dataclasses.replace(getattr(base, section), **change)}
+    )
     pa, pb = prepare_scan(p.scan_a, base), prepare_scan(p.scan_b, other)
     with pytest.raises(ConfigError, match=section.split(".")[0]):
         match_prepared(pa, pb)

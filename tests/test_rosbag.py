@@ -40,7 +40,9 @@ def _msgs(ts, ros1: bool):
         return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
 
     def quat(th: float):
-        return T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2))
+        return T["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2)
+        )
 
     def laser(scan, seq):
         a = scan.angles
@@ -56,7 +58,9 @@ def _msgs(ts, ros1: bool):
         pose = T["geometry_msgs/msg/Pose"](
             position=T["geometry_msgs/msg/Point"](x=p.x, y=p.y, z=0.0), orientation=quat(p.theta)
         )
-        tw = T["geometry_msgs/msg/Twist"](linear=V3(x=0.0, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0))
+        tw = T["geometry_msgs/msg/Twist"](
+            linear=V3(x=0.0, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0)
+        )
         return T["nav_msgs/msg/Odometry"](
             header=header(t, "odom", seq), child_frame_id="base_link",
             pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
@@ -96,7 +100,11 @@ def write_ros1(path, scans, odometry=True):
         for k, s in enumerate(scans):
             t_ns = int(s.timestamp * 1e9)
             if co is not None:
-                w.write(co, t_ns, ts.serialize_ros1(odom(s.timestamp, s.odometry, k), "nav_msgs/msg/Odometry"))
+                w.write(
+                    co,
+                    t_ns,
+                    ts.serialize_ros1(odom(s.timestamp, s.odometry, k), "nav_msgs/msg/Odometry"),
+                )
             w.write(cs, t_ns + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
 
 
@@ -110,7 +118,9 @@ def write_ros2(path, scans):
         ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
         for k, s in enumerate(scans):
             t_ns = int(s.timestamp * 1e9)
-            w.write(ct, t_ns, ts.serialize_cdr(tf(s.timestamp, s.odometry, k), "tf2_msgs/msg/TFMessage"))
+            w.write(
+                ct, t_ns, ts.serialize_cdr(tf(s.timestamp, s.odometry, k), "tf2_msgs/msg/TFMessage")
+            )
             w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
 
 
@@ -170,8 +180,16 @@ def test_interpolated_odometry(tmp_path, carmen_scans):
         co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
         for k, s in enumerate(carmen_scans):
             if k % 2 == 0:
-                w.write(co, int(s.timestamp * 1e9), ts.serialize_ros1(odom(s.timestamp, s.odometry, k), "nav_msgs/msg/Odometry"))
-            w.write(cs, int(s.timestamp * 1e9) + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
+                w.write(
+                    co,
+                    int(s.timestamp * 1e9),
+                    ts.serialize_ros1(odom(s.timestamp, s.odometry, k), "nav_msgs/msg/Odometry"),
+                )
+            w.write(
+                cs,
+                int(s.timestamp * 1e9) + 1,
+                ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"),
+            )
     back = read_bag(path)
     s0, s1, s2 = carmen_scans[0], carmen_scans[1], carmen_scans[2]
     u = (s1.timestamp - s0.timestamp) / (s2.timestamp - s0.timestamp)
@@ -192,7 +210,10 @@ def test_bad_bags(tmp_path, carmen_scans):
     write_ros1(path, carmen_scans[:3])
     with pytest.raises(ParseError, match=r"topic '/laser' is not in the bag"):
         read_bag(path, topic="/laser")
-    with pytest.raises(ParseError, match=r"topic '/odom' holds nav_msgs/msg/Odometry, expected sensor_msgs/LaserScan"):
+    with pytest.raises(
+        ParseError,
+        match=r"topic '/odom' holds nav_msgs/msg/Odometry, expected sensor_msgs/LaserScan",
+    ):
         read_bag(path, topic="/odom")
     no_scan = tmp_path / "odom_only.bag"
     from rosbags.rosbag1 import Writer

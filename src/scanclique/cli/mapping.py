@@ -32,7 +32,8 @@ def map_cmd(
         ),
     ] = True,
     topic: Annotated[
-        str | None, typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one).")
+        str | None,
+        typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one)."),
     ] = None,
     plot: Annotated[
         bool, typer.Option("--plot", help="Also write map.png with the trajectory and closures.")
@@ -96,7 +97,9 @@ def map_cmd(
             }
         )
         return
-    _console().print(_table(run.rows(), f"scanclique map {run.label}", ("Metric", "Value", "Units")))
+    _console().print(
+        _table(run.rows(), f"scanclique map {run.label}", ("Metric", "Value", "Units"))
+    )
 
 
 def register(app: typer.Typer) -> None:

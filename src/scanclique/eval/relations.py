@@ -100,21 +100,27 @@ def read_relations(path: str | os.PathLike) -> list[Relation]:
         fields = s.split()
         if len(fields) != 8:
             raise ParseError(
-                str(path), lineno, f"expected 8 numbers (t1 t2 x y z roll pitch yaw), found {len(fields)}"
+                str(path),
+                lineno,
+                f"expected 8 numbers (t1 t2 x y z roll pitch yaw), found {len(fields)}",
             )
         vals = []
         for name, f in zip(names, fields, strict=True):
             try:
                 v = float(f)
             except ValueError:
-                raise ParseError(str(path), lineno, f"expected a number, found {f!r}", name) from None
+                raise ParseError(
+                    str(path), lineno, f"expected a number, found {f!r}", name
+                ) from None
             if not math.isfinite(v):
                 raise ParseError(str(path), lineno, f"expected a finite number, found {f!r}", name)
             vals.append(v)
         t1, t2, x, y, z, roll, pitch, yaw = vals
         for name, v in (("z", z), ("roll", roll), ("pitch", pitch)):
             if abs(v) > 1e-9:
-                raise ParseError(str(path), lineno, f"expected 0 for a planar relation, found {v}", name)
+                raise ParseError(
+                    str(path), lineno, f"expected 0 for a planar relation, found {v}", name
+                )
         out.append(Relation(t1, t2, Pose2.from_xytheta(x, y, yaw)))
     return out
 

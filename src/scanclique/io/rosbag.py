@@ -127,7 +127,9 @@ def read_bag(
         reader = AnyReader([bag])
         reader.open()
     except Exception as exc:  # noqa: BLE001  (rosbags raises its own types)
-        raise ParseError(name, None, f"not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+        raise ParseError(
+            name, None, f"not a readable ROS bag ({type(exc).__name__}: {exc})"
+        ) from None
     try:
         conns = list(reader.connections)
         scans_c = [c for c in conns if c.msgtype in LASERSCAN]
@@ -157,7 +159,11 @@ def read_bag(
         if odom_topic is not None:
             odo_c = [c for c in odo_c if c.topic == odom_topic]
             if not odo_c:
-                raise ParseError(name, None, f"odometry topic {odom_topic!r} is not a nav_msgs/Odometry topic of the bag")
+                raise ParseError(
+                    name,
+                    None,
+                    f"odometry topic {odom_topic!r} is not a nav_msgs/Odometry topic of the bag",
+                )
         elif len({c.topic for c in odo_c}) > 1:
             odo_c = [c for c in odo_c if c.topic == sorted({c.topic for c in odo_c})[0]]
         tf_c = [c for c in conns if c.msgtype in TF] if not odo_c else []
@@ -169,14 +175,19 @@ def read_bag(
             try:
                 msg = reader.deserialize(raw, c.msgtype)
             except Exception as exc:  # noqa: BLE001
-                raise ParseError(name, None, f"{c.topic}: cannot deserialise {c.msgtype} ({exc})") from None
+                raise ParseError(
+                    name, None, f"{c.topic}: cannot deserialise {c.msgtype} ({exc})"
+                ) from None
             if c.msgtype in ODOMETRY:
                 pp = msg.pose.pose
                 o_times.append(_stamp(msg, t_ns))
                 o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
             else:
                 for tr in msg.transforms:
-                    if tr.header.frame_id.lstrip("/") == odom_frame and tr.child_frame_id.lstrip("/") in bases:
+                    if (
+                        tr.header.frame_id.lstrip("/") == odom_frame
+                        and tr.child_frame_id.lstrip("/") in bases
+                    ):
                         q = tr.transform
                         o_times.append(_stamp(tr, t_ns))
                         o_poses.append(Pose2(q.translation.x, q.translation.y, _yaw(q.rotation)))
@@ -189,7 +200,9 @@ def read_bag(
             try:
                 msg = reader.deserialize(raw, c.msgtype)
             except Exception as exc:  # noqa: BLE001
-                raise ParseError(name, None, f"{c.topic} message {k}: cannot deserialise LaserScan ({exc})") from None
+                raise ParseError(
+                    name, None, f"{c.topic} message {k}: cannot deserialise LaserScan ({exc})"
+                ) from None
             r = np.asarray(msg.ranges, dtype=float)
             inc = float(msg.angle_increment)
             a0 = float(msg.angle_min)

@@ -236,7 +236,10 @@ def icp_fallback(
         # ungated (no odometry): still a plausible motion from the first prior; a corridor
         # turned by 180 degrees explains the scans as well as the right pose does
         d = priors[0][0].inverse() @ pose
-        if abs(d.theta) > fe.icp_ungated_max_turn or math.hypot(d.x, d.y) > fe.icp_ungated_max_shift:
+        if (
+            abs(d.theta) > fe.icp_ungated_max_turn
+            or math.hypot(d.x, d.y) > fe.icp_ungated_max_shift
+        ):
             return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
     return Step(pose, cov, ICP, "icp", float(score))

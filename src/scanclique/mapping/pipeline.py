@@ -29,7 +29,7 @@ from ..errors import ScanError
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
-from ..validation import compose_covariance
+from ..validation import compose_covariance, odometry_prior
 from . import loops as _loops
 from .backend import PoseGraph, _gtsam, tangent_covariance
 from .config import MapConfig
@@ -43,7 +43,6 @@ from .frontend import (
     icp_fallback,
     prior_step,
 )
-from ..validation import odometry_prior
 from .loops import LoopClosure
 from .pcm import pcm_select
 

@@ -36,7 +36,9 @@ def is_bag(path: str | os.PathLike) -> bool:
     return p.suffix in BAG_SUFFIXES
 
 
-def load_map_log(log_or_name: str | os.PathLike, topic: str | None = None) -> tuple[list[Scan], str]:
+def load_map_log(
+    log_or_name: str | os.PathLike, topic: str | None = None
+) -> tuple[list[Scan], str]:
     """The scans of a CARMEN log, a registered data set name or a ROS bag, and a label."""
     s = str(log_or_name)
     if is_bag(s):
@@ -96,7 +98,11 @@ class MapRun:
             ("placed by match", str(c["placed_by"].get("match", 0)), "scans"),
             ("placed by ICP fallback", str(c["placed_by"].get("icp", 0)), "scans"),
             ("placed by odometry", str(c["placed_by"].get("odometry", 0)), "scans"),
-            ("placed by constant velocity", str(c["placed_by"].get("constant_velocity", 0)), "scans"),
+            (
+                "placed by constant velocity",
+                str(c["placed_by"].get("constant_velocity", 0)),
+                "scans",
+            ),
             ("loop candidates verified", str(c["loop_candidates"]), ""),
             ("loop closures accepted", str(c["loop_closures_accepted"]), ""),
             ("odometry used", "yes" if self.result.used_odometry else "no", ""),
