@@ -72,11 +72,14 @@ def pcm_select(
     chain: Chain,
     gate: float = 0.99,
     time_limit: float = 0.5,
+    node_limit: int = 200_000,
 ) -> np.ndarray:
     """Indices of the largest pairwise-consistent subset of ``closures`` (sorted).
 
     One closure alone is returned as is (nothing to check it against); with several, only
     those in the maximum clique of :func:`consistency_graph`, and none when no two agree.
+    The clique search spends at most ``node_limit`` search nodes (the budget that decides
+    the result, the same on every machine); ``time_limit`` seconds is an outer guard.
     """
     n = len(closures)
     if n <= 1:
@@ -84,5 +87,5 @@ def pcm_select(
     A = consistency_graph(closures, chain, gate)
     if not A.any():
         return np.zeros(0, dtype=int)
-    res = max_clique(A, time_limit=time_limit)
+    res = max_clique(A, time_limit=time_limit, node_limit=node_limit)
     return np.asarray(res.vertices, dtype=int)

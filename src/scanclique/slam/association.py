@@ -99,6 +99,9 @@ class AssociationConfig:
         Node budget of the branch and bound (the best hypothesis so far is kept).
     clique_limit : int
         At most this many maximum cliques are examined (ambiguity shows as several).
+    node_limit : int
+        Search nodes the clique search may spend per scan (the budget that decides the
+        result, the same on every machine; Victoria Park's graphs need a few hundred).
     """
 
     gate_probability: float = 0.99
@@ -108,6 +111,7 @@ class AssociationConfig:
     attribute_tolerance: float | None = None
     jcbb_node_limit: int = 200_000
     clique_limit: int = 4
+    node_limit: int = 1_000_000
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -444,7 +448,7 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
     C = len(oi)
     if C == 0:
         return out, 0, 0, False, ()
-    res = all_maximum_cliques(A, limit=cfg.clique_limit)
+    res = all_maximum_cliques(A, limit=cfg.clique_limit, node_limit=cfg.node_limit)
     gate = _gate_table(k, cfg.gate_probability)
     if verify == "jcbb":
         allowed = np.zeros((k, n), bool)
