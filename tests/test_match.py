@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import math
 
 import numpy as np
@@ -430,3 +431,26 @@ def test_a_node_budget_decides_the_result_and_says_so():
     assert [h.pose for h in runs[0].hypotheses] == [h.pose for h in runs[1].hypotheses]
     assert len(runs[0].hypotheses) < len(full.hypotheses)
     assert runs[0].to_dict()["stopped"] == "node_limit"
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(
+    os.environ.get("SCANCLIQUE_SLOW_TESTS", "") in ("", "0"),
+    reason="compiles every kernel into a fresh cache (minutes); set SCANCLIQUE_SLOW_TESTS=1",
+)
+def test_cold_and_warm_kernel_caches_give_identical_matches():
+    """Issue 15 item 3: the README's examples and a few benchmark pairs, matched in a
+    process whose numba cache is empty (everything compiles during the run) and again in
+    one whose cache is warm, agree in every field (benchmarks/coldwarm.py does 200)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    require_log("intel")
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "coldwarm.py"
+    out = subprocess.run(
+        [sys.executable, str(script), "--pairs", "9"], capture_output=True, text=True, timeout=1800
+    )
+    assert out.returncode == 0, out.stdout + out.stderr[-2000:]
+    assert "(cache cold)" in out.stdout and "(cache warm)" in out.stdout, out.stdout
+    assert "fields that differ: 0" in out.stdout, out.stdout
