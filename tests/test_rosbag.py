@@ -143,6 +143,10 @@ def test_ros1_bag_round_trip(tmp_path, carmen_scans):
     back = read_bag(path)
     _same(carmen_scans, back)
     assert back[0].source.endswith("/scan#0")
+    # scanclique.read_scans hands bags to the bag reader
+    import scanclique as sc
+
+    _same(carmen_scans, sc.read_scans(path))
 
 
 @pytest.mark.realdata

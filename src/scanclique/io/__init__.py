@@ -155,9 +155,11 @@ def read_scans(
     Parameters
     ----------
     path : str or path-like
-        A CARMEN log (plain, gzip or bzip2), a scan text file, or an ``.npz`` archive; the
-        format is detected from the content (see the module docstring). Must be a regular
-        file: FIFOs and devices are refused.
+        A CARMEN log (plain, gzip or bzip2), a scan text file, an ``.npz`` archive, or a
+        ROS bag (a ``.bag`` file or a ROS 2 bag directory, read by
+        :func:`~scanclique.io.rosbag.read_bag`: its only LaserScan topic); the format is
+        detected from the content (see the module docstring). Must be a regular file (or a
+        ROS 2 bag directory): FIFOs and devices are refused.
     strict : bool
         If True (default) the first malformed line raises
         :class:`~scanclique.errors.ParseError`; if False malformed lines are skipped,
@@ -193,6 +195,12 @@ def read_scans(
     """
     spath = check_path(path)
     _check_options(strict, max_beams, max_range)
+    from .rosbag import is_bag
+
+    if is_bag(spath):  # a ROS 1 .bag or a ROS 2 bag: its only LaserScan topic
+        from .rosbag import read_bag
+
+        return read_bag(spath)
     fmt = detect_format(spath)
     if fmt == "npz":
         return read_scans_npz(spath, max_beams=max_beams)

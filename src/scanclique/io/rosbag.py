@@ -80,6 +80,18 @@ def _interp(times: list[float], poses: list[Pose2], t: float) -> Pose2 | None:
     return Pose2(a.x + u * (b.x - a.x), a.y + u * (b.y - a.y), a.theta + u * dth)
 
 
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+
+
+def is_bag(path: str | os.PathLike) -> bool:
+    """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a directory with ``metadata.yaml``,
+    or a ``.db3`` / ``.mcap`` file)."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return p.suffix in BAG_SUFFIXES
+
+
 def read_bag(
     path: str | os.PathLike,
     topic: str | None = None,

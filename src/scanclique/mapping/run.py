@@ -24,16 +24,7 @@ __all__ = ["MapRun", "load_map_log", "relation_summary", "run_map", "is_bag"]
 
 log = logging.getLogger(__name__)
 
-BAG_SUFFIXES = (".bag", ".db3", ".mcap")
-
-
-def is_bag(path: str | os.PathLike) -> bool:
-    """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a directory with ``metadata.yaml``,
-    or a ``.db3`` / ``.mcap`` file)."""
-    p = Path(path)
-    if p.is_dir():
-        return (p / "metadata.yaml").is_file()
-    return p.suffix in BAG_SUFFIXES
+from ..io.rosbag import BAG_SUFFIXES, is_bag  # noqa: E402,F401 (re-exported)
 
 
 def load_map_log(
