@@ -250,6 +250,18 @@ class CorrespondenceConfig:
     max_nodes: int = 20000
     max_features: int = 2000
 
+    def tolerances(self) -> tuple:
+        """What shapes a feature graph's invariants and tolerances (all but the limits
+        ``max_nodes`` and ``max_features``): graphs built under equal tuples pair."""
+        return (
+            self.point_point,
+            self.point_line,
+            self.line_line,
+            self.signed,
+            self.parallel_offset,
+            self.adaptive,
+        )
+
     def __post_init__(self) -> None:
         _check_types(self)
         _positive(self, "point_point", "point_line", "line_line", "max_nodes", "max_features")
@@ -498,11 +510,10 @@ class MatchConfig:
         tolerances, the raw-point sample): two prepared scans can be matched together,
         and under a configuration, only when these agree (the limits ``max_nodes`` and
         ``max_features`` may differ)."""
-        c = self.correspondence
         return (
             self.clustering,
             self.features,
-            (c.point_point, c.point_line, c.line_line, c.signed, c.parallel_offset, c.adaptive),
+            self.correspondence.tolerances(),
             self.refine.sample_points,
         )
 

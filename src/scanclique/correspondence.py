@@ -62,10 +62,6 @@ class CorrespondenceGraph:
         return 0.0 if n < 2 else 2.0 * self.n_edges / (n * (n - 1))
 
 
-def _tolerance_key(c: CorrespondenceConfig) -> tuple:
-    return (c.point_point, c.point_line, c.line_line, c.signed, c.parallel_offset, c.adaptive)
-
-
 def count_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> int:
     """How many same-label pairings there are, without forming them: the sum over labels
     of (count in A) x (count in B)."""
@@ -116,7 +112,7 @@ def correspondence_graph(
             f"{graph_b.invariants.shape[0]} invariant layers; build both with one config"
         )
     for name, g in (("graph_a", graph_a), ("graph_b", graph_b)):
-        if _tolerance_key(g.config) != _tolerance_key(cfg) or g.typed_edges != graph_a.typed_edges:
+        if g.config.tolerances() != cfg.tolerances() or g.typed_edges != graph_a.typed_edges:
             raise ConfigError(
                 f"correspondence_graph: {name} was built with other tolerances or invariants "
                 f"({g.config}) than {cfg}; build both feature graphs with the configuration "

@@ -32,26 +32,6 @@ from rich.table import Table
 from .. import __version__
 from ..errors import ScanCliqueError, ScanIndexError
 
-__all__ = [
-    "ScanIndexError",
-    "MatchRun",
-    "ValidateRun",
-    "load_scan",
-    "load_scan_pair",
-    "load_config",
-    "run_match",
-    "run_demo",
-    "run_validate",
-    "odometry_path",
-    "validation_rows",
-    "confusion_rows",
-    "match_rows",
-    "feature_rows",
-    "features_to_dict",
-    "app",
-    "main",
-    "COMMAND_MODULES",
-]
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +60,8 @@ _TOOLS = frozenset(
         "DEMO_SEED",
     }
 )
+
+__all__ = ["ScanIndexError", *sorted(_TOOLS), "app", "main", "COMMAND_MODULES"]
 
 
 def __getattr__(name: str) -> Any:

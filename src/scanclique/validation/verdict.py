@@ -74,11 +74,9 @@ from ..uncertainty import (
     check_covariance,
     check_pose,
     chi2_quantile,
-    compose_covariance,
     constellation_std,
     mahalanobis_sq,
     odometry_prior,
-    pose_difference,
 )
 
 __all__ = [
@@ -87,20 +85,12 @@ __all__ = [
     "AMBIGUOUS",
     "TOO_FEW_FEATURES",
     "VERDICTS",
-    "GATE_99",
-    "OdometryNoise",
-    "ValidationConfig",
     "HypothesisCheck",
     "Validation",
     "feature_estimate",
-    "constellation_std",
-    "odometry_prior",
-    "pose_difference",
-    "mahalanobis_sq",
     "check_hypotheses",
     "choose_by_odometry",
     "validate_match",
-    "compose_covariance",
 ]
 
 ACCEPTED = "accepted"
