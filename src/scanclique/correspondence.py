@@ -1,7 +1,8 @@
 """The correspondence graph of two feature graphs (paper §5.2; pipeline stage 5).
 
 Barrow & Burstall (1976): the nodes are all pairings ``(a, b)`` of same-labelled nodes of
-graphs A and B; an edge joins ``(a1, b1)`` and ``(a2, b2)`` when ``a1 != a2``,
+graphs A and B (whose node attributes agree, for kinds that have them, see
+:mod:`scanclique.kinds`); an edge joins ``(a1, b1)`` and ``(a2, b2)`` when ``a1 != a2``,
 ``b1 != b2`` and every invariant that applies to both node pairs agrees within tolerance:
 ``|inv_A[k, a1, a2] - inv_B[k, b1, b2]| <= tol`` (modulo 2π on angle layers). A clique of
 this graph is a set of pairings whose geometry agrees mutually; the maximum clique is the
@@ -62,11 +63,38 @@ class CorrespondenceGraph:
         return 0.0 if n < 2 else 2.0 * self.n_edges / (n * (n - 1))
 
 
-def count_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> int:
-    """How many same-label pairings there are, without forming them: the sum over labels
-    of (count in A) x (count in B)."""
-    a = np.asarray(labels_a, dtype=np.int64).ravel()
-    b = np.asarray(labels_b, dtype=np.int64).ravel()
+def _has_attributes(a, b) -> bool:
+    return (
+        isinstance(a, FeatureGraph)
+        and isinstance(b, FeatureGraph)
+        and a.attributes.shape[1] > 0
+        and b.attributes.shape[1] > 0
+    )
+
+
+def _pair_mask(graph_a: FeatureGraph, graph_b: FeatureGraph) -> np.ndarray:
+    """(N_A, N_B) bool: same label, and, for nodes of one kind, every node attribute
+    within the kind's tolerance (an attribute either node lacks, NaN, does not veto)."""
+    ok = graph_a.labels[:, None] == graph_b.labels[None, :]
+    same_kind = graph_a.kinds[:, None] == graph_b.kinds[None, :]
+    A = min(graph_a.attributes.shape[1], graph_b.attributes.shape[1])
+    for k in range(A):
+        diff = np.abs(graph_a.attributes[:, None, k] - graph_b.attributes[None, :, k])
+        ok &= ~(same_kind & (diff > graph_a.attribute_tolerances[:, None, k]))
+    return ok
+
+
+def count_pairs(labels_a, labels_b) -> int:
+    """How many pairings :func:`candidate_pairs` forms, without forming them.
+
+    For label arrays (or graphs without node attributes), the sum over labels of
+    (count in A) x (count in B); for feature graphs with node attributes, the count of
+    the attribute test's mask (at most ``max_features``² booleans).
+    """
+    if _has_attributes(labels_a, labels_b):
+        return int(np.count_nonzero(_pair_mask(labels_a, labels_b)))
+    a = np.asarray(getattr(labels_a, "labels", labels_a), dtype=np.int64).ravel()
+    b = np.asarray(getattr(labels_b, "labels", labels_b), dtype=np.int64).ravel()
     if a.size == 0 or b.size == 0:
         return 0
     lo = int(min(a.min(), b.min()))
@@ -74,9 +102,23 @@ def count_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> int:
     return int(np.dot(np.bincount(a - lo, minlength=size), np.bincount(b - lo, minlength=size)))
 
 
-def candidate_pairs(labels_a: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
-    """All same-label pairings ``(a, b)``, shape (n, 2), ordered by a then b."""
-    ia, ib = np.nonzero(np.asarray(labels_a)[:, None] == np.asarray(labels_b)[None, :])
+def candidate_pairs(labels_a, labels_b) -> np.ndarray:
+    """The pairings ``(a, b)`` that may correspond, shape (n, 2), ordered by a then b.
+
+    Parameters
+    ----------
+    labels_a, labels_b : ndarray, shape (N,), or FeatureGraph
+        Node labels: same-label nodes pair (paper §5.2). Given two feature graphs, a pair
+        of nodes of one kind must also agree in every node attribute of the kind within
+        its tolerance (:attr:`scanclique.kinds.FeatureKind.attribute_tolerances`), e.g.
+        two tree trunks of different diameters never pair.
+    """
+    if _has_attributes(labels_a, labels_b):
+        ia, ib = np.nonzero(_pair_mask(labels_a, labels_b))
+    else:
+        la = np.asarray(getattr(labels_a, "labels", labels_a))
+        lb = np.asarray(getattr(labels_b, "labels", labels_b))
+        ia, ib = np.nonzero(la[:, None] == lb[None, :])
     return np.column_stack((ia, ib)).astype(np.int64)
 
 
@@ -118,7 +160,7 @@ def correspondence_graph(
                 f"({g.config}) than {cfg}; build both feature graphs with the configuration "
                 "you match with"
             )
-    n = count_pairs(graph_a.labels, graph_b.labels)
+    n = count_pairs(graph_a, graph_b)
     if n > cfg.max_nodes:  # refused before anything of size n is allocated
         raise GraphError(
             f"correspondence graph would have {n} nodes ({graph_a.n_nodes} x {graph_b.n_nodes} "
@@ -127,7 +169,7 @@ def correspondence_graph(
             "extract fewer features"
         )
     try:
-        pairs = candidate_pairs(graph_a.labels, graph_b.labels)
+        pairs = candidate_pairs(graph_a, graph_b)
         adj = np.zeros((n, n), dtype=np.bool_)
     except MemoryError:  # a max_nodes raised beyond what this machine holds
         raise GraphError(

@@ -16,6 +16,11 @@ Three feature kinds of the paper, plus corners:
 * **corners** (beyond the paper) — the intersection of two lines fitted to adjacent pieces
   of one cluster that meet at a large angle: a point feature as stable as the walls.
 
+These five kinds are declared in the registry of feature kinds (:mod:`scanclique.kinds`),
+with their labels, geometries and pose residuals. A kind registered there with an
+extractor (e.g. tree trunks with their diameter) is added to every scan's features by
+:func:`extract_features`, after the built-in ones.
+
 All coordinates are in the sensor frame, metres and radians.
 
 :func:`extract_features` runs as one compiled kernel (:mod:`scanclique._feature_kernels`,
@@ -33,8 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import kinds
 from ._lazy import kernel_module
 from .config import ClusterConfig, FeatureConfig
+from .errors import ArgumentError, ConfigError, GraphError
+from .kinds import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT
 from .scan import Scan
 
 __all__ = [
@@ -52,16 +60,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-FOREGROUND_POINT = 0
-EDGE_CW = 1
-EDGE_CCW = 2
-CORNER = 3
-POINT_LABEL_NAMES = {
-    FOREGROUND_POINT: "foreground_point",
-    EDGE_CW: "edge_cw",
-    EDGE_CCW: "edge_ccw",
-    CORNER: "corner",
-}
+#: the built-in point kinds' labels and names; every kind, built in or registered, is
+#: declared in :mod:`scanclique.kinds` (the registry), which these come from
+POINT_LABEL_NAMES = kinds.kind_names("point")
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -99,6 +100,15 @@ class Features:
         Number of scan points behind each line.
     clusters : ndarray, shape (C, 2), int64
         Beam index ranges ``[start, stop)`` of the clusters (valid beams only).
+    points_attributes : ndarray, shape (P, A), optional
+        Node attributes of the point features, column k holding attribute k of each
+        point's kind (:attr:`scanclique.kinds.FeatureKind.attributes`), NaN where its
+        kind has fewer. Built-in kinds have none: (P, 0), the default.
+    lines_attributes : ndarray, shape (L, A'), optional
+        The same for the line features; (L, 0) by default.
+
+    The label of a feature says its kind (:mod:`scanclique.kinds`); the kind's geometry
+    says which group it is in (point kinds in ``points_*``, line kinds in ``lines_*``).
     """
 
     points_xy: np.ndarray
@@ -111,8 +121,20 @@ class Features:
     lines_beams: np.ndarray
     lines_n_points: np.ndarray
     clusters: np.ndarray
+    points_attributes: np.ndarray | None = None
+    lines_attributes: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        for name, group in (
+            ("points_attributes", "points_xy"),
+            ("lines_attributes", "lines_rho_alpha"),
+        ):
+            n = np.shape(getattr(self, group))[0]
+            a = getattr(self, name)
+            a = np.zeros((n, 0)) if a is None else np.asarray(a, dtype=np.float64)
+            if a.ndim != 2 or a.shape[0] != n:
+                raise GraphError(f"Features.{name}: expected shape ({n}, A), got {a.shape}")
+            object.__setattr__(self, name, a)
         for name in self.__dataclass_fields__:
             object.__setattr__(self, name, _ro(np.asarray(getattr(self, name))))
 
@@ -128,9 +150,16 @@ class Features:
         return self.n_points + self.n_lines
 
     def counts(self) -> dict[str, int]:
-        """Number of features of each kind."""
-        out = {name: int(np.sum(self.points_label == k)) for k, name in POINT_LABEL_NAMES.items()}
-        out["line"] = self.n_lines
+        """Number of features of each registered kind (:mod:`scanclique.kinds`), in label
+        order; a point label no registered kind has is counted as ``"label_<n>"``."""
+        labels = np.asarray(self.points_label, dtype=np.int64)
+        out = {}
+        for k in kinds.registered_kinds():
+            out[k.name] = self.n_lines if k.geometry == "line" else int(np.sum(labels == k.label))
+        point_labels = kinds.kind_names("point")
+        for v in np.unique(labels):
+            if int(v) not in point_labels:
+                out[kinds.kind_name(int(v))] = int(np.sum(labels == v))
         return out
 
     def __repr__(self) -> str:
@@ -454,7 +483,53 @@ def extract_features(
     """
     p = _kernel_params(config, cluster_config)
     out = _kernels().extract(scan.ranges, scan.angles, scan.valid, scan.range_max, p)
-    return Features(*out)
+    features = Features(*out)
+    extra = kinds.extractor_kinds()
+    return _with_kinds(scan, features, extra) if extra else features
+
+
+def _with_kinds(scan: Scan, features: Features, extra) -> Features:
+    """``features`` plus the features each registered extractor finds in ``scan``.
+
+    The extractors' point features follow the built-in ones, kind by kind in label
+    order, with their attributes in ``points_attributes`` (NaN-padded to the widest
+    kind's attribute count).
+    """
+    found = [(k, k.extract(scan, features)) for k in extra]
+    for k, f in found:
+        if not isinstance(f, kinds.KindFeatures):
+            raise ArgumentError(
+                f"the extractor of feature kind {k.name!r} returned {type(f).__name__}, "
+                "not a scanclique.kinds.KindFeatures"
+            )
+        if f.attributes.shape[1] != len(k.attributes):
+            raise ConfigError(
+                f"the extractor of feature kind {k.name!r} gave {f.attributes.shape[1]} "
+                f"attributes per feature; the kind declares {len(k.attributes)} {k.attributes}"
+            )
+    A = max([features.points_attributes.shape[1]] + [f.attributes.shape[1] for _, f in found])
+
+    def pad(a):
+        return np.pad(a, ((0, 0), (0, A - a.shape[1])), constant_values=np.nan)
+
+    return Features(
+        points_xy=np.concatenate([features.points_xy] + [f.xy for _, f in found]),
+        points_label=np.concatenate(
+            [features.points_label] + [np.full(len(f.xy), k.label, np.int8) for k, f in found]
+        ).astype(np.int8),
+        points_cov=np.concatenate([features.points_cov] + [f.cov for _, f in found]),
+        points_beam=np.concatenate([features.points_beam] + [f.beam for _, f in found]),
+        lines_rho_alpha=features.lines_rho_alpha,
+        lines_ends=features.lines_ends,
+        lines_cov=features.lines_cov,
+        lines_beams=features.lines_beams,
+        lines_n_points=features.lines_n_points,
+        clusters=features.clusters,
+        points_attributes=np.concatenate(
+            [pad(features.points_attributes)] + [pad(f.attributes) for _, f in found]
+        ),
+        lines_attributes=features.lines_attributes,
+    )
 
 
 def _extract_features_reference(

@@ -18,38 +18,62 @@ line–line (‖)   —                                      signed offset betwe
 A graph is stored as *layers*: ``invariants[k, i, j]`` is the value of relation k
 between nodes i and j (NaN where relation k does not apply to that type pair),
 ``tolerances[k, i, j]`` its matching tolerance, and ``circular[k]`` says whether layer k
-is an angle compared modulo 2π. The correspondence stage only reads these arrays, so a new
-feature type (3D points and planes, radar reflectors) adds its layers here without
-touching the matcher.
+is an angle compared modulo 2π (:data:`LAYERS` names them).
+
+Which relations a pair of nodes has follows from the *geometries* of their kinds
+(:mod:`scanclique.kinds`: ``Geometry.relations``), not from the kinds themselves, so a
+kind registered there (a point with a diameter, as a tree trunk is) gets its invariants
+with every other kind without a change here. Node attributes (the diameter) are not
+pairwise: they travel in ``FeatureGraph.attributes`` and the correspondence stage
+compares them when it pairs nodes. The correspondence stage only reads these arrays;
+a new geometry (3D points and planes) adds its relations and layers here.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import kinds as _registry
 from .config import CorrespondenceConfig, FeatureConfig
 from .errors import GraphError
 from .features import (
-    CORNER,
-    EDGE_CCW,
-    EDGE_CW,
-    FOREGROUND_POINT,
     Features,
     _kernels,  # the compiled kernels (_feature_kernels), imported lazily
 )
+from .kinds import LINE
 
-__all__ = ["LINE", "NODE_KIND_NAMES", "PARALLEL_MAX_ANGLE", "FeatureGraph", "feature_graph"]
+__all__ = [
+    "LINE",
+    "LAYERS",
+    "NODE_KIND_NAMES",
+    "PARALLEL_MAX_ANGLE",
+    "FeatureGraph",
+    "feature_graph",
+]
 
-LINE = 8  #: node label of line features (point labels are 0..3, see :mod:`.features`)
-NODE_KIND_NAMES = {
-    FOREGROUND_POINT: "foreground_point",
-    EDGE_CW: "edge_cw",
-    EDGE_CCW: "edge_ccw",
-    CORNER: "corner",
-    LINE: "line",
-}
+#: the invariant layers of an SE(2) feature graph, and the geometry pairs that fill them
+LAYERS = ("distance", "angle", "offset")
+
+
+class _KindNames(Mapping):
+    """``{label: name}`` of the registered feature kinds, read from the registry on each
+    access (so a kind registered later is found)."""
+
+    def __getitem__(self, label: int) -> str:
+        return _registry.kind(int(label)).name
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(_registry.kind_names())
+
+    def __len__(self) -> int:
+        return len(_registry.kind_names())
+
+
+#: node label -> kind name, for every registered kind (:mod:`scanclique.kinds`)
+NODE_KIND_NAMES: Mapping[int, str] = _KindNames()
 # Lines within ~3 degrees of (anti)parallel also get an offset invariant: rho_j - rho_i
 # drifts by |t| sin(dalpha) under a motion t, about 0.25 m after 5 m, within tolerance.
 PARALLEL_MAX_ANGLE = 0.05  #: radians; lines this close to (anti)parallel get an offset
@@ -80,6 +104,11 @@ class FeatureGraph:
         Layers that are angles compared modulo 2π.
     n_points : int
         Number of point nodes (the first ``n_points`` nodes).
+    attributes : ndarray, shape (N, A)
+        Node attributes (column k: attribute k of the node's kind, NaN where it has
+        none); (N, 0) when no kind present has attributes.
+    attribute_tolerances : ndarray, shape (N, A)
+        The matching tolerance of each node's attribute (``inf`` where none).
     config : CorrespondenceConfig
         The tolerances and invariant choices the graph was built with; the
         correspondence stage refuses to pair graphs built with different ones.
@@ -95,9 +124,35 @@ class FeatureGraph:
     n_points: int
     config: CorrespondenceConfig = _DEFAULT_CORRESPONDENCE_FIELD
     typed_edges: bool = True
+    attributes: np.ndarray | None = None
+    attribute_tolerances: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in ("labels", "kinds", "invariants", "tolerances", "circular"):
+        n = int(np.size(self.labels))
+        if self.attributes is None:
+            object.__setattr__(self, "attributes", np.zeros((n, 0)))
+        if self.attribute_tolerances is None:
+            object.__setattr__(
+                self, "attribute_tolerances", np.full(np.shape(self.attributes), np.inf)
+            )
+        if not (
+            np.shape(self.attributes) == np.shape(self.attribute_tolerances)
+            and np.ndim(self.attributes) == 2
+            and np.shape(self.attributes)[0] == n
+        ):
+            raise GraphError(
+                f"FeatureGraph: attributes {np.shape(self.attributes)} and attribute "
+                f"tolerances {np.shape(self.attribute_tolerances)} must both be ({n}, A)"
+            )
+        for name in (
+            "labels",
+            "kinds",
+            "invariants",
+            "tolerances",
+            "circular",
+            "attributes",
+            "attribute_tolerances",
+        ):
             a = np.ascontiguousarray(getattr(self, name))
             a.setflags(write=False)
             object.__setattr__(self, name, a)
@@ -193,6 +248,7 @@ def feature_graph(
         float(cfg.adaptive),
         float(_PARALLEL_SIN),
     )
+    attrs, attr_tol = _node_attributes(features, kinds)
     return FeatureGraph(
         labels=labels,
         kinds=kinds,
@@ -202,7 +258,26 @@ def feature_graph(
         n_points=P,
         config=cfg,
         typed_edges=bool(typed),
+        attributes=attrs,
+        attribute_tolerances=attr_tol,
     )
+
+
+def _node_attributes(features: Features, node_kinds: np.ndarray):
+    """The graph's node attributes (points then lines, NaN-padded to one width) and their
+    tolerances from each node's kind; (N, 0) arrays when there are none."""
+    pa = np.asarray(features.points_attributes, dtype=np.float64)
+    la = np.asarray(features.lines_attributes, dtype=np.float64)
+    A = max(pa.shape[1], la.shape[1])
+    N = pa.shape[0] + la.shape[0]
+    if A == 0:
+        return np.zeros((N, 0)), np.zeros((N, 0))
+    attrs = np.full((N, A), np.nan)
+    attrs[: pa.shape[0], : pa.shape[1]] = pa
+    attrs[pa.shape[0] :, : la.shape[1]] = la
+    tol, At = _registry.attribute_tolerances(node_kinds)
+    tol = np.pad(tol, ((0, 0), (0, A - At)), constant_values=np.inf) if At < A else tol[:, :A]
+    return attrs, tol
 
 
 def _feature_graph_reference(
@@ -266,6 +341,7 @@ def _feature_graph_reference(
             tol[2, P:, P:] = cfg.point_line
         idx = np.arange(P, N)
         inv[:, idx, idx] = np.nan
+    attrs, attr_tol = _node_attributes(features, kinds)
     return FeatureGraph(
         labels=labels,
         kinds=kinds,
@@ -275,4 +351,6 @@ def _feature_graph_reference(
         n_points=P,
         config=cfg,
         typed_edges=bool(fcfg.typed_edges),
+        attributes=attrs,
+        attribute_tolerances=attr_tol,
     )

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ..features import POINT_LABEL_NAMES, Features
+from ..kinds import kind_name, kind_names
 from ..match import STAGES
 from ..validation import ACCEPTED, VERDICTS, Validation
 from .runs import MatchRun, ValidateRun, _std
@@ -25,7 +26,8 @@ __all__ = [
     "confusion_rows",
 ]
 
-#: The kinds of mapped pairs, in table order.
+#: The built-in kinds of mapped pairs, in table order (kinds registered later, see
+#: :mod:`scanclique.kinds`, are listed by the reports too, in label order).
 KINDS = (*POINT_LABEL_NAMES.values(), "line")
 
 
@@ -80,7 +82,7 @@ def match_rows(run: MatchRun) -> list[tuple[str, str, str]]:
             th = s["theta"]
             add(("std theta", _num(None if th is None else math.degrees(th), ".3f"), "deg"))
     add(("clique size", str(m.clique_size), "pairs"))
-    per_kind = {k: 0 for k in KINDS}
+    per_kind = {k: 0 for k in kind_names().values()}
     for pair in m.pairs:
         per_kind[pair.kind] = per_kind.get(pair.kind, 0) + 1
     for k, v in per_kind.items():
@@ -164,7 +166,7 @@ def feature_rows(features: Features) -> list[tuple[str, ...]]:
     for i, (xy, lab, beam) in enumerate(
         zip(features.points_xy, features.points_label, features.points_beam, strict=True)
     ):
-        kind = POINT_LABEL_NAMES[int(lab)]
+        kind = kind_name(int(lab))
         rows.append((str(i), kind, f"x {xy[0]:.3f}", f"y {xy[1]:.3f}", "", str(int(beam))))
     for i, ((rho, alpha), ends, beams) in enumerate(
         zip(features.lines_rho_alpha, features.lines_ends, features.lines_beams, strict=True)
@@ -190,7 +192,7 @@ def features_to_dict(features: Features) -> dict:
         "points": [
             {
                 "index": i,
-                "kind": POINT_LABEL_NAMES[int(lab)],
+                "kind": kind_name(int(lab)),
                 "x": float(xy[0]),
                 "y": float(xy[1]),
                 "beam": int(beam),
