@@ -145,8 +145,9 @@ def test_registered_is_scoped_and_builtins_cannot_be_removed():
 def _trunk_features(xy, diameters) -> Features:
     n = len(xy)
     return Features(
-        np.asarray(xy, float), np.full(n, TRUNK_LABEL, np.int8), np.tile(np.eye(2) * 1e-4, (n, 1, 1)),
-        np.arange(n), np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2, 2)),
+        np.asarray(xy, float), np.full(n, TRUNK_LABEL, np.int8),
+        np.tile(np.eye(2) * 1e-4, (n, 1, 1)), np.arange(n),
+        np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2, 2)),
         np.zeros((0, 2), int), np.zeros(0, int), np.zeros((0, 2), int),
         points_attributes=np.asarray(diameters, float).reshape(n, 1),
     )  # fmt: skip
