@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 
 from . import kinds
 from ._lazy import kernel_module
+from ._records import readonly
 from .config import ClusterConfig, FeatureConfig
 from .errors import ArgumentError, ConfigError, GraphError
 from .kinds import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT
@@ -63,12 +64,6 @@ log = logging.getLogger(__name__)
 #: the built-in point kinds' labels and names; every kind, built in or registered, is
 #: declared in :mod:`scanclique.kinds` (the registry), which these come from
 POINT_LABEL_NAMES = kinds.kind_names("point")
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -136,7 +131,7 @@ class Features:
                 raise GraphError(f"Features.{name}: expected shape ({n}, A), got {a.shape}")
             object.__setattr__(self, name, a)
         for name in self.__dataclass_fields__:
-            object.__setattr__(self, name, _ro(np.asarray(getattr(self, name))))
+            object.__setattr__(self, name, readonly(getattr(self, name)))
 
     @property
     def n_points(self) -> int:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._records import readonly as _readonly
 from .errors import ScanError
 from .geometry import Pose2
 
@@ -22,11 +23,6 @@ __all__ = ["Scan", "beam_angles"]
 def beam_angles(n: int, angle_min: float, angle_increment: float) -> np.ndarray:
     """Beam angles (radians, sensor frame, counter-clockwise from the x axis) of ``n`` beams."""
     return angle_min + angle_increment * np.arange(n, dtype=float)
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, slots=True, eq=False)

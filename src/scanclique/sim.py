@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._records import readonly as _readonly
 from .config import require_nonneg, require_positive
 from .errors import ConfigError, ScanCliqueError
 from .geometry import Pose2
@@ -69,11 +70,6 @@ _TRIES = 40  # rejection-sampling attempts per piece of furniture or person
 _MIN_VALID_FRACTION = 0.5  # a usable view has returns on at least half of its beams...
 _MIN_MEDIAN_RANGE = 0.8  # ...and does not stare into a wall (median return, metres)
 _EPS = 1e-9
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 def _check_rng(rng, where: str) -> np.random.Generator:

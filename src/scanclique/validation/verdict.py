@@ -58,6 +58,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._records import readonly
 from ..config import ValidationConfig
 from ..errors import ConfigError, ScanError
 from ..geometry import Pose2
@@ -104,14 +105,6 @@ VERDICTS = (ACCEPTED, REJECTED_ODOMETRY, AMBIGUOUS, TOO_FEW_FEATURES)
 # ---------------------------------------------------------------------------------------
 # Records
 # ---------------------------------------------------------------------------------------
-def _readonly(a) -> np.ndarray | None:
-    if a is None:
-        return None
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class HypothesisCheck:
     """One hypothesis of a match tested against the odometry prior.
@@ -132,7 +125,7 @@ class HypothesisCheck:
     rival: bool = True
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "covariance", _readonly(self.covariance))
+        object.__setattr__(self, "covariance", readonly(self.covariance, dtype=float, copy=True))
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -198,8 +191,9 @@ class Validation:
     def __post_init__(self) -> None:
         if self.verdict not in VERDICTS:
             raise ScanError(f"Validation.verdict must be one of {VERDICTS}, got {self.verdict!r}")
-        object.__setattr__(self, "covariance", _readonly(self.covariance))
-        object.__setattr__(self, "prior_covariance", _readonly(self.prior_covariance))
+        object.__setattr__(self, "covariance", readonly(self.covariance, dtype=float, copy=True))
+        prior = readonly(self.prior_covariance, dtype=float, copy=True)
+        object.__setattr__(self, "prior_covariance", prior)
         object.__setattr__(self, "checks", tuple(self.checks))
         object.__setattr__(self, "reasons", tuple(self.reasons))
         object.__setattr__(self, "rivals", tuple(int(k) for k in self.rivals))
