@@ -237,6 +237,21 @@ def _keep_nearest(bd, bi, m, k, d2, j):  # pragma: no cover - compiled
     return m + 1 if m < k else m
 
 
+@_inline
+def _offer(pts, j, x, y, r, r2, bd, bi, m, k, w):  # pragma: no cover - compiled
+    """Offer point ``j`` to the ``k`` nearest of ``(x, y)`` (at range ``r``) when within
+    ``sqrt(r2)``; once ``k`` are held, narrow the bearing half-window ``w`` to the k-th
+    distance. Returns the new ``(m, w)``."""
+    dx = pts[j, 0] - x
+    dy = pts[j, 1] - y
+    d2 = dx * dx + dy * dy
+    if d2 <= r2:
+        m = _keep_nearest(bd, bi, m, k, d2, j)
+        if m == k:
+            w = min(w, _half_window(math.sqrt(bd[k - 1]) / r))
+    return m, w
+
+
 @_njit
 def cloud_normals(ix, pts, k, radius, normals):  # pragma: no cover - compiled
     """Unit normal of each point: the direction of least spread of its ``k`` nearest
@@ -266,26 +281,14 @@ def cloud_normals(ix, pts, k, radius, normals):  # pragma: no cover - compiled
                     if bear[hi] - bear[i] > w:
                         hi_ok = False
                     else:
-                        dx = pts[hi, 0] - x
-                        dy = pts[hi, 1] - y
-                        d2 = dx * dx + dy * dy
-                        if d2 <= r2:
-                            m = _keep_nearest(bd, bi, m, k, d2, hi)
-                            if m == k:
-                                w = min(w, _half_window(math.sqrt(bd[k - 1]) / r))
+                        m, w = _offer(pts, hi, x, y, r, r2, bd, bi, m, k, w)
                         hi += 1
                         hi_ok = hi < n
                 if lo_ok:
                     if bear[i] - bear[lo] > w:
                         lo_ok = False
                     else:
-                        dx = pts[lo, 0] - x
-                        dy = pts[lo, 1] - y
-                        d2 = dx * dx + dy * dy
-                        if d2 <= r2:
-                            m = _keep_nearest(bd, bi, m, k, d2, lo)
-                            if m == k:
-                                w = min(w, _half_window(math.sqrt(bd[k - 1]) / r))
+                        m, w = _offer(pts, lo, x, y, r, r2, bd, bi, m, k, w)
                         lo -= 1
                         lo_ok = lo >= 0
         else:
