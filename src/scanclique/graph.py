@@ -52,6 +52,7 @@ __all__ = [
     "PARALLEL_MAX_ANGLE",
     "FeatureGraph",
     "feature_graph",
+    "point_distance_invariants",
 ]
 
 #: the invariant layers of an SE(2) feature graph, and the geometry pairs that fill them
@@ -261,6 +262,56 @@ def feature_graph(
         attributes=attrs,
         attribute_tolerances=attr_tol,
     )
+
+
+def point_distance_invariants(points, cov) -> tuple[np.ndarray, np.ndarray]:
+    """Point–point distances and their first-order variances: the invariant of a pair of
+    ``point`` geometry nodes (paper §5.1), for callers that hold a *joint* covariance.
+
+    :func:`feature_graph` computes the same distances for one scan's features (with a
+    tolerance from each point's own covariance); this form serves graphs whose points are
+    correlated, such as the predicted landmarks of an EKF map (:mod:`scanclique.slam`).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Metres.
+    cov : array_like, shape (2n, 2n) or (n, 2, 2)
+        Joint covariance of the stacked points (m²), or independent per-point blocks.
+
+    Returns
+    -------
+    D : ndarray, shape (n, n)
+        ``|p_a - p_b|`` (metres).
+    V : ndarray, shape (n, n)
+        First-order variance of ``D`` (m²), ``u^T (S_a + S_b - C_ab - C_ba) u`` with ``u``
+        the unit vector from b to a (zero on the diagonal), never negative.
+
+    Examples
+    --------
+    >>> D, V = point_distance_invariants([[0.0, 0.0], [3.0, 4.0]], np.tile(np.eye(2), (2, 1, 1)))
+    >>> float(D[0, 1]), float(V[0, 1])
+    (5.0, 2.0)
+    """
+    p = np.asarray(points, float).reshape(-1, 2)
+    n = len(p)
+    d = p[:, None, :] - p[None, :, :]
+    D = np.sqrt((d * d).sum(-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = d / D[..., None]
+    u[~np.isfinite(u)] = 0.0
+    cov = np.asarray(cov, float)
+    if cov.ndim == 3:
+        B = cov
+        C = None
+    else:
+        B = cov.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :]
+        C = cov.reshape(n, 2, n, 2).transpose(0, 2, 1, 3)  # (n, n, 2, 2) blocks
+    Sab = B[:, None] + B[None, :]
+    if C is not None:
+        Sab = Sab - C - C.transpose(0, 1, 3, 2)
+    V = np.einsum("abi,abij,abj->ab", u, Sab, u)
+    return D, np.maximum(V, 0.0)
 
 
 def _node_attributes(features: Features, node_kinds: np.ndarray):
