@@ -187,6 +187,20 @@ def test_a_node_without_an_attribute_value_is_not_vetoed():
         assert sorted(map(tuple, candidate_pairs(g, h))) == [(0, 0), (0, 1)]
 
 
+def test_reports_name_the_kind_and_its_attributes():
+    from scanclique.tools.reports import feature_rows, features_to_dict
+
+    f = _trunk_features([[0.0, 0.0], [3.0, 1.0]], [0.25, np.nan])
+    with kinds.registered(TRUNK):
+        d = features_to_dict(f)
+        assert d["counts"]["trunk"] == 2
+        assert d["points"][0]["kind"] == "trunk"
+        assert d["points"][0]["attributes"] == {"diameter": 0.25}
+        assert "attributes" not in d["points"][1]  # no value, nothing invented
+        assert [r[1] for r in feature_rows(f)] == ["trunk", "trunk"]
+    assert features_to_dict(f)["points"][0]["kind"] == f"label_{TRUNK_LABEL}"
+
+
 def test_features_of_an_unregistered_kind_with_attributes_are_refused():
     f = _trunk_features([[0.0, 0.0], [3.0, 1.0]], [0.2, 0.3])
     with pytest.raises(ScanCliqueError, match="no feature kind"):

@@ -11,7 +11,9 @@ import math
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..features import POINT_LABEL_NAMES, Features
+from ..kinds import kind as _kind
 from ..kinds import kind_name, kind_names
 from ..match import STAGES
 from ..validation import ACCEPTED, VERDICTS, Validation
@@ -185,22 +187,48 @@ def feature_rows(features: Features) -> list[tuple[str, ...]]:
     return rows
 
 
+def _kind_attributes(label: int) -> tuple[str, ...]:
+    """Attribute names of the kind with this label (none for an unregistered label)."""
+    try:
+        return _kind(label).attributes
+    except ConfigError:
+        return ()
+
+
+def _attributes(label: int, values: np.ndarray) -> dict:
+    """``{attribute name: value}`` of a feature of a registered kind with attributes."""
+    names = _kind_attributes(label)
+    return {n: float(v) for n, v in zip(names, values, strict=False) if np.isfinite(v)}
+
+
 def features_to_dict(features: Features) -> dict:
-    """A JSON-ready dict of a :class:`Features` (counts, point features, lines)."""
+    """A JSON-ready dict of a :class:`Features` (counts, point features, lines); a point of
+    a kind with node attributes (:mod:`scanclique.kinds`) lists them under
+    ``"attributes"``."""
+    points = []
+    for i, (xy, lab, beam, attrs) in enumerate(
+        zip(
+            features.points_xy,
+            features.points_label,
+            features.points_beam,
+            features.points_attributes,
+            strict=True,
+        )
+    ):
+        rec = {
+            "index": i,
+            "kind": kind_name(int(lab)),
+            "x": float(xy[0]),
+            "y": float(xy[1]),
+            "beam": int(beam),
+        }
+        extra = _attributes(int(lab), attrs) if attrs.size else {}
+        if extra:
+            rec["attributes"] = extra
+        points.append(rec)
     return {
         "counts": features.counts(),
-        "points": [
-            {
-                "index": i,
-                "kind": kind_name(int(lab)),
-                "x": float(xy[0]),
-                "y": float(xy[1]),
-                "beam": int(beam),
-            }
-            for i, (xy, lab, beam) in enumerate(
-                zip(features.points_xy, features.points_label, features.points_beam, strict=True)
-            )
-        ],
+        "points": points,
         "lines": [
             {
                 "index": i,
