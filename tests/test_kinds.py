@@ -201,6 +201,22 @@ def test_reports_name_the_kind_and_its_attributes():
     assert features_to_dict(f)["points"][0]["kind"] == f"label_{TRUNK_LABEL}"
 
 
+def test_plot_draws_a_registered_kind_under_its_name():
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from scanclique.plot import plot_features
+
+    scan = sim.simulate_scan(
+        _park(), Pose2.from_xytheta(0.0, 0.0, math.pi / 2), n_beams=721, range_sigma=0.0
+    )
+    with kinds.registered(TRUNK):
+        ax = plot_features(scan, extract_features(scan))
+    assert "trunk" in ax.get_legend_handles_labels()[1]
+    assert "trunk" in ax.get_title()
+
+
 def test_features_of_an_unregistered_kind_with_attributes_are_refused():
     f = _trunk_features([[0.0, 0.0], [3.0, 1.0]], [0.2, 0.3])
     with pytest.raises(ScanCliqueError, match="no feature kind"):

@@ -32,6 +32,7 @@ import numpy as np
 
 from .features import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT, Features
 from .geometry import Pose2
+from .kinds import kind_name
 from .scan import Scan
 
 __all__ = ["plot_features", "plot_match", "save_figure", "FEATURE_STYLE"]
@@ -43,6 +44,7 @@ FEATURE_STYLE = {
     EDGE_CCW: ("^", "tab:purple", "edge (ccw)"),
     CORNER: ("s", "tab:red", "corner"),
 }
+_OTHER_COLOURS = ("tab:brown", "tab:pink", "tab:olive", "tab:cyan")
 _LINE_COLOUR = "tab:blue"
 _A_COLOUR = "0.35"
 _B_COLOUR = "tab:orange"
@@ -145,7 +147,11 @@ def _draw_scan_features(
     # point features by kind
     if features.n_points:
         pxy = T.transform(features.points_xy)
-        for kind, (marker, colour, name) in FEATURE_STYLE.items():
+        styles = dict(FEATURE_STYLE)
+        others = sorted(set(np.unique(features.points_label).tolist()) - set(styles))
+        for q, lab in enumerate(others):  # kinds registered in scanclique.kinds
+            styles[lab] = ("D", _OTHER_COLOURS[q % len(_OTHER_COLOURS)], kind_name(lab))
+        for kind, (marker, colour, name) in styles.items():
             sel = features.points_label == kind
             if sel.any():
                 ax.scatter(
