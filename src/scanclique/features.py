@@ -30,6 +30,7 @@ about 0.05 ms for a 361-beam scan); the stage functions here, composed in
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import math
@@ -507,23 +508,17 @@ def _with_kinds(scan: Scan, features: Features, extra) -> Features:
     def pad(a):
         return np.pad(a, ((0, 0), (0, A - a.shape[1])), constant_values=np.nan)
 
-    return Features(
+    return dataclasses.replace(
+        features,
         points_xy=np.concatenate([features.points_xy] + [f.xy for _, f in found]),
         points_label=np.concatenate(
             [features.points_label] + [np.full(len(f.xy), k.label, np.int8) for k, f in found]
         ).astype(np.int8),
         points_cov=np.concatenate([features.points_cov] + [f.cov for _, f in found]),
         points_beam=np.concatenate([features.points_beam] + [f.beam for _, f in found]),
-        lines_rho_alpha=features.lines_rho_alpha,
-        lines_ends=features.lines_ends,
-        lines_cov=features.lines_cov,
-        lines_beams=features.lines_beams,
-        lines_n_points=features.lines_n_points,
-        clusters=features.clusters,
         points_attributes=np.concatenate(
             [pad(features.points_attributes)] + [pad(f.attributes) for _, f in found]
         ),
-        lines_attributes=features.lines_attributes,
     )
 
 
