@@ -114,7 +114,9 @@ def pr_curve(answers: list[dict], n_true: int) -> dict:
     }
 
 
-def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True) -> dict:
+def recognition(
+    name: str, every: int, candidates: int, tmp: Path, progress=True, search=False
+) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
@@ -124,7 +126,7 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
     n = len(scans)
     # every answer accepted (validation and min_features), thresholded by score below
     # (the default min_score is one point of that curve)
-    db = PlaceDB(tmp / f"{name}.db", min_score=0.0)
+    db = PlaceDB(tmp / f"{name}.db", min_score=0.0, search=search)
     t = time.perf_counter()
     add_ms = []
     for k, s in enumerate(scans):
@@ -172,6 +174,7 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
                 right=bool(t_err <= RIGHT_T and r_err <= RIGHT_R),
                 rank=best.rank,
                 n_features=best.n_features,
+                votes=best.votes,
             )
         records.append(rec)
         if progress and (qn + 1) % 50 == 0:
@@ -219,6 +222,7 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
                     "score",
                     "n_features",
                     "rank",
+                    "votes",
                     "t_err",
                     "r_err",
                 )
@@ -451,6 +455,11 @@ def main(argv=None) -> None:
     ap.add_argument("--loops-candidates", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument(
+        "--search",
+        action="store_true",
+        help="recognition: let the matcher search the pose on raw scans (PlaceDB search=True)",
+    )
+    ap.add_argument(
         "--full",
         action="store_true",
         help="every scan a query, all freiburg scans in the loop search",
@@ -476,7 +485,8 @@ def main(argv=None) -> None:
         tmp = Path(tmpd)
         if "recognition" in stages:
             res["recognition"] = [
-                recognition(n, a.query_every, a.candidates, tmp) for n in a.logs.split(",")
+                recognition(n, a.query_every, a.candidates, tmp, search=a.search)
+                for n in a.logs.split(",")
             ]
             for r in res["recognition"]:
                 print(
