@@ -120,6 +120,8 @@ def recognition(
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
+    from scanclique.places.hashing import feature_triangles
+    from scanclique.places.signature import scan_signature
     from scanclique.places.verify import ACCEPT_MIN_SCORE
 
     scans = load_log(name)
@@ -138,6 +140,8 @@ def recognition(
     queries = list(range(0, n, every))
     truth = true_places(scans, queries)
     records, pre10, pre50, n_true = [], 0, 0, 0
+    # each prefilter alone: the signature's nearest, the triangles' most votes
+    alone = {"signature": [0, 0], "triangles": [0, 0]}
     q_ms = []
     t0 = time.perf_counter()
     for qn, i in enumerate(queries):
@@ -151,6 +155,14 @@ def recognition(
             n_true += 1
             pre10 += bool(truth[i].intersection(rows[:10]))
             pre50 += bool(truth[i].intersection(rows[:50]))
+            allowed = ~np.isin(db.index.ids, np.arange(exclude.start, exclude.stop))
+            s_ids, _ = db.index.search(scan_signature(p), 50, allowed)
+            tri = feature_triangles(p.features.points_xy, p.features.points_label)
+            t_ids, _ = db.triangles.search(tri, 50, exclude)
+            for key, got in (("signature", s_ids), ("triangles", t_ids)):
+                r = [int(x) - 1 for x in got]
+                alone[key][0] += bool(truth[i].intersection(r[:10]))
+                alone[key][1] += bool(truth[i].intersection(r[:50]))
         t1 = time.perf_counter()
         hits = db.query(p, k=candidates, candidates=candidates, exclude=exclude)
         q_ms.append(1e3 * (time.perf_counter() - t1))
@@ -206,6 +218,11 @@ def recognition(
         "recall_at_100": curve["r100"],
         "prefilter_recall_10": pre10 / n_true if n_true else float("nan"),
         "prefilter_recall_50": pre50 / n_true if n_true else float("nan"),
+        **{
+            f"{key}_recall_{at}": v[m] / n_true if n_true else float("nan")
+            for key, v in alone.items()
+            for m, at in enumerate((10, 50))
+        },
         "query_ms_median": float(np.median(q_ms)),
         "query_ms_p95": float(np.percentile(q_ms, 95)),
         "add_ms_median": float(np.median(add_ms)),
@@ -365,8 +382,9 @@ def report(res: dict) -> str:
             "",
             "| log | queries | with true place | accepted (any score) | precision | recall | "
             "default (score >= 0.5): precision | recall | recall@99%P | recall@100%P | "
-            "prefilter recall@10 | @50 | query ms median | p95 |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "prefilter recall@10 | @50 | signature alone @10 | @50 | triangles alone @10 | "
+            "@50 | query ms median | p95 |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in res["recognition"]:
             lines.append(
@@ -374,7 +392,9 @@ def report(res: dict) -> str:
                 f"{_f(r['precision'])} | {_f(r['recall'])} | {_f(r['default_precision'])} | "
                 f"{_f(r['default_recall'])} | {_f(r['recall_at_99'])} | "
                 f"{_f(r['recall_at_100'])} | {_f(r['prefilter_recall_10'])} | "
-                f"{_f(r['prefilter_recall_50'])} | {_f(r['query_ms_median'], '.1f')} | "
+                f"{_f(r['prefilter_recall_50'])} | {_f(r.get('signature_recall_10'))} | "
+                f"{_f(r.get('signature_recall_50'))} | {_f(r.get('triangles_recall_10'))} | "
+                f"{_f(r.get('triangles_recall_50'))} | {_f(r['query_ms_median'], '.1f')} | "
                 f"{_f(r['query_ms_p95'], '.1f')} |"
             )
         lines.append("")
@@ -495,7 +515,10 @@ def main(argv=None) -> None:
                     f"{_f(r['recall'])} default P {_f(r['default_precision'])} R "
                     f"{_f(r['default_recall'])} r@99 {_f(r['recall_at_99'])} r@100 "
                     f"{_f(r['recall_at_100'])} prefilter@10 {_f(r['prefilter_recall_10'])} "
-                    f"@50 {_f(r['prefilter_recall_50'])} query ms {r['query_ms_median']:.1f} "
+                    f"@50 {_f(r['prefilter_recall_50'])} (signature "
+                    f"{_f(r['signature_recall_10'])} / {_f(r['signature_recall_50'])}, "
+                    f"triangles {_f(r['triangles_recall_10'])} / "
+                    f"{_f(r['triangles_recall_50'])}) query ms {r['query_ms_median']:.1f} "
                     f"(p95 {r['query_ms_p95']:.1f})",
                     flush=True,
                 )

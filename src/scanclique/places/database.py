@@ -14,16 +14,23 @@ True
 
 A query is, in order:
 
-1. the query scan prepared (features, feature graph, raw-point cloud) and its signature
-   (:func:`.signature.scan_signature`);
-2. the prefilter: the ``candidates`` places of nearest signature, exact brute force
-   (:class:`.index.SignatureIndex`);
+1. the query scan prepared (features, feature graph, raw-point cloud), its signature
+   (:func:`.signature.scan_signature`) and its feature triangles
+   (:func:`.hashing.feature_triangles`);
+2. the prefilter, two rankings taken in turn until ``candidates`` places: the places
+   whose triangles agree most on one pose with the query's (geometric hashing,
+   :class:`.hashing.TriangleIndex`: robust to partial overlap and any change of
+   heading) and the places of nearest signature (exact brute force,
+   :class:`.index.SignatureIndex`: a similar view of the whole scan);
 3. each candidate verified (:func:`.verify.verify_pair`): the clique matcher against
-   the stored place, then validation without odometry;
+   the stored place (without its raw-scan pose search, see ``search``), then validation
+   without odometry;
 4. the hits ranked: accepted first, then ambiguous, then rejected; by raw-scan score
    within each.
 
-Places are stored in SQLite (:class:`.store.PlaceStore`); the stored scan is prepared
+Places are stored in SQLite (:class:`.store.PlaceStore`); the signatures are loaded and
+the triangles computed from the stored point features when a database is opened (about
+0.4 ms per place) and kept in memory; the stored scan is prepared
 again when a place is verified (a quarter of a millisecond, less than reading and checking
 its features' blobs) and kept in a cache of recently used places. A database opened by
 several processes sees the places another process added at its next query.
@@ -114,7 +121,7 @@ class PlaceHit:
     distance : float
         Signature distance of the prefilter (:func:`.signature.signature_distance`).
     rank : int
-        Rank of the place in the prefilter (0: nearest signature).
+        Rank of the place in the fused prefilter (0: first).
     n_features : int
         Mapped features agreeing with the pose.
     covariance : ndarray (3, 3) or None
@@ -304,18 +311,25 @@ class PlaceDB:
         """
         p = self.prepare(scan)
         sig = scan_signature(p)
-        pid = self.store.add(scan, feature_arrays(p), sig, name=name, n_features=len(p.features))
-        self.refresh()
+        arrays = feature_arrays(p)
+        pid = self.store.add(scan, arrays, sig, name=name, n_features=len(p.features))
+        if pid == self._last + 1:  # nobody else added since: index it without reading back
+            self.index.add([pid], sig[None, :])
+            self.triangles.add([pid], [_triangles_of(arrays)])
+            self._last = pid
+        else:
+            self.refresh()
         self._remember(pid, p)
         return pid
 
     # -- reading -----------------------------------------------------------------------
     def refresh(self) -> int:
-        """Load the signatures of places added since the last call (by any process);
-        returns how many."""
+        """Load the signatures, and compute the triangles, of places added since the last
+        call (by any process); returns how many."""
         ids, sigs = self.store.signatures_after(self._last)
         if len(ids):
-            tids, arrays = self.store.arrays_after(self._last, _TRIANGLE_FIELDS)
+            # no further than the signatures read: another process may be adding
+            tids, arrays = self.store.arrays_after(self._last, _TRIANGLE_FIELDS, upto=int(ids[-1]))
             self.triangles.add(tids, [_triangles_of(a) for a in arrays])
             self.index.add(ids, sigs)
             self._last = int(ids[-1])

@@ -167,8 +167,10 @@ def feature_triangles(points_xy: np.ndarray, points_label: np.ndarray) -> Triang
     tri = np.stack(
         [np.repeat(np.arange(P), len(b)), nn[:, b].reshape(-1), nn[:, c].reshape(-1)], axis=1
     )
-    tri = np.unique(np.sort(tri, axis=1), axis=0)
-    i, j, k = tri.T
+    tri.sort(axis=1)
+    code = np.unique((tri[:, 0] * P + tri[:, 1]) * P + tri[:, 2])  # each triangle once
+    i, j, k = code // (P * P), (code // P) % P, code % P
+    tri = np.column_stack([i, j, k])
     s = np.stack([D[j, k], D[i, k], D[i, j]], axis=1)  # side opposite i, j, k
     ok = (s.max(axis=1) <= MAX_SIDE) & (s.min(axis=1) >= MIN_SIDE)
     V, s = tri[ok], s[ok]
@@ -245,8 +247,13 @@ class TriangleIndex:
             n = len(t.keys)
             if n:
                 self._pending.append(
-                    (t.keys, np.full(n, row0 + r, np.int32), t.frames[:, 0], t.frames[:, 1],
-                     t.frames[:, 2])
+                    (
+                        t.keys,
+                        np.full(n, row0 + r, np.int32),
+                        t.frames[:, 0],
+                        t.frames[:, 1],
+                        t.frames[:, 2],
+                    )
                 )
                 self._n_pending += n
 

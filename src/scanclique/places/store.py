@@ -406,16 +406,19 @@ class PlaceStore:
             raise PlaceDatabaseError(f"{self._where}: signatures of different lengths")
         return ids, np.stack(sigs)
 
-    def arrays_after(self, after: int, names: tuple[str, ...]) -> tuple[np.ndarray, list[dict]]:
-        """``(ids, arrays)`` of the places with id greater than ``after``, by id: for each,
-        a dict of its stored arrays among ``names`` (e.g. ``"features.points_xy"``)."""
+    def arrays_after(
+        self, after: int, names: tuple[str, ...], upto: int | None = None
+    ) -> tuple[np.ndarray, list[dict]]:
+        """``(ids, arrays)`` of the places with id greater than ``after`` (and at most
+        ``upto``), by id: for each, a dict of its stored arrays among ``names`` (e.g.
+        ``"features.points_xy"``)."""
         names = tuple(names)
         q = ",".join("?" * len(names))
         with self._errors("read arrays"):
             rows = self._conn.execute(
                 f"SELECT place_id, name, dtype, shape, crc32, data FROM arrays "
-                f"WHERE place_id > ? AND name IN ({q}) ORDER BY place_id",
-                (int(after), *names),
+                f"WHERE place_id > ? AND place_id <= ? AND name IN ({q}) ORDER BY place_id",
+                (int(after), int(upto) if upto is not None else 2**62, *names),
             ).fetchall()
         out: dict[int, dict] = {}
         for r in rows:
