@@ -203,22 +203,25 @@ class TriangleIndex:
 
     @staticmethod
     def _seg(parts) -> dict:
+        """A sorted segment from ``(keys, rows, frames)`` parts: keys, place rows, and per
+        triangle ``(x, y, cos theta, sin theta)`` of its frame (float32, one gather)."""
         if not parts:
-            z = np.zeros(0)
-            return {"k": np.zeros(0, np.int64), "r": np.zeros(0, np.int32), "x": z, "y": z, "t": z}
+            return {
+                "k": np.zeros(0, np.int64),
+                "r": np.zeros(0, np.int32),
+                "f": np.zeros((0, 4), np.float32),
+            }
         k = np.concatenate([p[0] for p in parts])
         o = np.argsort(k, kind="stable")
         return {
             "k": k[o],
             "r": np.concatenate([p[1] for p in parts])[o],
-            "x": np.concatenate([p[2] for p in parts])[o].astype(np.float32),
-            "y": np.concatenate([p[3] for p in parts])[o].astype(np.float32),
-            "t": np.concatenate([p[4] for p in parts])[o].astype(np.float32),
+            "f": np.concatenate([p[2] for p in parts])[o],
         }
 
     @staticmethod
     def _parts(seg) -> tuple:
-        return (seg["k"], seg["r"], seg["x"], seg["y"], seg["t"])
+        return (seg["k"], seg["r"], seg["f"])
 
     def __len__(self) -> int:
         return len(self._ids)
@@ -246,15 +249,9 @@ class TriangleIndex:
         for r, t in enumerate(triangles):
             n = len(t.keys)
             if n:
-                self._pending.append(
-                    (
-                        t.keys,
-                        np.full(n, row0 + r, np.int32),
-                        t.frames[:, 0],
-                        t.frames[:, 1],
-                        t.frames[:, 2],
-                    )
-                )
+                fr = t.frames
+                f = np.column_stack([fr[:, 0], fr[:, 1], np.cos(fr[:, 2]), np.sin(fr[:, 2])])
+                self._pending.append((t.keys, np.full(n, row0 + r, np.int32), f.astype(np.float32)))
                 self._n_pending += n
 
     def _flush(self) -> None:
@@ -275,7 +272,11 @@ class TriangleIndex:
         if not len(query.keys) or not len(self._ids):
             return out
         qk, qt = query.query_keys()
-        rows, dth, tx, ty = [], [], [], []
+        o = np.argsort(qk, kind="stable")  # sorted needles: a faster lookup
+        qk, qt = qk[o], qt[o]
+        qf = query.frames
+        qc, qs = np.cos(qf[:, 2]), np.sin(qf[:, 2])
+        rows, parts = [], []
         for seg in self._segs:
             if not len(seg["k"]):
                 continue
@@ -286,30 +287,36 @@ class TriangleIndex:
                 continue
             ti = np.repeat(qt, cnt)
             pos = np.repeat(lo - np.cumsum(cnt) + cnt, cnt) + np.arange(tot)
-            th = seg["t"][pos] - query.frames[ti, 2]
-            c, s = np.cos(th), np.sin(th)
-            qx, qy = query.frames[ti, 0], query.frames[ti, 1]
             rows.append(seg["r"][pos])
-            dth.append(th)
-            tx.append(seg["x"][pos] - (c * qx - s * qy))
-            ty.append(seg["y"][pos] - (s * qx + c * qy))
+            f = seg["f"][pos].astype(np.float64)
+            # rotation: stored angle less the query's, as cos and sin of the difference
+            c = f[:, 2] * qc[ti] + f[:, 3] * qs[ti]
+            s = f[:, 3] * qc[ti] - f[:, 2] * qs[ti]
+            qx, qy = qf[ti, 0], qf[ti, 1]
+            parts.append(
+                np.column_stack(
+                    [np.arctan2(s, c), f[:, 0] - (c * qx - s * qy), f[:, 1] - (s * qx + c * qy)]
+                )
+            )
         if not rows:
             return out
         r = np.concatenate(rows).astype(np.int64)
+        v = np.concatenate(parts)
         # bins centred on the identity (a revisit from nearly the same pose, and a scan
         # queried against itself, must not split their votes over two bins)
-        th = np.mod(np.concatenate(dth) + 0.5 * VOTE_THETA, 2 * math.pi)
-        bt = np.minimum(np.floor(th / VOTE_THETA).astype(np.int64), _NT - 1)
+        th = np.mod(v[:, 0] + 0.5 * VOTE_THETA, 2 * math.pi)
+        bt = np.minimum((th / VOTE_THETA).astype(np.int64), _NT - 1)
         half = _NXY // 2
-        bx = np.floor(np.concatenate(tx) / VOTE_XY + 0.5).astype(np.int64) + half
-        by = np.floor(np.concatenate(ty) / VOTE_XY + 0.5).astype(np.int64) + half
-        bx, by = np.clip(bx, 0, _NXY - 1), np.clip(by, 0, _NXY - 1)
-        vk = ((r * _NXY + bx) * _NXY + by) * _NT + bt
+        b = np.floor(v[:, 1:] / VOTE_XY + 0.5).astype(np.int64) + half
+        np.clip(b, 0, _NXY - 1, out=b)
+        vk = ((r * _NXY + b[:, 0]) * _NXY + b[:, 1]) * _NT + bt
         vk.sort()
-        start = np.r_[0, np.flatnonzero(np.diff(vk)) + 1]
+        start = np.r_[0, np.flatnonzero(vk[1:] != vk[:-1]) + 1]
         counts = np.diff(np.r_[start, len(vk)])
         vr = vk[start] // (_NXY * _NXY * _NT)
-        np.maximum.at(out, vr, counts)
+        # vr is sorted: the largest count of each place's bins
+        first = np.r_[0, np.flatnonzero(vr[1:] != vr[:-1]) + 1]
+        out[vr[first]] = np.maximum.reduceat(counts, first)
         if exclude is not None:
             ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
             if len(ex):
