@@ -20,7 +20,10 @@ One command::
    (all queries). Thresholding the answers by raw-scan score gives the precision-recall
    curve (figure); reported: recall at 99 % and at 100 % precision, precision and recall
    of every accepted answer, the prefilter's recall at 10 and 50 candidates (a true
-   place among them), and time per query.
+   place among them) for the fused prefilter the query uses and for each of its two
+   rankings alone (signature distance; triangle votes, :mod:`scanclique.places.hashing`),
+   and time per query. ``--search`` verifies with the matcher's raw-scan pose search
+   (``PlaceDB(search=True)``; off by default).
 2. **Scale**: one database grown to 1k, 5k and 50k places (the logs' scans added again
    and again with distinct names): add time per place (features, signature and
    transaction), query time (``k=5``, five candidates verified; the query scan's own
