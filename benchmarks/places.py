@@ -20,11 +20,16 @@ One command::
    (all queries). Thresholding the answers by raw-scan score gives the precision-recall
    curve (figure); reported: recall at 99 % and at 100 % precision, precision and recall
    of every accepted answer, the prefilter's recall at 10 and 50 candidates (a true
-   place among them), and time per query.
+   place among them) for the fused prefilter the query uses and for each of its two
+   rankings alone (signature distance; triangle votes, :mod:`scanclique.places.hashing`),
+   and time per query. ``--search`` verifies with the matcher's raw-scan pose search
+   (``PlaceDB(search=True)``; off by default).
 2. **Scale**: one database grown to 1k, 5k and 50k places (the logs' scans added again
    and again with distinct names): add time per place (features, signature and
    transaction), query time (``k=5``, five candidates verified; the query scan's own
-   copies excluded) and the prefilter alone, median and p95, and the file size.
+   copies excluded; wall time, and the CPU time of the querying process, which a
+   machine shared with other work inflates less) and the prefilter alone, median and
+   p95, and the file size.
 3. **Scale-out**: the all-pairs revisit search of freiburg 079
    (:func:`scanclique.places.loops.find_loops`, every ``--loops-every``-th scan; all with
    ``--full``) serially, over 2 local worker processes, and over a local Dask cluster of
@@ -114,17 +119,21 @@ def pr_curve(answers: list[dict], n_true: int) -> dict:
     }
 
 
-def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True) -> dict:
+def recognition(
+    name: str, every: int, candidates: int, tmp: Path, progress=True, search=False
+) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
+    from scanclique.places.hashing import feature_triangles
+    from scanclique.places.signature import scan_signature
     from scanclique.places.verify import ACCEPT_MIN_SCORE
 
     scans = load_log(name)
     n = len(scans)
     # every answer accepted (validation and min_features), thresholded by score below
     # (the default min_score is one point of that curve)
-    db = PlaceDB(tmp / f"{name}.db", min_score=0.0)
+    db = PlaceDB(tmp / f"{name}.db", min_score=0.0, search=search)
     t = time.perf_counter()
     add_ms = []
     for k, s in enumerate(scans):
@@ -136,6 +145,8 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
     queries = list(range(0, n, every))
     truth = true_places(scans, queries)
     records, pre10, pre50, n_true = [], 0, 0, 0
+    # each prefilter alone: the signature's nearest, the triangles' most votes
+    alone = {"signature": [0, 0], "triangles": [0, 0]}
     q_ms = []
     t0 = time.perf_counter()
     for qn, i in enumerate(queries):
@@ -149,6 +160,14 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
             n_true += 1
             pre10 += bool(truth[i].intersection(rows[:10]))
             pre50 += bool(truth[i].intersection(rows[:50]))
+            allowed = ~np.isin(db.index.ids, np.arange(exclude.start, exclude.stop))
+            s_ids, _ = db.index.search(scan_signature(p), 50, allowed)
+            tri = feature_triangles(p.features.points_xy, p.features.points_label)
+            t_ids, _ = db.triangles.search(tri, 50, exclude)
+            for key, got in (("signature", s_ids), ("triangles", t_ids)):
+                r = [int(x) - 1 for x in got]
+                alone[key][0] += bool(truth[i].intersection(r[:10]))
+                alone[key][1] += bool(truth[i].intersection(r[:50]))
         t1 = time.perf_counter()
         hits = db.query(p, k=candidates, candidates=candidates, exclude=exclude)
         q_ms.append(1e3 * (time.perf_counter() - t1))
@@ -172,6 +191,7 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
                 right=bool(t_err <= RIGHT_T and r_err <= RIGHT_R),
                 rank=best.rank,
                 n_features=best.n_features,
+                votes=best.votes,
             )
         records.append(rec)
         if progress and (qn + 1) % 50 == 0:
@@ -203,6 +223,11 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
         "recall_at_100": curve["r100"],
         "prefilter_recall_10": pre10 / n_true if n_true else float("nan"),
         "prefilter_recall_50": pre50 / n_true if n_true else float("nan"),
+        **{
+            f"{key}_recall_{at}": v[m] / n_true if n_true else float("nan")
+            for key, v in alone.items()
+            for m, at in enumerate((10, 50))
+        },
         "query_ms_median": float(np.median(q_ms)),
         "query_ms_p95": float(np.percentile(q_ms, 95)),
         "add_ms_median": float(np.median(add_ms)),
@@ -219,6 +244,7 @@ def recognition(name: str, every: int, candidates: int, tmp: Path, progress=True
                     "score",
                     "n_features",
                     "rank",
+                    "votes",
                     "t_err",
                     "r_err",
                 )
@@ -259,15 +285,16 @@ def scale(sizes: list[int], n_queries: int, tmp: Path, progress=True) -> list[di
                 print(f"  scale: {added} places, {time.perf_counter() - t0:.0f} s", file=sys.stderr)
         # queries from a second connection, as a reader would
         reader = PlaceDB(path, readonly=True)
-        q_ms, pre_ms = [], []
+        q_ms, pre_ms, q_cpu = [], [], []
         for qi in qidx:
             s = pool[int(qi)][2]
             # the query's own copies (place ids qi + 1 + m * len(pool)) are left out: a
             # query is a new observation, not one of the stored ones
             own = range(int(qi) + 1, added + 1, len(pool))
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             reader.query(s, k=5, exclude=own)
             q_ms.append(1e3 * (time.perf_counter() - t))
+            q_cpu.append(1e3 * (time.process_time() - c))
             p = reader.prepare(s)
             t = time.perf_counter()
             reader.candidates(p, n=5, exclude=own)
@@ -281,6 +308,8 @@ def scale(sizes: list[int], n_queries: int, tmp: Path, progress=True) -> list[di
                 "add_ms_p95": float(np.percentile(add_ms, 95)),
                 "query_ms_median": float(np.median(q_ms)),
                 "query_ms_p95": float(np.percentile(q_ms, 95)),
+                "query_cpu_ms_median": float(np.median(q_cpu)),
+                "query_cpu_ms_p95": float(np.percentile(q_cpu, 95)),
                 "prefilter_ms_median": float(np.median(pre_ms)),
                 "prefilter_ms_p95": float(np.percentile(pre_ms, 95)),
                 "file_mb": (st["file_bytes"] + st["wal_bytes"]) / 1e6,
@@ -361,8 +390,9 @@ def report(res: dict) -> str:
             "",
             "| log | queries | with true place | accepted (any score) | precision | recall | "
             "default (score >= 0.5): precision | recall | recall@99%P | recall@100%P | "
-            "prefilter recall@10 | @50 | query ms median | p95 |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "prefilter recall@10 | @50 | signature alone @10 | @50 | triangles alone @10 | "
+            "@50 | query ms median | p95 |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in res["recognition"]:
             lines.append(
@@ -370,7 +400,9 @@ def report(res: dict) -> str:
                 f"{_f(r['precision'])} | {_f(r['recall'])} | {_f(r['default_precision'])} | "
                 f"{_f(r['default_recall'])} | {_f(r['recall_at_99'])} | "
                 f"{_f(r['recall_at_100'])} | {_f(r['prefilter_recall_10'])} | "
-                f"{_f(r['prefilter_recall_50'])} | {_f(r['query_ms_median'], '.1f')} | "
+                f"{_f(r['prefilter_recall_50'])} | {_f(r.get('signature_recall_10'))} | "
+                f"{_f(r.get('signature_recall_50'))} | {_f(r.get('triangles_recall_10'))} | "
+                f"{_f(r.get('triangles_recall_50'))} | {_f(r['query_ms_median'], '.1f')} | "
                 f"{_f(r['query_ms_p95'], '.1f')} |"
             )
         lines.append("")
@@ -379,14 +411,17 @@ def report(res: dict) -> str:
             "## Scale (one database grown; queries k=5 from a second connection)",
             "",
             "| places | add ms median | add ms p95 | query ms median | query ms p95 | "
-            "prefilter ms median | prefilter ms p95 | file MB | bytes/place |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "query CPU ms median | p95 | prefilter ms median | prefilter ms p95 | file MB | "
+            "bytes/place |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in res["scale"]:
             lines.append(
                 f"| {r['places']} | {_f(r['add_ms_median'], '.2f')} | "
                 f"{_f(r['add_ms_p95'], '.2f')} | "
                 f"{_f(r['query_ms_median'], '.1f')} | {_f(r['query_ms_p95'], '.1f')} | "
+                f"{_f(r.get('query_cpu_ms_median'), '.1f')} | "
+                f"{_f(r.get('query_cpu_ms_p95'), '.1f')} | "
                 f"{_f(r['prefilter_ms_median'], '.2f')} | {_f(r['prefilter_ms_p95'], '.2f')} | "
                 f"{_f(r['file_mb'], '.1f')} | {_f(r['bytes_per_place'], '.0f')} |"
             )
@@ -451,6 +486,11 @@ def main(argv=None) -> None:
     ap.add_argument("--loops-candidates", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument(
+        "--search",
+        action="store_true",
+        help="recognition: let the matcher search the pose on raw scans (PlaceDB search=True)",
+    )
+    ap.add_argument(
         "--full",
         action="store_true",
         help="every scan a query, all freiburg scans in the loop search",
@@ -476,7 +516,8 @@ def main(argv=None) -> None:
         tmp = Path(tmpd)
         if "recognition" in stages:
             res["recognition"] = [
-                recognition(n, a.query_every, a.candidates, tmp) for n in a.logs.split(",")
+                recognition(n, a.query_every, a.candidates, tmp, search=a.search)
+                for n in a.logs.split(",")
             ]
             for r in res["recognition"]:
                 print(
@@ -485,7 +526,10 @@ def main(argv=None) -> None:
                     f"{_f(r['recall'])} default P {_f(r['default_precision'])} R "
                     f"{_f(r['default_recall'])} r@99 {_f(r['recall_at_99'])} r@100 "
                     f"{_f(r['recall_at_100'])} prefilter@10 {_f(r['prefilter_recall_10'])} "
-                    f"@50 {_f(r['prefilter_recall_50'])} query ms {r['query_ms_median']:.1f} "
+                    f"@50 {_f(r['prefilter_recall_50'])} (signature "
+                    f"{_f(r['signature_recall_10'])} / {_f(r['signature_recall_50'])}, "
+                    f"triangles {_f(r['triangles_recall_10'])} / "
+                    f"{_f(r['triangles_recall_50'])}) query ms {r['query_ms_median']:.1f} "
                     f"(p95 {r['query_ms_p95']:.1f})",
                     flush=True,
                 )

@@ -7,6 +7,7 @@ pose relative to each, verified by the clique matcher and validated (paper §7).
 
 * :mod:`.signature` — rotation-invariant signatures, the prefilter's vectors;
 * :mod:`.index` — exact brute-force nearest-signature search;
+* :mod:`.hashing` — geometric hashing of feature triangles, the second prefilter;
 * :mod:`.store` — the SQLite store (WAL, typed blobs, schema version, stored config);
 * :mod:`.verify` — match and validate a candidate: accepted / ambiguous / rejected;
 * :mod:`.database` — :class:`PlaceDB` and :class:`PlaceHit`, the contract;

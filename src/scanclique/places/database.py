@@ -14,16 +14,23 @@ True
 
 A query is, in order:
 
-1. the query scan prepared (features, feature graph, raw-point cloud) and its signature
-   (:func:`.signature.scan_signature`);
-2. the prefilter: the ``candidates`` places of nearest signature, exact brute force
-   (:class:`.index.SignatureIndex`);
+1. the query scan prepared (features, feature graph, raw-point cloud), its signature
+   (:func:`.signature.scan_signature`) and its feature triangles
+   (:func:`.hashing.feature_triangles`);
+2. the prefilter, two rankings taken in turn until ``candidates`` places: the places
+   whose triangles agree most on one pose with the query's (geometric hashing,
+   :class:`.hashing.TriangleIndex`: robust to partial overlap and any change of
+   heading) and the places of nearest signature (exact brute force,
+   :class:`.index.SignatureIndex`: a similar view of the whole scan);
 3. each candidate verified (:func:`.verify.verify_pair`): the clique matcher against
-   the stored place, then validation without odometry;
+   the stored place (without its raw-scan pose search, see ``search``), then validation
+   without odometry;
 4. the hits ranked: accepted first, then ambiguous, then rejected; by raw-scan score
    within each.
 
-Places are stored in SQLite (:class:`.store.PlaceStore`); the stored scan is prepared
+Places are stored in SQLite (:class:`.store.PlaceStore`); the signatures are loaded and
+the triangles computed from the stored point features when a database is opened (about
+0.4 ms per place) and kept in memory; the stored scan is prepared
 again when a place is verified (a quarter of a millisecond, less than reading and checking
 its features' blobs) and kept in a cache of recently used places. A database opened by
 several processes sees the places another process added at its next query.
@@ -31,12 +38,14 @@ several processes sees the places another process added at its next query.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
 from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass
+from itertools import zip_longest
 
 import numpy as np
 
@@ -46,18 +55,33 @@ from ..errors import ConfigError, PlaceDatabaseError
 from ..geometry import Pose2
 from ..match import PreparedScan, prepare_scan
 from ..scan import Scan
+from .hashing import TriangleIndex, feature_triangles
 from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
 from .store import PlaceRecord, PlaceStore
 from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, REJECTED, VERDICT_RANK, verify_pair
 
-__all__ = ["PlaceDB", "PlaceHit", "PREPARE_KEYS", "feature_arrays"]
+__all__ = ["PlaceDB", "PlaceHit", "PREPARE_KEYS", "MIN_VOTES", "feature_arrays"]
 
 log = logging.getLogger(__name__)
 
 #: the configuration values that decide a place's stored features and signature: a
 #: database refuses to be used with a configuration that differs in any of them
 PREPARE_KEYS = ("clustering", "features", "refine.sample_points")
+
+#: a place enters the candidates by the triangle ranking only with at least this many
+#: votes in one pose bin: one triangle alone implies a pose with any place that has an
+#: equal triangle, two that agree on it are evidence
+MIN_VOTES = 2
+_TRIANGLE_FIELDS = ("features.points_xy", "features.points_label")
+
+
+def _triangles_of(arrays: dict):
+    return feature_triangles(
+        arrays.get("features.points_xy", np.zeros((0, 2))),
+        arrays.get("features.points_label", np.zeros(0, dtype=np.int8)),
+    )
+
 
 _FEATURE_FIELDS = (
     "points_xy",
@@ -97,13 +121,16 @@ class PlaceHit:
     distance : float
         Signature distance of the prefilter (:func:`.signature.signature_distance`).
     rank : int
-        Rank of the place in the prefilter (0: nearest signature).
+        Rank of the place in the fused prefilter (0: first).
     n_features : int
         Mapped features agreeing with the pose.
     covariance : ndarray (3, 3) or None
         Covariance of ``pose``.
     reason : str
         The validation's reason, in words.
+    votes : int
+        The place's score in the triangle prefilter (:mod:`.hashing`): triangles of the
+        query agreeing on one pose with the place's.
     """
 
     place_id: int
@@ -116,6 +143,7 @@ class PlaceHit:
     n_features: int
     covariance: np.ndarray | None
     reason: str
+    votes: int = 0
 
     def to_dict(self) -> dict:
         p = self.pose
@@ -129,6 +157,7 @@ class PlaceHit:
             "rank": self.rank,
             "n_features": self.n_features,
             "reason": self.reason,
+            "votes": self.votes,
         }
 
 
@@ -182,6 +211,14 @@ class PlaceDB:
         :data:`.verify.ACCEPT_MIN_FEATURES`).
     cache : int
         Prepared places kept in memory (most recently used).
+    search : bool
+        Let the matcher search the pose on the raw scans when no clique of features
+        explains them (``refine.search``) while verifying a candidate. Off by default: a
+        place is recognised by the features it shares with the query (the prefilter ranks
+        places by shared feature triangles), and on the shared logs the search changed no
+        recognition while costing most of the verification time of the candidates that
+        are not the place (``benchmarks/places.py``). It does not change the stored
+        features, so a database may be queried either way.
 
     Raises
     ------
@@ -200,6 +237,7 @@ class PlaceDB:
         min_score: float = ACCEPT_MIN_SCORE,
         min_features: int = ACCEPT_MIN_FEATURES,
         cache: int = 4096,
+        search: bool = False,
     ) -> None:
         given = None if config is None else config_to_dict(config)
         meta = {
@@ -215,9 +253,14 @@ class PlaceDB:
         except BaseException:
             self.store.close()
             raise
+        self.search = bool(search)
+        self.verify_config = dataclasses.replace(
+            self.config, refine=dataclasses.replace(self.config.refine, search=self.search)
+        )
         self.min_score = float(min_score)
         self.min_features = int(min_features)
         self.index = SignatureIndex(SIGNATURE_SIZE)
+        self.triangles = TriangleIndex()
         self._last = 0
         self._cache: OrderedDict[int, PreparedScan] = OrderedDict()
         self._cache_size = int(cache)
@@ -268,17 +311,26 @@ class PlaceDB:
         """
         p = self.prepare(scan)
         sig = scan_signature(p)
-        pid = self.store.add(scan, feature_arrays(p), sig, name=name, n_features=len(p.features))
-        self.refresh()
+        arrays = feature_arrays(p)
+        pid = self.store.add(scan, arrays, sig, name=name, n_features=len(p.features))
+        if pid == self._last + 1:  # nobody else added since: index it without reading back
+            self.index.add([pid], sig[None, :])
+            self.triangles.add([pid], [_triangles_of(arrays)])
+            self._last = pid
+        else:
+            self.refresh()
         self._remember(pid, p)
         return pid
 
     # -- reading -----------------------------------------------------------------------
     def refresh(self) -> int:
-        """Load the signatures of places added since the last call (by any process);
-        returns how many."""
+        """Load the signatures, and compute the triangles, of places added since the last
+        call (by any process); returns how many."""
         ids, sigs = self.store.signatures_after(self._last)
         if len(ids):
+            # no further than the signatures read: another process may be adding
+            tids, arrays = self.store.arrays_after(self._last, _TRIANGLE_FIELDS, upto=int(ids[-1]))
+            self.triangles.add(tids, [_triangles_of(a) for a in arrays])
             self.index.add(ids, sigs)
             self._last = int(ids[-1])
         return len(ids)
@@ -316,15 +368,57 @@ class PlaceDB:
         distances, nearest first (places in ``exclude`` left out)."""
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
-        return self._candidates(scan_signature(p), n, exclude)
+        ids, dist, _ = self._candidates(p, n, exclude)
+        return ids, dist
 
-    def _candidates(self, sig, n, exclude):
-        allowed = None
+    def _candidates(self, p: PreparedScan, n: int, exclude):
+        """The fused prefilter: ``(ids, signature distances, triangle votes)``.
+
+        The two rankings, by triangle votes (:mod:`.hashing`, places with at least
+        :data:`MIN_VOTES`) and by signature distance (:mod:`.signature`), taken in turn
+        (the triangles' first, then the signature's first, ...), each place once, until
+        ``n`` places. The two fail on different revisits: the triangles need common point
+        features, the signature a similar view of the whole scan."""
+        n = int(n)
+        ex = None
         if exclude is not None:
             ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
-            if len(ex):
-                allowed = ~np.isin(self.index.ids, ex)
-        return self.index.search(sig, n, allowed)
+        allowed = ~np.isin(self.index.ids, ex) if ex is not None and len(ex) else None
+        sig = scan_signature(p)
+        s_ids, _ = self.index.search(sig, n, allowed)
+        tri = feature_triangles(p.features.points_xy, p.features.points_label)
+        votes = self.triangles.scores(tri, ex)
+        t_ids_all = self.triangles.ids
+        rows = np.flatnonzero(votes >= MIN_VOTES)
+        if len(rows) > n > 0:  # the n best, and every place tied with the n-th
+            kth = np.partition(-votes[rows], n - 1)[n - 1]
+            rows = rows[-votes[rows] <= kth]
+        t_ids = t_ids_all[rows]
+        # ties of votes (neighbouring places see the same triangles) go to the nearer
+        # signature, then to the smaller id
+        order = np.lexsort((t_ids, self._signature_distances(sig, t_ids), -votes[rows]))[:n]
+        t_ids = t_ids[order]
+        out: list[int] = []
+        seen: set[int] = set()
+        for a, b in zip_longest(t_ids.tolist(), s_ids.tolist()):
+            for c in (a, b):
+                if c is not None and c not in seen and len(out) < n:
+                    seen.add(c)
+                    out.append(c)
+        ids = np.array(out, dtype=np.int64)
+        dist = self._signature_distances(sig, ids)
+        trows = np.searchsorted(t_ids_all, ids)
+        v = np.zeros(len(ids), dtype=np.int64)
+        okr = trows < len(t_ids_all)
+        okr[okr] = t_ids_all[trows[okr]] == ids[okr]
+        v[okr] = votes[trows[okr]]
+        return ids, dist, v
+
+    def _signature_distances(self, sig: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """Signature distances from ``sig`` to the places ``ids`` (all in the index)."""
+        X = self.index.signatures
+        rows = np.searchsorted(self.index.ids, ids)
+        return np.sum((X[rows].astype(np.float64) - sig) ** 2, axis=1)
 
     def query(
         self,
@@ -357,16 +451,18 @@ class PlaceDB:
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
         n = max(int(k), int(candidates or 0))
-        ids, dist = self._candidates(scan_signature(p), n, exclude)
+        ids, dist, votes = self._candidates(p, n, exclude)
         missing = [int(i) for i in ids if int(i) not in self._names]
         if missing:
             self._names.update(self.store.names(missing))
         hits = []
-        for rank, (pid, d) in enumerate(zip(ids.tolist(), dist.tolist(), strict=True)):
+        for rank, (pid, d, nv) in enumerate(
+            zip(ids.tolist(), dist.tolist(), votes.tolist(), strict=True)
+        ):
             v = verify_pair(
                 self.prepared(pid),
                 p,
-                self.config,
+                self.verify_config,
                 min_score=self.min_score,
                 min_features=self.min_features,
             )
@@ -382,6 +478,7 @@ class PlaceDB:
                     v.n_features,
                     v.covariance,
                     v.reason,
+                    int(nv),
                 )
             )
         hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.score, h.rank))

@@ -406,6 +406,28 @@ class PlaceStore:
             raise PlaceDatabaseError(f"{self._where}: signatures of different lengths")
         return ids, np.stack(sigs)
 
+    def arrays_after(
+        self, after: int, names: tuple[str, ...], upto: int | None = None
+    ) -> tuple[np.ndarray, list[dict]]:
+        """``(ids, arrays)`` of the places with id greater than ``after`` (and at most
+        ``upto``), by id: for each, a dict of its stored arrays among ``names`` (e.g.
+        ``"features.points_xy"``)."""
+        names = tuple(names)
+        q = ",".join("?" * len(names))
+        with self._errors("read arrays"):
+            rows = self._conn.execute(
+                f"SELECT place_id, name, dtype, shape, crc32, data FROM arrays "
+                f"WHERE place_id > ? AND place_id <= ? AND name IN ({q}) ORDER BY place_id",
+                (int(after), int(upto) if upto is not None else 2**62, *names),
+            ).fetchall()
+        out: dict[int, dict] = {}
+        for r in rows:
+            out.setdefault(int(r[0]), {})[r[1]] = decode_array(
+                *r[2:], where=f"{self._where}: place {r[0]} array {r[1]!r}"
+            )
+        ids = np.array(sorted(out), dtype=np.int64)
+        return ids, [out[int(i)] for i in ids]
+
     def names(self, ids) -> dict[int, str | None]:
         """Names of the places ``ids``."""
         ids = [int(i) for i in ids]
