@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._records import readonly
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared
@@ -71,14 +72,6 @@ ACCEPT_MIN_FEATURES = 5
 VERDICT_RANK = {ACCEPTED: 0, AMBIGUOUS: 1, REJECTED: 2}
 
 
-def _readonly(a):
-    if a is None:
-        return None
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class Verification:
     """The verdict on one (place, query) pair.
@@ -116,7 +109,7 @@ class Verification:
     seconds: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "covariance", _readonly(self.covariance))
+        object.__setattr__(self, "covariance", readonly(self.covariance, dtype=float, copy=True))
 
     def to_dict(self) -> dict:
         p = self.pose
