@@ -25,10 +25,14 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from .codes import Status
+
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
 _GATHER = np.uint64(0x0102040810204080)
 _SHIFT56 = np.uint64(56)
+_FINISHED = int(Status.FINISHED)
+_TIME_LIMIT = int(Status.TIME_LIMIT)
 
 
 @intrinsic
@@ -153,28 +157,62 @@ def mapped_sorted(a, k, order):
     return out
 
 
+@numba.njit(inline="always")
+def _insert(out, i, x):
+    """Insert ``x`` into the sorted ``out[:i]`` (one step of an insertion sort)."""
+    j = i
+    while j > 0 and out[j - 1] > x:
+        out[j] = out[j - 1]
+        j -= 1
+    out[j] = x
+
+
 @numba.njit(cache=True)
 def map_sorted_into(a, k, order, out):
     """``out[:k] = sorted(order[a[i]] for i < k)`` (insertion sort, cliques are short)."""
     for i in range(k):
-        x = order[a[i]]
-        j = i
-        while j > 0 and out[j - 1] > x:
-            out[j] = out[j - 1]
-            j -= 1
-        out[j] = x
+        _insert(out, i, order[a[i]])
 
 
 @numba.njit(cache=True)
 def sorted_into(a, k, out):
     """``out[:k] = sorted(a[:k])`` (insertion sort, cliques are short)."""
     for i in range(k):
-        x = a[i]
-        j = i
-        while j > 0 and out[j - 1] > x:
-            out[j] = out[j - 1]
-            j -= 1
-        out[j] = x
+        _insert(out, i, a[i])
+
+
+@numba.njit(inline="always")
+def first_word(P, W, w):
+    """The first non-empty word of the set ``P`` at or after word ``w`` (``W`` when none)."""
+    while w < W and P[w] == ZERO:
+        w += 1
+    return w
+
+
+@numba.njit(inline="always")
+def child_set(Pst, depth, B, v, W):
+    """Branch on ``v`` at ``depth`` of a search stack: ``Pst[depth + 1] = Pst[depth] & N(v)``
+    and ``v`` leaves ``Pst[depth]``. Returns ``|Pst[depth + 1]|``."""
+    size = 0
+    for w in range(W):
+        x = Pst[depth, w] & B[v, w]
+        Pst[depth + 1, w] = x
+        size += int(ctpop(x))
+    clearbit(Pst[depth], v)
+    return size
+
+
+@numba.njit(inline="always")
+def spent(nodes, node_limit, mask, deadline, over):
+    """Whether a search must stop at node number ``nodes``: ``over`` (its status for an
+    exhausted node budget) past ``node_limit``, ``Status.TIME_LIMIT`` when the kernel clock,
+    read every ``mask + 1`` nodes (:func:`check_mask`), has passed ``deadline``, else
+    ``Status.FINISHED`` (go on)."""
+    if nodes > node_limit:
+        return over
+    if (nodes & mask) == 0 and now() > deadline:
+        return _TIME_LIMIT
+    return _FINISHED
 
 
 @numba.njit(cache=True)

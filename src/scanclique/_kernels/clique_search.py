@@ -36,7 +36,7 @@ from .bitset import (
     ONE,
     ZERO,
     check_mask,
-    clearbit,
+    child_set,
     ctpop,
     cttz,
     grow,
@@ -48,6 +48,7 @@ from .bitset import (
     popcount,
     setbit,
     sorted_into,
+    spent,
 )
 from .codes import NO_LIMIT, Mode, Option, Status
 from .colouring import colour_classes, colour_word
@@ -180,12 +181,7 @@ def bb_search(B, n, P0, init, floor, mode, limit, deadline, mask, maxsat, node_l
             continue
         pos[depth] = p - 1
         v = ord_v[b0 + p]
-        size = 0
-        for w in range(W):
-            x = Pst[depth, w] & B[v, w]
-            Pst[depth + 1, w] = x
-            size += int(ctpop(x))
-        clearbit(Pst[depth], v)
+        size = child_set(Pst, depth, B, v, W)
         C[depth] = v
         if size == 0:
             size = depth + 1
@@ -212,11 +208,8 @@ def bb_search(B, n, P0, init, floor, mode, limit, deadline, mask, maxsat, node_l
         if size <= kneed:
             continue
         nodes += 1
-        if nodes > node_limit:
-            status = _PHASE
-            break
-        if (nodes & mask) == 0 and now() > deadline:
-            status = _TIME
+        status = spent(nodes, node_limit, mask, deadline, _PHASE)
+        if status != _FINISHED:
             break
         nb = b0 + cnt[depth]
         if nb + size > cap:
@@ -302,11 +295,8 @@ def _bb_word(S, m, bar, deadline, best, node_limit, Pst):
         if size <= kneed:
             continue
         nodes += 1
-        if nodes > node_limit:
-            status = _PHASE
-            break
-        if (nodes & mask) == 0 and now() > deadline:
-            status = _TIME
+        status = spent(nodes, node_limit, mask, deadline, _PHASE)
+        if status != _FINISHED:
             break
         nb = b0 + int(cnt[depth])
         c = colour_word(S, x, kneed + 1, ord_v, ord_c, nb)
@@ -438,6 +428,26 @@ def _full_maximum(A, n, floor, deadline, node_limit):
     return best, nodes, status
 
 
+@numba.njit(inline="always")
+def _degrees(A, n, starts, deg, top):
+    """``deg[v]``, the degree of every vertex, and ``top[:ntop]``, the ``starts`` vertices
+    of highest degree, highest first (the lower label first among equals). Returns
+    ``ntop = min(n, starts)``."""
+    W = A.shape[1]
+    ntop = 0
+    for v in range(n):
+        d = popcount(A[v], W)
+        deg[v] = d
+        if ntop < starts or d > deg[top[ntop - 1]]:
+            i = min(ntop, starts - 1)
+            while i > 0 and deg[top[i - 1]] < d:
+                top[i] = top[i - 1]
+                i -= 1
+            top[i] = v
+            ntop = min(ntop + 1, starts)
+    return ntop
+
+
 @numba.njit(cache=True)
 def maximum_word(A, n, floor, deadline, node_limit, out, dense_limit):
     """Mode MAXIMUM for at most 64 vertices: :func:`_bb_word` on the graph as it is
@@ -465,11 +475,8 @@ def maximum_word(A, n, floor, deadline, node_limit, out, dense_limit):
             found[i] = best[i]
     if size == 0:  # from the vertex of highest degree
         deg = np.empty(n, np.int64)
-        top = np.zeros(1, np.int64)
-        for v in range(n):
-            deg[v] = int(ctpop(S[v]))
-            if deg[v] > deg[top[0]]:
-                top[0] = v
+        top = np.empty(1, np.int64)
+        _degrees(A, n, 1, deg, top)
         greedy = np.empty(n + 1, np.int64)
         size = greedy_by_degree(A, deg, top, 1, greedy, found, SP[n:])
         sorted_into(greedy, size, out)
@@ -516,19 +523,7 @@ def maximum_peeled(A, n, floor, deadline, node_limit, out, starts, sparse_nodes,
     P = uw[W : 2 * W]
     S = uw[2 * W : 2 * W + 64]
     Pst = uw[2 * W + 64 :]
-    ntop = 0
-    for v in range(n):
-        d = int(ctpop(A[v, 0]))
-        for w in range(1, W):
-            d += int(ctpop(A[v, w]))
-        deg[v] = d
-        if ntop < starts or d > deg[top[ntop - 1]]:
-            i = min(ntop, starts - 1)
-            while i > 0 and deg[top[i - 1]] < d:
-                top[i] = top[i - 1]
-                i -= 1
-            top[i] = v
-            ntop = min(ntop + 1, starts)
+    ntop = _degrees(A, n, starts, deg, top)
     k = greedy_by_degree(A, deg, top, ntop, greedy, cur, P)
     bar = max(floor, k)
     for w in range(W):

@@ -24,13 +24,13 @@ from .bitset import (
     now,
     popcount,
     setbit,
+    spent,
 )
 from .codes import Status
 from .colouring import colour_count
 from .ordering import degeneracy_order, relabel
 
 _FINISHED = int(Status.FINISHED)
-_TIME_LIMIT = int(Status.TIME_LIMIT)
 _NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
@@ -71,11 +71,8 @@ def solve_top(A, n, k, time_limit, node_limit):
         if fresh:
             fresh = False
             nodes += 1
-            if nodes > node_limit:
-                status = _NODE_LIMIT
-                break
-            if (nodes & mask) == 0 and now() > deadline:
-                status = _TIME_LIMIT
+            status = spent(nodes, node_limit, mask, deadline, _NODE_LIMIT)
+            if status != _FINISHED:
                 break
             np_ = popcount(Pst[depth], W)
             nx_ = popcount(Xst[depth], W)
