@@ -4,6 +4,12 @@ Graphs arrive in the clique kernels as bitset adjacency rows: ``A[v, w]`` is a `
 word whose bit ``b`` says whether ``v`` is adjacent to ``64 * w + b``; a vertex set is a
 row of such words. :func:`pack_checked` builds the rows from a boolean matrix.
 
+The steps every search shares live here, inlined where they are called: the node budget
+and clock check (:func:`spent`), the child set of a branching step (:func:`child_set`),
+the first non-empty word (:func:`first_word`). One idiom is written out where it is used
+rather than wrapped: the visit of the set bits of a word, ``while x: b = cttz(x);
+x &= x - ONE`` (four lines, the same in every kernel that walks a set).
+
 numba pitfall kept in mind throughout the clique kernels: mixing ``uint64`` with
 ``int64`` promotes to ``float64``, so every word operation uses ``uint64`` operands only
 (:data:`ONE`, :data:`ZERO`).
@@ -132,21 +138,35 @@ def clearbit(P, v):
 
 
 @numba.njit(cache=True)
-def head(a, k):
-    """A new array holding ``a[:k]`` (explicit loops: slicing costs seconds of compilation)."""
-    out = np.empty(k, a.dtype)
+def grow(a, k, cap):
+    """A new array of length ``cap`` starting with ``a[:k]`` (explicit loops: slicing
+    costs seconds of compilation)."""
+    out = np.empty(cap, a.dtype)
     for i in range(k):
         out[i] = a[i]
     return out
 
 
 @numba.njit(cache=True)
-def grow(a, k, cap):
-    """A new array of length ``cap`` starting with ``a[:k]``."""
-    out = np.empty(cap, a.dtype)
-    for i in range(k):
-        out[i] = a[i]
-    return out
+def head(a, k):
+    """A new array holding ``a[:k]``."""
+    return grow(a, k, k)
+
+
+@numba.njit(inline="always")
+def grow_pair(a, b, k, cap):
+    """:func:`grow` of the two arrays of a branching list (vertices and their bounds)."""
+    return grow(a, k, cap), grow(b, k, cap)
+
+
+@numba.njit(inline="always")
+def fill(P, n):
+    """``P`` (``(n + 63) // 64`` words) becomes the set of all ``n`` vertices."""
+    W = P.shape[0]
+    for w in range(W):
+        P[w] = ~ZERO
+    if n & 63:
+        P[W - 1] = (ONE << np.uint64(n & 63)) - ONE
 
 
 @numba.njit(cache=True)

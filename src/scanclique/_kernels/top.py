@@ -18,6 +18,7 @@ from .bitset import (
     clearbit,
     ctpop,
     cttz,
+    fill,
     grow,
     head,
     mapped_sorted,
@@ -62,8 +63,7 @@ def solve_top(A, n, k, time_limit, node_limit):
     mask = check_mask(n, W)
     nodes = 0
     status = _FINISHED
-    for i in range(n):
-        setbit(Pst[0], i)
+    fill(Pst[0], n)
     depth = 0
     base[0] = 0
     fresh = True  # the node at `depth` has not been expanded yet

@@ -13,14 +13,13 @@ import numba
 import numpy as np
 
 from .bitset import (
-    ZERO,
     check_mask,
     child_set,
-    grow,
+    fill,
+    grow_pair,
     head,
     mapped_sorted,
     now,
-    setbit,
     spent,
 )
 from .codes import Status
@@ -79,13 +78,7 @@ def solve_weighted(A, n, weights, time_limit, node_limit):
     mask = check_mask(n, W)
     nodes = 1
     status = _FINISHED
-    Pst[0, :] = ZERO
-    for i in range(n):
-        setbit(Pst[0], i)
-    if n > cap:
-        cap = 2 * n
-        ord_v = np.empty(cap, np.int64)
-        ord_b = np.empty(cap)
+    fill(Pst[0], n)
     base[0] = 0
     c = colour_weighted(Pst[0], B, W, wt, best_w, U, Q, ord_v, ord_b, 0)
     cnt[0] = c
@@ -119,8 +112,7 @@ def solve_weighted(A, n, weights, time_limit, node_limit):
         nb = b0 + cnt[depth]
         if nb + size > cap:
             cap = 2 * (nb + size)
-            ord_v = grow(ord_v, nb, cap)
-            ord_b = grow(ord_b, nb, cap)
+            ord_v, ord_b = grow_pair(ord_v, ord_b, nb, cap)
         c = colour_weighted(
             Pst[depth + 1], B, W, wt, best_w - Cw[depth + 1], U, Q, ord_v, ord_b, nb
         )
