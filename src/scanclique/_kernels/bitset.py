@@ -5,10 +5,12 @@ word whose bit ``b`` says whether ``v`` is adjacent to ``64 * w + b``; a vertex 
 row of such words. :func:`pack_checked` builds the rows from a boolean matrix.
 
 The steps every search shares live here, inlined where they are called: the node budget
-and clock check (:func:`spent`), the child set of a branching step (:func:`child_set`),
-the first non-empty word (:func:`first_word`). One idiom is written out where it is used
-rather than wrapped: the visit of the set bits of a word, ``while x: b = cttz(x);
-x &= x - ONE`` (four lines, the same in every kernel that walks a set).
+and clock check (:func:`spent`), the child set of a branching step (:func:`child_set`).
+An ``inline="always"`` helper must not call another one: nested inlining made the
+colouring 3 to 5 times slower (measured, see :mod:`.colouring`). Two idioms are written
+out where they are used rather than wrapped: the visit of the set bits of a word,
+``while x: b = cttz(x); x &= x - ONE``, and the scan to the first non-empty word,
+``while w < W and P[w] == ZERO: w += 1``.
 
 numba pitfall kept in mind throughout the clique kernels: mixing ``uint64`` with
 ``int64`` promotes to ``float64``, so every word operation uses ``uint64`` operands only
@@ -199,14 +201,6 @@ def sorted_into(a, k, out):
     """``out[:k] = sorted(a[:k])`` (insertion sort, cliques are short)."""
     for i in range(k):
         _insert(out, i, a[i])
-
-
-@numba.njit(inline="always")
-def first_word(P, W, w):
-    """The first non-empty word of the set ``P`` at or after word ``w`` (``W`` when none)."""
-    while w < W and P[w] == ZERO:
-        w += 1
-    return w
 
 
 @numba.njit(inline="always")

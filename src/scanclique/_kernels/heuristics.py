@@ -13,7 +13,7 @@ ensure_cache()  # before any njit(cache=True) below picks its cache location
 import numba
 import numpy as np
 
-from .bitset import ONE, ZERO, cttz, first_word, head, now, popcount
+from .bitset import ONE, ZERO, cttz, head, now, popcount
 
 
 @numba.njit(cache=True)
@@ -43,7 +43,8 @@ def greedy_clique(B, n, P, deadline, core):
         w0 = 0
         while True:
             # invariant: cur[:size] is a clique, P its common neighbourhood
-            w0 = first_word(P, W, w0)
+            while w0 < W and P[w0] == ZERO:
+                w0 += 1
             if w0 == W:
                 break
             u = w0 * 64 + int(cttz(P[w0]))
