@@ -7,7 +7,7 @@ row of such words. :func:`pack_checked` builds the rows from a boolean matrix.
 The steps every search shares live here, inlined where they are called: the node budget
 and clock check (:func:`spent`), the child set of a branching step (:func:`child_set`).
 An ``inline="always"`` helper must not call another one: nested inlining made the
-colouring 3 to 5 times slower (measured, see :mod:`.colouring`). Two idioms are written
+colouring 2 to 6 times slower (measured, see :mod:`.colouring`). Two idioms are written
 out where they are used rather than wrapped: the visit of the set bits of a word,
 ``while x: b = cttz(x); x &= x - ONE``, and the scan to the first non-empty word,
 ``while w < W and P[w] == ZERO: w += 1``.

@@ -44,7 +44,7 @@ def _take(U, Q, B, W, wq):
     ``Q`` is empty (the class is maximal); the next call may start at word ``v >> 6``.
 
     (No inlined helper is called from here: a nested ``inline="always"`` call, for the
-    word scan above, made :func:`colour_classes` 3 to 5 times slower, measured.)"""
+    word scan above, made :func:`colour_classes` 2 to 6 times slower, measured.)"""
     while wq < W and Q[wq] == ZERO:
         wq += 1
     if wq == W:
