@@ -505,6 +505,71 @@ def test_packing(n):
             max_clique(bad)
 
 
+# -- one colouring and one set of search steps under every bound (issue 11, item 1) -------
+def _colourings(adj):
+    """The greedy colouring of all vertices read through the three bounds' kernels: the
+    class of every vertex (kmin = 1), the classes as bitsets (kmin above the count), the
+    class count, and the weighted bounds of unit weights."""
+    from scanclique._kernels.colouring import colour_classes, colour_count, colour_weighted
+
+    n = adj.shape[0]
+    B = bitsets_from_adjacency(adj)
+    W = B.shape[1]
+    P = np.zeros(W, np.uint64)
+    for v in range(n):
+        P[v >> 6] |= np.uint64(1) << np.uint64(v & 63)
+    U, Q = np.empty(W, np.uint64), np.empty(W, np.uint64)
+    ord_v, ord_c, col = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
+    c = colour_classes(P, B, W, 1, U, Q, np.empty((1, W), np.uint64), ord_v, ord_c, 0, col)
+    k = colour_count(P, B, W, U, Q)
+    CL = np.empty((n + 1, W), np.uint64)
+    c_rec = colour_classes(P, B, W, n + 2, U, Q, CL, np.empty(n, np.int64), ord_c.copy(), 0, col)
+    wv, wb = np.empty(n, np.int64), np.empty(n)
+    cw = colour_weighted(P, B, W, np.ones(n), -1.0, U, Q, wv, wb, 0)
+    return (c, ord_v[:c], ord_c[:c]), k, (c_rec, CL[:k], col), (cw, wv[:cw], wb[:cw])
+
+
+@pytest.mark.parametrize(("n", "p"), [(1, 0.5), (40, 0.3), (64, 0.5), (65, 0.2), (150, 0.6)])
+def test_the_bounds_share_one_greedy_colouring(n, p):
+    adj = random_graph(n, p, n)
+    (c, verts, colours), k, (c_rec, CL, col), (cw, wverts, bounds) = _colourings(adj)
+    # every vertex once, in non-decreasing colour; a class is independent, and a vertex of
+    # class j > i has a neighbour in class i (classes are maximal, built in turn)
+    assert c == n and sorted(verts.tolist()) == list(range(n))
+    assert np.all(np.diff(colours) >= 0) and colours[-1] == k
+    classes = [verts[colours == i + 1] for i in range(k)]
+    for i, ci in enumerate(classes):
+        assert not adj[np.ix_(ci, ci)].any()
+        for cj in classes[i + 1 :]:
+            assert adj[np.ix_(cj, ci)].any(axis=1).all()
+        # in bit order within a class (the lowest uncoloured vertex first)
+        assert np.all(np.diff(ci) > 0)
+    # the same classes as bitsets (colour below kmin), with their index in `col`
+    assert c_rec == 0
+    for i, ci in enumerate(classes):
+        bits = ((CL[i][:, None] >> np.arange(64, dtype=np.uint64)) & np.uint64(1)).astype(bool)
+        assert np.flatnonzero(bits.reshape(-1)).tolist() == ci.tolist()
+        assert np.all(col[ci] == i)
+    # unit weights: the weighted bound of a vertex is its colour
+    assert cw == n and wverts.tolist() == verts.tolist() and bounds.tolist() == colours.tolist()
+
+
+@pytest.mark.parametrize("n", [63, 64, 65, 128, 129])
+def test_weighted_and_top_at_word_boundaries(n):
+    # the all-vertices set and the greedy starts of the weighted and top searches where
+    # the last word is full, or holds one vertex
+    adj = random_graph(n, 0.15, n)
+    w = np.random.default_rng(n).random(n) * 10
+    ref = list(bron_kerbosch(adj))
+    r = max_clique(adj, weights=w)
+    assert r.optimal and is_clique(adj, r.vertices)
+    assert r.weight == pytest.approx(max(float(w[c].sum()) for c in ref), rel=1e-12)
+    sizes = sorted((len(c) for c in ref), reverse=True)[:5]
+    got = top_cliques(adj, 5)
+    assert [len(c) for c in got] == sizes
+    assert all(is_clique(adj, c) for c in got)
+
+
 # -- time limit ----------------------------------------------------------------------------
 def test_time_limit_is_honoured():
     adj = random_graph(400, 0.9, 5)

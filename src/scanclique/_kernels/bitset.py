@@ -4,6 +4,14 @@ Graphs arrive in the clique kernels as bitset adjacency rows: ``A[v, w]`` is a `
 word whose bit ``b`` says whether ``v`` is adjacent to ``64 * w + b``; a vertex set is a
 row of such words. :func:`pack_checked` builds the rows from a boolean matrix.
 
+The steps every search shares live here, inlined where they are called: the node budget
+and clock check (:func:`spent`), the child set of a branching step (:func:`child_set`).
+An ``inline="always"`` helper must not call another one: nested inlining made the
+colouring 2 to 6 times slower (measured, see :mod:`.colouring`). Two idioms are written
+out where they are used rather than wrapped: the visit of the set bits of a word,
+``while x: b = cttz(x); x &= x - ONE``, and the scan to the first non-empty word,
+``while w < W and P[w] == ZERO: w += 1``.
+
 numba pitfall kept in mind throughout the clique kernels: mixing ``uint64`` with
 ``int64`` promotes to ``float64``, so every word operation uses ``uint64`` operands only
 (:data:`ONE`, :data:`ZERO`).
@@ -25,10 +33,14 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from .codes import Status
+
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
 _GATHER = np.uint64(0x0102040810204080)
 _SHIFT56 = np.uint64(56)
+_FINISHED = int(Status.FINISHED)
+_TIME_LIMIT = int(Status.TIME_LIMIT)
 
 
 @intrinsic
@@ -128,21 +140,35 @@ def clearbit(P, v):
 
 
 @numba.njit(cache=True)
-def head(a, k):
-    """A new array holding ``a[:k]`` (explicit loops: slicing costs seconds of compilation)."""
-    out = np.empty(k, a.dtype)
+def grow(a, k, cap):
+    """A new array of length ``cap`` starting with ``a[:k]`` (explicit loops: slicing
+    costs seconds of compilation)."""
+    out = np.empty(cap, a.dtype)
     for i in range(k):
         out[i] = a[i]
     return out
 
 
 @numba.njit(cache=True)
-def grow(a, k, cap):
-    """A new array of length ``cap`` starting with ``a[:k]``."""
-    out = np.empty(cap, a.dtype)
-    for i in range(k):
-        out[i] = a[i]
-    return out
+def head(a, k):
+    """A new array holding ``a[:k]``."""
+    return grow(a, k, k)
+
+
+@numba.njit(inline="always")
+def grow_pair(a, b, k, cap):
+    """:func:`grow` of the two arrays of a branching list (vertices and their bounds)."""
+    return grow(a, k, cap), grow(b, k, cap)
+
+
+@numba.njit(inline="always")
+def fill(P, n):
+    """``P`` (``(n + 63) // 64`` words) becomes the set of all ``n`` vertices."""
+    W = P.shape[0]
+    for w in range(W):
+        P[w] = ~ZERO
+    if n & 63:
+        P[W - 1] = (ONE << np.uint64(n & 63)) - ONE
 
 
 @numba.njit(cache=True)
@@ -153,28 +179,54 @@ def mapped_sorted(a, k, order):
     return out
 
 
+@numba.njit(inline="always")
+def _insert(out, i, x):
+    """Insert ``x`` into the sorted ``out[:i]`` (one step of an insertion sort)."""
+    j = i
+    while j > 0 and out[j - 1] > x:
+        out[j] = out[j - 1]
+        j -= 1
+    out[j] = x
+
+
 @numba.njit(cache=True)
 def map_sorted_into(a, k, order, out):
     """``out[:k] = sorted(order[a[i]] for i < k)`` (insertion sort, cliques are short)."""
     for i in range(k):
-        x = order[a[i]]
-        j = i
-        while j > 0 and out[j - 1] > x:
-            out[j] = out[j - 1]
-            j -= 1
-        out[j] = x
+        _insert(out, i, order[a[i]])
 
 
 @numba.njit(cache=True)
 def sorted_into(a, k, out):
     """``out[:k] = sorted(a[:k])`` (insertion sort, cliques are short)."""
     for i in range(k):
-        x = a[i]
-        j = i
-        while j > 0 and out[j - 1] > x:
-            out[j] = out[j - 1]
-            j -= 1
-        out[j] = x
+        _insert(out, i, a[i])
+
+
+@numba.njit(inline="always")
+def child_set(Pst, depth, B, v, W):
+    """Branch on ``v`` at ``depth`` of a search stack: ``Pst[depth + 1] = Pst[depth] & N(v)``
+    and ``v`` leaves ``Pst[depth]``. Returns ``|Pst[depth + 1]|``."""
+    size = 0
+    for w in range(W):
+        x = Pst[depth, w] & B[v, w]
+        Pst[depth + 1, w] = x
+        size += int(ctpop(x))
+    clearbit(Pst[depth], v)
+    return size
+
+
+@numba.njit(inline="always")
+def spent(nodes, node_limit, mask, deadline, over):
+    """Whether a search must stop at node number ``nodes``: ``over`` (its status for an
+    exhausted node budget) past ``node_limit``, ``Status.TIME_LIMIT`` when the kernel clock,
+    read every ``mask + 1`` nodes (:func:`check_mask`), has passed ``deadline``, else
+    ``Status.FINISHED`` (go on)."""
+    if nodes > node_limit:
+        return over
+    if (nodes & mask) == 0 and now() > deadline:
+        return _TIME_LIMIT
+    return _FINISHED
 
 
 @numba.njit(cache=True)

@@ -13,7 +13,7 @@ ensure_cache()  # before any njit(cache=True) below picks its cache location
 import numba
 import numpy as np
 
-from .bitset import ONE, ZERO, ctpop, cttz, head, now
+from .bitset import ONE, ZERO, cttz, head, now, popcount
 
 
 @numba.njit(cache=True)
@@ -59,50 +59,60 @@ def greedy_clique(B, n, P, deadline, core):
     return head(best, bsize)
 
 
+@numba.njit(inline="always")
+def greedy_from(A, s, key, cur, P, bsize):
+    """A greedy clique from ``s``, by ``key``: candidates ``N(s)``; repeatedly add the
+    candidate of highest ``key`` (the lowest label among equals) and intersect, until no
+    candidate is left or the clique cannot have more than ``bsize`` vertices. Writes it to
+    ``cur``, returns its size (``P``: scratch for a set). ``key >= 0``.
+
+    The greedy of :func:`greedy_by_degree` (``key`` the degrees) and of the weighted
+    search's initial clique (``key`` the weights, ``bsize = 0``: no size bound)."""
+    W = A.shape[1]
+    for w in range(W):
+        P[w] = A[s, w]
+    cur[0] = s
+    size = 1
+    while True:
+        # invariant: cur[:size] is a clique, P its common neighbourhood
+        if size + popcount(P, W) <= bsize:
+            break  # cannot beat the best
+        u = -1
+        ku = -1
+        for w in range(W):
+            x = P[w]
+            while x:
+                b = cttz(x)
+                x &= x - ONE
+                j = w * 64 + int(b)
+                if key[j] > ku:
+                    ku = key[j]
+                    u = j
+        if u < 0:
+            break
+        cur[size] = u
+        size += 1
+        for w in range(W):
+            P[w] &= A[u, w]
+    return size
+
+
 @numba.njit(cache=True)
 def greedy_by_degree(A, deg, order, starts, best, cur, P):
     """Best of the greedy cliques grown from ``order[:starts]`` (highest degree first).
 
     From ``s``: candidates ``N(s)``; repeatedly add the candidate of highest degree and
-    intersect, until no candidate is left or the clique cannot beat the best one. A
-    clique through ``s`` has at most ``deg[s] + 1`` vertices, so the starts end once
-    that cannot beat the best. Writes the clique to ``best``, returns its size (``cur``:
-    scratch for a clique, ``P``: for a set).
+    intersect, until no candidate is left or the clique cannot beat the best one
+    (:func:`greedy_from`). A clique through ``s`` has at most ``deg[s] + 1`` vertices, so
+    the starts end once that cannot beat the best. Writes the clique to ``best``, returns
+    its size (``cur``: scratch for a clique, ``P``: for a set).
     """
-    W = A.shape[1]
     bsize = 0
     for t in range(starts):
         s = order[t]
         if deg[s] + 1 <= bsize:
             break
-        for w in range(W):
-            P[w] = A[s, w]
-        cur[0] = s
-        size = 1
-        while True:
-            # invariant: cur[:size] is a clique, P its common neighbourhood
-            left = 0
-            for w in range(W):
-                left += int(ctpop(P[w]))
-            if size + left <= bsize:
-                break  # cannot beat the best
-            u = -1
-            du = -1
-            for w in range(W):
-                x = P[w]
-                while x:
-                    b = cttz(x)
-                    x &= x - ONE
-                    j = w * 64 + int(b)
-                    if deg[j] > du:
-                        du = deg[j]
-                        u = j
-            if u < 0:
-                break
-            cur[size] = u
-            size += 1
-            for w in range(W):
-                P[w] &= A[u, w]
+        size = greedy_from(A, s, deg, cur, P, bsize)
         if size > bsize:
             bsize = size
             for i in range(size):
@@ -136,6 +146,29 @@ def _ls_add(B, n, W, v, miss, sign):
     miss[v] -= sign
 
 
+@numba.njit(inline="always")
+def _ls_join(B, n, W, v, miss, inC, where, C, size):
+    """``v`` joins the clique ``C[:size]``; returns the new size."""
+    _ls_add(B, n, W, v, miss, 1)
+    inC[v] = True
+    where[v] = size
+    C[size] = v
+    return size + 1
+
+
+@numba.njit(inline="always")
+def _ls_leave(B, n, W, u, miss, inC, where, C, size):
+    """``u`` leaves the clique ``C[:size]`` (the last vertex takes its place); returns the
+    new size."""
+    _ls_add(B, n, W, u, miss, -1)
+    inC[u] = False
+    i = where[u]
+    size -= 1
+    C[i] = C[size]
+    where[C[i]] = i
+    return size
+
+
 @numba.njit(cache=True)
 def local_search(B, n, init, max_iter, stall, deadline, seed):
     """Tabu plateau search from ``init``: add moves, (1,1)-swaps, and drops when stuck.
@@ -157,11 +190,7 @@ def local_search(B, n, init, max_iter, stall, deadline, seed):
     cand_s = np.empty(n, np.int64)
     size = 0
     for v in init:
-        _ls_add(B, n, W, v, miss, 1)
-        inC[v] = True
-        where[v] = size
-        C[size] = v
-        size += 1
+        size = _ls_join(B, n, W, v, miss, inC, where, C, size)
     best = head(init, init.shape[0])
     last = 0
     for it in range(max_iter):
@@ -173,12 +202,7 @@ def local_search(B, n, init, max_iter, stall, deadline, seed):
                 size -= 1
                 _ls_add(B, n, W, C[size], miss, -1)
                 inC[C[size]] = False
-            v = _rand(rng, n)
-            _ls_add(B, n, W, v, miss, 1)
-            inC[v] = True
-            where[v] = 0
-            C[0] = v
-            size = 1
+            size = _ls_join(B, n, W, _rand(rng, n), miss, inC, where, C, 0)
             last = it
             continue
         na = 0
@@ -203,30 +227,16 @@ def local_search(B, n, init, max_iter, stall, deadline, seed):
                 if (B[v, c >> 6] >> np.uint64(c & 63)) & ONE == ZERO:
                     u = c
                     break
-            _ls_add(B, n, W, u, miss, -1)
-            inC[u] = False
-            i = where[u]
-            size -= 1
-            C[i] = C[size]
-            where[C[i]] = i
+            size = _ls_leave(B, n, W, u, miss, inC, where, C, size)
             tabu[u] = it + 7 + _rand(rng, ns + 1)
         else:
             if size == 0:
                 break
             u = C[_rand(rng, size)]
-            _ls_add(B, n, W, u, miss, -1)
-            inC[u] = False
-            i = where[u]
-            size -= 1
-            C[i] = C[size]
-            where[C[i]] = i
+            size = _ls_leave(B, n, W, u, miss, inC, where, C, size)
             tabu[u] = it + 7
             continue
-        _ls_add(B, n, W, v, miss, 1)
-        inC[v] = True
-        where[v] = size
-        C[size] = v
-        size += 1
+        size = _ls_join(B, n, W, v, miss, inC, where, C, size)
         if size > best.shape[0]:
             best = head(C, size)
             last = it

@@ -103,7 +103,12 @@ def degeneracy_order(A, n):
 
 @numba.njit(cache=True)
 def _peel_exact(A, n, deg):
-    """Smallest-last peeling by an argmin per step (see :func:`degeneracy_order`)."""
+    """Smallest-last peeling by an argmin per step (see :func:`degeneracy_order`).
+
+    A second implementation of the same order, kept on purpose: it breaks ties by the
+    lowest label, where the buckets break them by the last vertex to lose a neighbour,
+    so on dense graphs it gives another order (and the order decides the search's node
+    counts); its O(n^2) is cheap exactly where it is used (dense, n <= 1024)."""
     W = A.shape[1]
     removed = np.zeros(n, np.bool_)
     order = np.empty(n, np.int64)

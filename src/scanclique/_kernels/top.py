@@ -18,19 +18,20 @@ from .bitset import (
     clearbit,
     ctpop,
     cttz,
+    fill,
     grow,
     head,
     mapped_sorted,
     now,
     popcount,
     setbit,
+    spent,
 )
 from .codes import Status
 from .colouring import colour_count
 from .ordering import degeneracy_order, relabel
 
 _FINISHED = int(Status.FINISHED)
-_TIME_LIMIT = int(Status.TIME_LIMIT)
 _NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
@@ -62,8 +63,7 @@ def solve_top(A, n, k, time_limit, node_limit):
     mask = check_mask(n, W)
     nodes = 0
     status = _FINISHED
-    for i in range(n):
-        setbit(Pst[0], i)
+    fill(Pst[0], n)
     depth = 0
     base[0] = 0
     fresh = True  # the node at `depth` has not been expanded yet
@@ -71,11 +71,8 @@ def solve_top(A, n, k, time_limit, node_limit):
         if fresh:
             fresh = False
             nodes += 1
-            if nodes > node_limit:
-                status = _NODE_LIMIT
-                break
-            if (nodes & mask) == 0 and now() > deadline:
-                status = _TIME_LIMIT
+            status = spent(nodes, node_limit, mask, deadline, _NODE_LIMIT)
+            if status != _FINISHED:
                 break
             np_ = popcount(Pst[depth], W)
             nx_ = popcount(Xst[depth], W)

@@ -13,24 +13,21 @@ import numba
 import numpy as np
 
 from .bitset import (
-    ONE,
-    ZERO,
     check_mask,
-    clearbit,
-    ctpop,
-    cttz,
-    grow,
+    child_set,
+    fill,
+    grow_pair,
     head,
     mapped_sorted,
     now,
-    setbit,
+    spent,
 )
 from .codes import Status
 from .colouring import colour_weighted
+from .heuristics import greedy_from
 from .ordering import degeneracy_order, relabel
 
 _FINISHED = int(Status.FINISHED)
-_TIME_LIMIT = int(Status.TIME_LIMIT)
 _NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
@@ -60,30 +57,10 @@ def solve_weighted(A, n, weights, time_limit, node_limit):
     for s in range(min(n, 128)):
         if (s & 15) == 15 and now() > deadline:
             break
-        for w in range(W):
-            U[w] = B[s, w]
-        cur[0] = s
-        size = 1
-        tot = wt[s]
-        while True:
-            u = -1
-            bw = -1.0
-            for w in range(W):
-                x = U[w]
-                while x:
-                    b = cttz(x)
-                    x &= x - ONE
-                    j = w * 64 + int(b)
-                    if wt[j] > bw:
-                        bw = wt[j]
-                        u = j
-            if u < 0:
-                break
-            cur[size] = u
-            size += 1
-            tot += wt[u]
-            for w in range(W):
-                U[w] &= B[u, w]
+        size = greedy_from(B, s, wt, cur, U, 0)
+        tot = 0.0
+        for i in range(size):
+            tot += wt[cur[i]]
         if tot > best_w:
             best_w = tot
             best = head(cur, size)
@@ -101,13 +78,7 @@ def solve_weighted(A, n, weights, time_limit, node_limit):
     mask = check_mask(n, W)
     nodes = 1
     status = _FINISHED
-    Pst[0, :] = ZERO
-    for i in range(n):
-        setbit(Pst[0], i)
-    if n > cap:
-        cap = 2 * n
-        ord_v = np.empty(cap, np.int64)
-        ord_b = np.empty(cap)
+    fill(Pst[0], n)
     base[0] = 0
     c = colour_weighted(Pst[0], B, W, wt, best_w, U, Q, ord_v, ord_b, 0)
     cnt[0] = c
@@ -126,12 +97,7 @@ def solve_weighted(A, n, weights, time_limit, node_limit):
             pos[depth] = -1
             continue
         pos[depth] = p - 1
-        size = 0
-        for w in range(W):
-            x = Pst[depth, w] & B[v, w]
-            Pst[depth + 1, w] = x
-            size += int(ctpop(x))
-        clearbit(Pst[depth], v)
+        size = child_set(Pst, depth, B, v, W)
         C[depth] = v
         Cw[depth + 1] = Cw[depth] + wt[v]
         if size == 0:
@@ -140,17 +106,13 @@ def solve_weighted(A, n, weights, time_limit, node_limit):
                 best = head(C, depth + 1)
             continue
         nodes += 1
-        if nodes > node_limit:
-            status = _NODE_LIMIT
-            break
-        if (nodes & mask) == 0 and now() > deadline:
-            status = _TIME_LIMIT
+        status = spent(nodes, node_limit, mask, deadline, _NODE_LIMIT)
+        if status != _FINISHED:
             break
         nb = b0 + cnt[depth]
         if nb + size > cap:
             cap = 2 * (nb + size)
-            ord_v = grow(ord_v, nb, cap)
-            ord_b = grow(ord_b, nb, cap)
+            ord_v, ord_b = grow_pair(ord_v, ord_b, nb, cap)
         c = colour_weighted(
             Pst[depth + 1], B, W, wt, best_w - Cw[depth + 1], U, Q, ord_v, ord_b, nb
         )
