@@ -177,3 +177,64 @@ def test_cli_slam_on_simulated_directory(tmp_path, park):
     assert res.exit_code == 2 and "error:" in res.output
     res = CliRunner().invoke(app, ["slam", str(d), "--association", "magic"])
     assert res.exit_code == 2
+
+
+def test_steering_bias_is_estimated(park):
+    """A zero offset of the logged steering: the augmented filter finds it (within three of
+    its standard deviations) and tracks the vehicle better than the filter without it."""
+    offset = 0.01  # rad, added to every logged steering angle
+    steps = [
+        s if s.control is None else slam.Step(s.time, s.control + (0.0, offset), s.observations)
+        for s in park.steps
+    ]
+    cfg = slam.SlamConfig(
+        max_range=20.0, sigma_xy_rate=0.05, control_bias_sigma=0.05, control_bias_rate=1e-5
+    )
+    r = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=cfg)
+    b, sb = r.control_bias
+    assert abs(b + offset) < 3 * sb and sb < 0.005
+    plain = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=CFG)
+    assert plain.control_bias is None
+
+    def rmse(res):
+        return np.sqrt(np.mean(np.sum((res.poses[:, :2] - park.poses[:, :2]) ** 2, 1)))
+
+    assert rmse(r) < rmse(plain)
+
+
+def test_init_range_limits_new_landmarks(park):
+    """No landmark starts beyond the initialisation range: every NEW observation is within."""
+    cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, init_range=(0.0, 12.0))
+    r = slam.ekf_slam(park.steps, slam.Ackermann(), association="nn", config=cfg)
+    obs = [s for s in park.steps if s.n_observations]
+    new_r = np.concatenate(
+        [s.observations[a == slam.NEW, 0] for s, a in zip(obs, r.associations, strict=True)]
+    )
+    assert len(new_r) and new_r.max() <= 12.0
+    full = slam.ekf_slam(park.steps, slam.Ackermann(), association="nn", config=CFG)
+    new_full = np.concatenate(
+        [s.observations[a == slam.NEW, 0] for s, a in zip(obs, full.associations, strict=True)]
+    )
+    assert new_full.max() > 12.0
+
+
+def test_bearing_bias_is_estimated(park):
+    """A yaw misalignment of the sensor (every bearing offset): the augmented filter finds
+    it within three standard deviations and tracks the vehicle better than without."""
+    offset = 0.01
+    steps = [
+        s
+        if not s.n_observations
+        else slam.Step(s.time, s.control, s.observations + (0.0, offset))
+        for s in park.steps
+    ]
+    cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, bearing_bias_sigma=0.03)
+    r = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=cfg)
+    b, sb = r.bearing_bias
+    assert abs(b - offset) < 3 * sb and sb < 0.005
+    plain = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=CFG)
+
+    def rmse(res):
+        return np.sqrt(np.mean(np.sum((res.poses[:, :2] - park.poses[:, :2]) ** 2, 1)))
+
+    assert rmse(r) < rmse(plain)
