@@ -242,3 +242,18 @@ def test_bearing_bias_is_estimated(park):
         return np.sqrt(np.mean(np.sum((res.poses[:, :2] - park.poses[:, :2]) ** 2, 1)))
 
     assert rmse(r) < rmse(plain)
+
+
+def test_confirm_range_keeps_far_only_trees_out_of_the_map():
+    """A tree seen often but never within the confirmation range stays tentative and is
+    not in the final map; without the condition it is."""
+    lm = np.array([[10.0, 3.0], [12.0, -4.0], [24.0, 2.0]])
+    steps = [slam.Step(0.0, np.array([0.0, 0.0]), np.zeros((0, 2)))]
+    for k in range(1, 20):
+        steps.append(slam.Step(0.2 * k, None, observe(np.zeros(3), lm)[0]))
+    cfg = slam.SlamConfig(max_range=30.0, confirm_range=20.0, tentative_scans=100)
+    r = slam.ekf_slam(steps, slam.Unicycle(), association="jcbb", config=cfg)
+    assert len(r.landmarks) == 2 and r.landmarks[:, 0].max() < 20.0
+    cfg = slam.SlamConfig(max_range=30.0, confirm_range=None, tentative_scans=100)
+    r = slam.ekf_slam(steps, slam.Unicycle(), association="jcbb", config=cfg)
+    assert len(r.landmarks) == 3

@@ -55,7 +55,11 @@ class SlamConfig:
         Standard deviation of a tree centre's range (m): the laser's range noise plus the
         centre estimate from a trunk's arc. On Victoria Park the range innovations of
         landmarks seen 20 times or more have a robust standard deviation of 0.06-0.10 m
-        (map and pose uncertainty included; 0.13 m beyond 20 m with outliers), so 0.15 m.
+        (map and pose uncertainty included; 0.13 m beyond 20 m with outliers), but with
+        0.15 m the filter is overconfident on the simulated park, where this noise is the
+        truth (ANEES about 7.5 over 5 parks, band [1.25, 5.5]; 3.96 with 0.5 m): the
+        linearised heading makes a precise sensor's updates too strong, and an inflated
+        range noise keeps the filter consistent. Hence 0.5 m.
     sigma_bearing : float
         Standard deviation of the bearing (rad): about the angular resolution of the
         laser (0.5 deg) plus the centre estimate. Victoria Park's bearing innovations
@@ -83,12 +87,20 @@ class SlamConfig:
         Range (m) within which a landmark in the field of view is expected to be seen.
     init_range : (2,) float
         Range interval (m) in which an unpaired observation may start a landmark; outside
-        it the observation is rejected. Observations beyond it still update landmarks
-        already mapped (a far tree fixes the heading well) but a far detection is too
-        uncertain, and too often spurious, to found one. On Victoria Park the detector's
+        it the observation is rejected. (Default: no limit. A limit leaves the trees seen
+        only beyond it out of the map while their observations still seek partners among
+        the mapped trees: on the simulated park, a limit of 20 m with a 25 m sensor range
+        puts JCBB's ANEES above 200; :attr:`confirm_range` is the safe form.)
+    confirm_range : float or None
+        A tentative landmark becomes permanent only when, besides ``confirm_hits``
+        sightings, at least one of them was within this range (m); until then it stays
+        tentative (removed when missed or expired, see below). Far detections still
+        start and update landmarks, so they find their own tree, but a tree the sensor
+        never sees near is not trusted into the map: on Victoria Park the detector's
         range and diameter spread grow beyond 20 m (robust standard deviations of the
         range innovations 0.066 m at 15-20 m, 0.082 at 20-25, 0.095 at 25-30; of the
-        diameters 0.07, 0.11, 0.15 m at 10-20, 20-30, 30-40 m), hence 20 m.
+        diameters 0.07, 0.11, 0.15 m at 10-20, 20-30, 30-40 m), hence 20 m. None: no
+        condition.
     control_bias_sigma : float or None
         When set, the filter estimates a constant additive bias of the second control
         (the steering angle of :class:`~scanclique.slam.Ackermann`, rad; the turn rate of
@@ -104,7 +116,7 @@ class SlamConfig:
     association : AssociationConfig
     """
 
-    sigma_range: float = 0.15
+    sigma_range: float = 0.5
     sigma_bearing: float = math.radians(1.5)
     max_range: float | None = 25.0
     sensor_fov: float = math.pi
@@ -115,7 +127,8 @@ class SlamConfig:
     max_misses: int = 3
     tentative_scans: int = 25
     visible_range: float = 20.0
-    init_range: tuple[float, float] = (0.0, 20.0)
+    init_range: tuple[float, float] = (0.0, math.inf)
+    confirm_range: float | None = 20.0
     control_bias_sigma: float | None = None
     control_bias_rate: float | None = None
     bearing_bias_sigma: float | None = None
@@ -239,6 +252,7 @@ class _Filter:
         self.misses = np.zeros(cap, np.int64)
         self.att = np.zeros(cap)
         self.born = np.zeros(cap, np.int64)  # scan index of the first sighting
+        self.near = np.zeros(cap, bool)  # seen within the confirmation range
         self.scan = 0
         self.next_id = 0
 
@@ -283,13 +297,13 @@ class _Filter:
         d = self.dim
         P[:d, :d] = self.P[:d, :d]
         self.x, self.P = x, P
-        for name in ("ids", "hits", "misses", "att", "born"):
+        for name in ("ids", "hits", "misses", "att", "born", "near"):
             a = getattr(self, name)
             b = np.zeros(new, a.dtype)
             b[:cap] = a
             setattr(self, name, b)
 
-    def add(self, m, Gx, Gz, R, attribute):
+    def add(self, m, Gx, Gz, R, attribute, near=True):
         """Append a landmark at ``m`` with Jacobians of the inverse observation."""
         if self.n == len(self.ids):
             self._grow()
@@ -309,6 +323,7 @@ class _Filter:
         self.misses[j] = 0
         self.att[j] = attribute
         self.born[j] = self.scan
+        self.near[j] = near
         self.n += 1
         return self.ids[j]
 
@@ -328,7 +343,7 @@ class _Filter:
         self.x[:m] = x
         self.P[:m, :m] = P
         self.x[m:d] = 0
-        for name in ("ids", "hits", "misses", "att", "born"):
+        for name in ("ids", "hits", "misses", "att", "born", "near"):
             a = getattr(self, name)
             a[: len(keep_l)] = a[keep_l]
         self.n = len(keep_l)
@@ -406,6 +421,7 @@ def ekf_slam(
     qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
     kern = None if nv > 3 else motion_model.kernel()
     q_bias = (cfg.control_bias_rate or 0.0) ** 2
+    confirm_r = math.inf if cfg.confirm_range is None else cfg.confirm_range
     done = 0  # steps [0, done) predicted
     every = max(1, len(obs_steps) // 200)
 
@@ -507,6 +523,7 @@ def ekf_slam(
                 if len(paired):
                     _update(f, z[paired], glob, R, sx, sy)
                     f.hits[glob] += 1
+                    f.near[glob] |= z[paired, 0] <= confirm_r
                     f.misses[glob] = 0
                     if att is not None:
                         f.att[glob] += (att[paired] - f.att[glob]) / np.minimum(f.hits[glob], 20)
@@ -529,10 +546,17 @@ def ekf_slam(
 
                     m, Gx, Gz = f.inverse(z[new], sx, sy)
                     for q, i in enumerate(new):
-                        lid = f.add(m[q], Gx[q], Gz[q], R, att[i] if att is not None else 0.0)
+                        lid = f.add(
+                            m[q],
+                            Gx[q],
+                            Gz[q],
+                            R,
+                            att[i] if att is not None else 0.0,
+                            z[i, 0] <= confirm_r,
+                        )
                         a_used[i] = NEW
                         _ = lid
-                tentative = f.hits[: f.n] < cfg.confirm_hits
+                tentative = (f.hits[: f.n] < cfg.confirm_hits) | ~f.near[: f.n]
                 drop = np.flatnonzero(
                     tentative
                     & (
@@ -560,7 +584,7 @@ def ekf_slam(
     if progress is not None:
         progress(N, N)
     # the final map: permanent landmarks only
-    f.remove(np.flatnonzero(f.hits[: f.n] < cfg.confirm_hits))
+    f.remove(np.flatnonzero((f.hits[: f.n] < cfg.confirm_hits) | ~f.near[: f.n]))
     d = f.dim
     lms = f.x[nv:d].reshape(-1, 2).copy()
     idx = np.arange(f.n)
