@@ -227,9 +227,7 @@ def test_bearing_bias_is_estimated(park):
     it within three standard deviations and tracks the vehicle better than without."""
     offset = 0.01
     steps = [
-        s
-        if not s.n_observations
-        else slam.Step(s.time, s.control, s.observations + (0.0, offset))
+        s if not s.n_observations else slam.Step(s.time, s.control, s.observations + (0.0, offset))
         for s in park.steps
     ]
     cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, bearing_bias_sigma=0.03)

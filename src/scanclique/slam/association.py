@@ -23,10 +23,10 @@ Three methods behind one interface (:func:`associate`, and
     covariance (pairs outside the individual gate NN and JCBB use are dropped, then the
     pair with the worst individual distance until it passes). Candidate pairs are gated
     individually with a much looser bound, so that the graph finds the clique under pose
-    error, and on the tree diameter (node attribute, :class:`AssociationConfig`). A distinct maximum clique that
-    also passes the joint gate, and whose joint distance is nearly as small (a likelihood
-    ratio under 10), makes the step *ambiguous*: only the pairs all such cliques agree on
-    are kept.
+    error, and on the tree diameter (node attribute, :class:`AssociationConfig`). A
+    distinct maximum clique that also passes the joint gate, and whose joint distance is
+    nearly as small (a likelihood ratio under 10), makes the step *ambiguous*: only the
+    pairs all such cliques agree on are kept.
 ``"clique-jcbb"``
     Hybrid: the maximum cliques propose, joint compatibility verifies: JCBB restricted to
     the pairs of the maximum cliques (the largest jointly compatible set of geometrically
@@ -412,7 +412,8 @@ def correspondence_graph(z, R, d2, pred: Predicted, cfg, attributes=None, _slow_
 
     Vertices: the pairs (observation i, landmark j) within the loose individual gate
     ``clique_probability`` (and, with attributes, within ``attribute_tolerance`` and
-    ``attribute_gate`` standard deviations ``attribute_sigma`` of the landmark's). Edges: pairs ``(i, j)``, ``(k, l)`` with ``i != k``, ``j != l`` whose
+    ``attribute_gate`` standard deviations ``attribute_sigma`` of the landmark's).
+    Edges: pairs ``(i, j)``, ``(k, l)`` with ``i != k``, ``j != l`` whose
     point-point distances agree, ``(|p_i - p_k| - |m_j - m_l|)^2 <= s^2 (var_o + var_m)``
     with ``s = invariant_sigmas`` and the variances from :func:`point_distance_invariants`
     (observation noise ``R``; the map's joint covariance).
