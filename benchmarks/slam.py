@@ -10,7 +10,8 @@ the vehicle pose on simulated tree parks (known truth, the same noise as the fil
     python benchmarks/slam.py                 # full: clutter 0, 5, 10; 5 simulated parks
     python benchmarks/slam.py --clutter 0 --sims 2 --jobs 2
 
-Writes benchmarks/results/slam-2026-12-01.json, .md and .png (the maps).
+Writes benchmarks/results/slam-2026-12-01-s6.json, .md and .png (the maps; the files without
+the suffix are the previous session's run, before the landmark-management changes).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, git_state, machine  # noqa: E402
 
 DATE = "2026-12-01"
+TAG = "2026-12-01-s6"
 METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
@@ -156,7 +158,7 @@ def main(argv=None):
     ap.add_argument("--methods", default=",".join(METHODS))
     ap.add_argument("--sims", type=int, default=5, help="simulated parks for the NEES")
     ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--out", default=str(RESULTS / f"slam-{DATE}"))
+    ap.add_argument("--out", default=str(RESULTS / f"slam-{TAG}"))
     args = ap.parse_args(argv)
     clutters = [int(c) for c in args.clutter.split(",") if c != ""]
     methods = [m for m in args.methods.split(",") if m]
