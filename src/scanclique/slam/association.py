@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..graph import point_distance_invariants  # the point-point invariant, in the core
 from .models import inverse_observe, observe, wrap
 
 __all__ = [
@@ -290,48 +291,6 @@ def joint_distance(pairs, nu, Sz, R) -> float:
         return math.inf
     w = np.linalg.solve(c, v)
     return float(w @ w)
-
-
-def point_distance_invariants(points, cov):
-    """Point-point distances and their variances: the invariant edge labels of a graph of
-    point features (paper section 5.1).
-
-    This is the one place where the invariant of the point kind is computed (for the
-    core's registry of feature kinds to take over).
-
-    Parameters
-    ----------
-    points : (n, 2) array
-    cov : (2n, 2n) array or (n, 2, 2) array
-        Joint covariance of the points (or independent per-point blocks).
-
-    Returns
-    -------
-    D : (n, n) ndarray
-        ``|p_a - p_b|``.
-    V : (n, n) ndarray
-        First-order variance of ``D`` (including the points' cross-covariance when the
-        joint covariance is given).
-    """
-    p = np.asarray(points, float).reshape(-1, 2)
-    n = len(p)
-    d = p[:, None, :] - p[None, :, :]
-    D = np.sqrt((d * d).sum(-1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u = d / D[..., None]
-    u[~np.isfinite(u)] = 0.0
-    cov = np.asarray(cov, float)
-    if cov.ndim == 3:
-        B = cov
-        C = None
-    else:
-        B = cov.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :]
-        C = cov.reshape(n, 2, n, 2).transpose(0, 2, 1, 3)  # (n, n, 2, 2) blocks
-    Sab = B[:, None] + B[None, :]
-    if C is not None:
-        Sab = Sab - C - C.transpose(0, 1, 3, 2)
-    V = np.einsum("abi,abij,abj->ab", u, Sab, u)
-    return D, np.maximum(V, 0.0)
 
 
 def _observation_points(z, R):

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._records import readonly as _ro
 from .association import NEW, REJECTED, AssociationConfig, Predicted, associate_predicted
 from .models import MotionModel, inverse_observe, observe, wrap
 from .reader import Step
@@ -138,12 +139,6 @@ class SlamConfig:
     @property
     def R(self) -> np.ndarray:
         return np.diag([self.sigma_range**2, self.sigma_bearing**2])
-
-
-def _ro(a):
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._records import readonly as _ro
 from ..errors import DataNotFoundError, ParseError
 
 __all__ = [
@@ -43,12 +44,6 @@ SOURCE = (
     "the ACFR Victoria Park data set (E. Nebot, J. Guivant; "
     "www-personal.acfr.usyd.edu.au/nebot/victoria_park.htm)"
 )
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, slots=True, eq=False)
