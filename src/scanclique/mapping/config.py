@@ -140,6 +140,10 @@ class LoopConfig:
         Pairwise consistency maximisation runs over the closures of this many keyframes.
     pcm_gate : float
         Probability of the chi-square gate (3 dof) of pairwise consistency.
+    pcm_anchor_batches : int
+        Incremental PCM: the closures accepted over the last ``pcm_anchor_batches``
+        batches (their newer keyframe that recent) anchor the new ones; a new closure
+        must be pairwise consistent with each of them (0: each batch on its own).
     min_score : float
         A loop closure's match needs at least this raw-scan agreement
         (:func:`scanclique.match.pose_score`; the matcher's own floor is 0.1): a revisit
@@ -162,6 +166,7 @@ class LoopConfig:
     separation: int = 5
     pcm_batch: int = 10
     pcm_gate: float = 0.99
+    pcm_anchor_batches: int = 2
     min_score: float = 0.3
     appearance: bool = True
 

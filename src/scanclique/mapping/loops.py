@@ -26,7 +26,7 @@ import numpy as np
 
 from ..config import MatchConfig
 from ..geometry import Pose2
-from ..match import PreparedScan, match_prepared
+from ..match import PreparedScan, match_prepared, pose_score
 from ..validation import OdometryNoise, validate_match
 from .config import LoopConfig
 from .frontend import _quick_accept, floored, refine_pose
@@ -168,8 +168,10 @@ def verify(
 
     ``quick``: accept through the cheap form of the test first
     (:func:`scanclique.mapping.frontend._quick_accept`; for the local neighbours, whose
-    prior is the well-known chain). ``strict`` (appearance candidates): the match must be
-    accepted without the prior too, and the prior may not choose another hypothesis.
+    prior is the well-known chain). Otherwise (a loop candidate) the prior may not choose
+    another hypothesis than the matcher's best, and the returned score is the raw-scan
+    agreement at the refined pose. ``strict`` (appearance candidates): the match must be
+    accepted without the prior too.
 
     Returns ``(pose, covariance, verdict, score, reason)``; pose and covariance are None
     unless the verdict is ``accepted``.
@@ -188,11 +190,17 @@ def verify(
         if not v0.accepted:
             return None, None, v0.verdict, float(m.score), "; ".join(v0.reasons)
     v = validate_match(m, est_i, est_j, noise)
-    if strict and v.accepted and v.hypothesis != 0:
+    if not quick and v.accepted and v.hypothesis != 0:
+        # a loop's prior (the drift model) is too broad to choose between the matcher's
+        # hypotheses: it may only veto the best one
         return None, None, "ambiguous", float(m.score), "the prior chose another hypothesis"
     reason = "; ".join(v.reasons)
     if v.accepted and v.pose is not None:
         cov = v.covariance if v.covariance is not None else m.covariance
         pose = v.pose if front_end is None else refine_pose(pi, pj, v.pose, front_end)
-        return pose, floored(cov, *sigma_floor), v.verdict, float(m.score), reason
+        score = float(m.score)
+        if not quick:
+            # the pose that enters the graph is the refined one: score the raw scans there
+            score = float(pose_score(pi, pj, pose, config))
+        return pose, floored(cov, *sigma_floor), v.verdict, score, reason
     return None, None, v.verdict, float(m.score), reason

@@ -193,6 +193,7 @@ class _Mapper:
         # verifications proposed since the last flush: (keyframe, [(i, local, source)],
         # handle of their verdicts)
         self.batch: list = []
+        self.anchors: list = []  # accepted closures of the recent batches (PCM anchors)
         self.verifier = Verifier(scans, cfg.match, self.fe, self.floor, workers)
 
     # -- helpers ----------------------------------------------------------------------
@@ -279,10 +280,11 @@ class _Mapper:
             if local:
                 sigma = (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
             if source == "appearance":
-                # beyond the estimate's radius, but not anywhere: a look-alike place of a
-                # symmetric building (a corridor seen the other way) is still refused
-                sigma = (max(2.0 * sigma[0], lc.max_radius / 2.0),
-                         min(max(2.0 * sigma[1], math.radians(15.0)), math.radians(40.0)))  # fmt: skip
+                # beyond the estimate's radius, but not anywhere: twice the drift the
+                # estimate may have accumulated (a 6-sigma bound), so that a look-alike
+                # place of a symmetric building (a corridor seen the other way, a twin
+                # room metres away) is refused when the estimate is known to be good
+                sigma = (2.0 * sigma[0], min(2.0 * sigma[1], math.radians(40.0)))
             tasks.append(
                 (self.kf[i], self.kf[kidx], est_i, est_j, sigma, local, source == "appearance")
             )
@@ -339,7 +341,15 @@ class _Mapper:
         t = time.perf_counter()
         if self.pending:
             cl = [(i, j, Z, P) for i, j, Z, P, *_ in self.pending]
-            keep = set(pcm_select(cl, self.chain_rel, self.lc.pcm_gate).tolist())
+            # incremental PCM: the closures accepted over the previous batches anchor the
+            # new ones (a closure alone in its batch is checked against them too)
+            newest = max(j for _, j, *_ in self.pending)
+            self.anchors = [
+                a for a in self.anchors if newest - a[1] <= self.lc.pcm_anchor_batches * self.lc.pcm_batch
+            ]  # fmt: skip
+            keep = set(
+                pcm_select(cl, self.chain_rel, self.lc.pcm_gate, anchors=self.anchors).tolist()
+            )
             for k, (i, j, Z, P, source, score, reason) in enumerate(self.pending):
                 ok = k in keep
                 self.closures.append(
@@ -347,6 +357,7 @@ class _Mapper:
                                 ok, False, source, score, reason)
                 )  # fmt: skip
                 if ok:
+                    self.anchors.append((i, j, Z, P))
                     self.kf_edges.append((i, j, Z, P, "loop"))
                     self._add_isam_edge(i, j, Z, P, True)
                     self.last_closure_path = max(self.last_closure_path, self.kf_path[j])
