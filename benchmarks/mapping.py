@@ -386,7 +386,7 @@ def main(argv=None) -> int:
                 previous[(r["log"], r["row"])] = r
         except (ValueError, KeyError):
             previous = {}
-    for name in args.logs.split(","):
+    for name in filter(None, args.logs.split(",")):
         t = time.perf_counter()
         scans = datasets.load_log(name)
         if args.limit:

@@ -70,6 +70,13 @@ class FrontEndConfig:
         Without odometry, an ICP pose scoring at least ``icp_ungated_score`` is accepted
         outside the gate of the constant-velocity prediction, when within
         ``icp_ungated_max_turn`` rad and ``icp_ungated_max_shift`` m of it.
+        ``icp_min_constraint``: when the smallest eigenvalue of the mean outer product
+        of the paired points' normals is below it (the scans let ICP slide along one
+        direction, as in a corridor: 0 for two parallel walls, 0.5 for a room; see
+        :func:`scanclique.mapping.frontend.weak_direction`), the pose along that
+        direction is the prior's, with the prior's variance. ``icp_score_tie``: ICP
+        results (from the several seeds) whose raw-scan scores lie within it of the best
+        are a tie the scans cannot break; the one nearest the first prior is taken.
     """
 
     keyframe_distance: float = 0.30
@@ -100,6 +107,8 @@ class FrontEndConfig:
     icp_ungated_score: float = 0.75
     icp_ungated_max_turn: float = math.radians(90.0)
     icp_ungated_max_shift: float = 1.0
+    icp_min_constraint: float = 0.05
+    icp_score_tie: float = 0.05
 
     def __post_init__(self) -> None:
         _positive(
