@@ -238,6 +238,17 @@ def test_run_map_and_command(tmp_path):
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
     assert out["counts"]["scans"] == 15
+    # --workers 2: the same trajectory file, byte for byte
+    res = CliRunner().invoke(
+        app, ["map", str(bag), "--out", str(tmp_path / "cli2"), "--json", "--workers", "2"]
+    )
+    assert res.exit_code == 0, res.output
+    tum = (tmp_path / "cli" / "trajectory.tum").read_bytes()
+    assert (tmp_path / "cli2" / "trajectory.tum").read_bytes() == tum
+    rep2 = json.loads((tmp_path / "cli2" / "report.json").read_text())
+    assert rep2["workers"] == 2
+    res = CliRunner().invoke(app, ["map", str(bag), "--out", str(tmp_path / "x"), "--workers", "0"])
+    assert res.exit_code == 2
     res = CliRunner().invoke(app, ["map", str(tmp_path / "nope.bag"), "--out", str(tmp_path / "x")])
     assert res.exit_code == 2 and "error:" in res.output and "nope.bag" in res.output
 
