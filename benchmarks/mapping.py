@@ -162,8 +162,10 @@ def _judge_relations(result, scans, rels, mounting, window: float = 1.0) -> dict
         if t <= 0.20 and r <= math.radians(1.0):
             right += 1
         else:
-            wrong.append({"i": c.i, "j": c.j, "a": a, "b": b, "source": c.source,
-                          "score": c.score, "error_m": t, "error_deg": math.degrees(r)})  # fmt: skip
+            wrong.append(
+                {"i": c.i, "j": c.j, "a": a, "b": b, "source": c.source, "score": c.score,
+                 "error_m": t, "error_deg": math.degrees(r)}
+            )  # fmt: skip
     return {"judged": judged, "right": right, "wrong": wrong}
 
 
@@ -358,8 +360,7 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--reference",
         default=",".join(REFERENCE_LOGS),
-        help="corrected logs whose closures are judged against their reference poses "
-        "('' for none)",
+        help="corrected logs whose closures are judged against their reference poses ('' for none)",
     )
     ap.add_argument("--limit", type=int, default=None, help="first N scans only (a quick look)")
     ap.add_argument(

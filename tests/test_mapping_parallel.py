@@ -47,7 +47,9 @@ def test_workers_give_the_serial_map():
     b = np.array([p.as_array() for p in parallel.poses])
     np.testing.assert_array_equal(a, b)
     assert serial.keyframes == parallel.keyframes
-    assert [(e.i, e.j, e.kind) for e in serial.edges] == [(e.i, e.j, e.kind) for e in parallel.edges]
+    assert [(e.i, e.j, e.kind) for e in serial.edges] == [
+        (e.i, e.j, e.kind) for e in parallel.edges
+    ]
 
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, True])

@@ -88,10 +88,7 @@ def pcm_select(
     thr = float(chdtri(3, 1.0 - gate))
     alive = np.array(
         [
-            all(
-                math.isfinite(d2 := _cycle(c, a, chain)) and d2 <= thr
-                for a in anchors
-            )
+            all(math.isfinite(d2 := _cycle(c, a, chain)) and d2 <= thr for a in anchors)
             for c in closures
         ],
         dtype=bool,

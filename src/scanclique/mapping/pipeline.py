@@ -157,9 +157,7 @@ def _cov_xy_rot(s_xy: float, s_th: float) -> np.ndarray:
 class _Mapper:
     """The state carried across scans by :func:`map_scans` (keyframes, estimate, graph)."""
 
-    def __init__(
-        self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig, workers: int = 1
-    ):
+    def __init__(self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig, workers: int = 1):
         self.scans = scans
         self.odo = use_odometry
         self.cfg = cfg
@@ -194,7 +192,7 @@ class _Mapper:
         # handle of their verdicts)
         self.batch: list = []
         self.anchors: list = []  # accepted closures of the recent batches (PCM anchors)
-        self.verifier = Verifier(scans, cfg.match, self.fe, self.floor, workers)
+        self.verifier = Verifier(cfg.match, self.fe, self.floor, workers)
 
     # -- helpers ----------------------------------------------------------------------
     def prepare(self, j: int):
@@ -290,10 +288,8 @@ class _Mapper:
             )
             meta.append((i, local, source))
         if tasks:
-            prepared = None
-            if self.verifier.pool is None:  # serial: the prepared scans at hand
-                prepared = {self.kf[i]: self.kf_prep[i] for i, _, _ in meta}
-                prepared[self.kf[kidx]] = self.kf_prep[kidx]
+            prepared = {self.kf[i]: self.kf_prep[i] for i, _, _ in meta}
+            prepared[self.kf[kidx]] = self.kf_prep[kidx]
             self.batch.append((kidx, meta, self.verifier.submit(tasks, prepared)))
         self.seconds["loops"] += time.perf_counter() - t
 
@@ -344,9 +340,8 @@ class _Mapper:
             # incremental PCM: the closures accepted over the previous batches anchor the
             # new ones (a closure alone in its batch is checked against them too)
             newest = max(j for _, j, *_ in self.pending)
-            self.anchors = [
-                a for a in self.anchors if newest - a[1] <= self.lc.pcm_anchor_batches * self.lc.pcm_batch
-            ]  # fmt: skip
+            span = self.lc.pcm_anchor_batches * self.lc.pcm_batch
+            self.anchors = [a for a in self.anchors if newest - a[1] <= span]
             keep = set(
                 pcm_select(cl, self.chain_rel, self.lc.pcm_gate, anchors=self.anchors).tolist()
             )
