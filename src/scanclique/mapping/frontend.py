@@ -222,8 +222,11 @@ def icp_fallback(
     break the chain), or scores at least ``ungated`` and lies within
     ``fe.icp_ungated_max_turn`` / ``icp_ungated_max_shift`` of the first prior (without
     odometry: a sharp turn no velocity model predicts, that the raw scans confirm, but no
-    half-turn: a corridor turned by 180 degrees matches as well); its covariance is ``2 x`` the floor plus a hundredth of the
-    first prior's. None otherwise."""
+    half-turn: a corridor turned by 180 degrees matches as well); its covariance is ``2 x``
+    the floor plus a hundredth of the first prior's. With wheel odometry (``ungated`` None)
+    ICP poses the scans cannot tell apart (scores within ``fe.icp_score_tie``) go to the
+    one nearest the odometry, and in a corridor (:func:`weak_direction` below
+    ``fe.icp_min_constraint``) the component along it is the odometry's. None otherwise."""
     found = []
     for seed in seeds:
         icp = icp_point_to_line(
@@ -240,12 +243,15 @@ def icp_fallback(
     if not found or max(sc for _, sc in found) < fe.icp_min_score:
         return None
     # poses the raw scans cannot tell apart (scores within ``icp_score_tie`` of the best,
-    # e.g. slid along a corridor): the motion model (the first prior) decides
+    # e.g. slid along a corridor): the wheel odometry (the first prior) decides; without
+    # it the best score does (a constant-velocity guess is no measurement: a robot that
+    # stops at a door moves nothing where it predicts a full step)
     top = max(sc for _, sc in found)
     p0, c0 = priors[0]
+    measured = ungated is None
     pose, score = min(
-        (f for f in found if f[1] >= top - fe.icp_score_tie),
-        key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0),
+        (f for f in found if f[1] >= top - fe.icp_score_tie) if measured else found,
+        key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0) if measured else -f[1],
     )
     inside = False
     for prior, prior_cov in priors:
@@ -265,8 +271,10 @@ def icp_fallback(
         ):
             return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
-    weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
-    if weak is not None and weak[1] < fe.icp_min_constraint:
+    weak = (
+        weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1) if measured else None
+    )
+    if measured and weak is not None and weak[1] < fe.icp_min_constraint:
         # the scans do not fix the pose along ``e`` (a corridor): ICP slides along it as
         # far as its seed allows; take that component from the prior (the first one, the
         # motion model) and give the edge the prior's uncertainty along it
