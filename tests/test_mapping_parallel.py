@@ -1,5 +1,6 @@
 """Loop-candidate verification on local processes (scanclique.mapping.parallel, issue 12
-part 7): the map with ``workers=2`` is the serial map, closure for closure, pose for pose."""
+part 7): the map with ``workers=2`` or ``3`` is the serial map, closure for closure, pose
+for pose."""
 
 from __future__ import annotations
 
@@ -35,10 +36,11 @@ def _closure_key(c):
     return (c.i, c.j, c.verdict, c.accepted, c.local, c.source, c.score, p)
 
 
-def test_workers_give_the_serial_map():
+@pytest.mark.parametrize("workers", [2, 3])  # one forked worker; two, finishing out of order
+def test_workers_give_the_serial_map(workers):
     scans = _two_laps(np.random.default_rng(5))
     serial = map_scans(scans)
-    parallel = map_scans(scans, workers=2)
+    parallel = map_scans(scans, workers=workers)
     assert len(serial.accepted_closures) >= 3  # the test has closures to agree on
     assert [_closure_key(c) for c in serial.loop_closures] == [
         _closure_key(c) for c in parallel.loop_closures

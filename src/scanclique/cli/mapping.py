@@ -44,7 +44,8 @@ def map_cmd(
             "--workers",
             "-w",
             min=1,
-            help="Verify loop candidates on N local processes (the map is the same as with 1).",
+            help="N processes at work, one per core: loop candidates are verified on N-1 "
+            "forked processes beside this one (the map is the same as with 1).",
         ),
     ] = 1,
     json_out: JsonOpt = False,

@@ -84,16 +84,18 @@ class _Done:
 
 
 class Verifier:
-    """Verifies batches of loop candidates, in this process (``workers == 1``) or on
-    ``workers`` forked local processes; :meth:`submit` returns a handle whose
-    ``result()`` is the list of verdicts of the batch, in job order.
+    """Verifies batches of loop candidates, in this process (``workers == 1``) or, with
+    ``workers = N > 1``, on ``N - 1`` forked local processes while this one (the front end,
+    PCM, iSAM2) goes on: ``N`` processes work, one per core (on a 2-core machine
+    ``workers=2`` is one worker beside the main process). :meth:`submit` returns a handle
+    whose ``result()`` is the list of verdicts of the batch, in job order.
 
     Parameters
     ----------
     match_cfg, front_end, floor :
         What :func:`scanclique.mapping.loops.verify` is called with.
     workers : int
-        Processes (>= 1).
+        Processes working, this one included (>= 1).
     """
 
     def __init__(self, match_cfg, front_end, floor, workers: int = 1):
@@ -109,12 +111,12 @@ class Verifier:
 
             method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
             self.pool = cf.ProcessPoolExecutor(
-                max_workers=workers,
+                max_workers=workers - 1,
                 mp_context=mp.get_context(method),
                 initializer=_install,
                 initargs=args,
             )
-            log.debug("loop verification on %d %s processes", workers, method)
+            log.debug("loop verification on %d %s processes", workers - 1, method)
         else:
             _install(*args)
 

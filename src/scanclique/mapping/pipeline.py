@@ -510,9 +510,10 @@ def map_scans(
     progress : callable (done, total, closures), optional
         Called every 50 scans.
     workers : int
-        Loop candidates (and local matches) are verified on this many local processes
-        (:mod:`scanclique.mapping.parallel`); 1 (default): in this process. The result is
-        the same, pose for pose, for every value.
+        Processes at work: 1 (default) verifies the loop candidates (and local matches) in
+        this process; N > 1 verifies them on N - 1 forked local processes while this one
+        goes on with the front end (:mod:`scanclique.mapping.parallel`; one per core). The
+        result is the same, pose for pose, for every value.
 
     Returns
     -------

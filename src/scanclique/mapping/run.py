@@ -126,7 +126,8 @@ def run_map(
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
     ``report.json`` (and ``map.png`` when ``plot``) into ``out``. Loop verification runs
-    on ``workers`` local processes (1: in this process; the map is the same).
+    on ``workers - 1`` forked local processes beside this one (1: in this process; the map
+    is the same).
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
