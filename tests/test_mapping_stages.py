@@ -52,6 +52,10 @@ def test_pcm_keeps_the_consistent_closures():
     assert keep.tolist() == [0, 1, 2, 3]
     assert pcm_select(closures[:1], chain).tolist() == [0]
     assert pcm_select(bad, chain).tolist() == []
+    # incremental: a closure alone in its batch is checked against accepted ones (anchors)
+    assert pcm_select(bad[:1], chain, anchors=good[:2]).tolist() == []
+    assert pcm_select(good[2:3], chain, anchors=good[:2]).tolist() == [0]
+    assert pcm_select([bad[0], good[2], good[3]], chain, anchors=good[:2]).tolist() == [1, 2]
 
 
 # -- back end ---------------------------------------------------------------------------
@@ -234,5 +238,63 @@ def test_run_map_and_command(tmp_path):
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
     assert out["counts"]["scans"] == 15
+    # --workers 2: the same trajectory file, byte for byte
+    res = CliRunner().invoke(
+        app, ["map", str(bag), "--out", str(tmp_path / "cli2"), "--json", "--workers", "2"]
+    )
+    assert res.exit_code == 0, res.output
+    tum = (tmp_path / "cli" / "trajectory.tum").read_bytes()
+    assert (tmp_path / "cli2" / "trajectory.tum").read_bytes() == tum
+    rep2 = json.loads((tmp_path / "cli2" / "report.json").read_text())
+    assert rep2["workers"] == 2
+    res = CliRunner().invoke(app, ["map", str(bag), "--out", str(tmp_path / "x"), "--workers", "0"])
+    assert res.exit_code == 2
     res = CliRunner().invoke(app, ["map", str(tmp_path / "nope.bag"), "--out", str(tmp_path / "x")])
     assert res.exit_code == 2 and "error:" in res.output and "nope.bag" in res.output
+
+
+# -- front end: ICP fallback in a corridor ---------------------------------------------------
+def _corridor_pair():
+    from scanclique.sim import corridor_world, simulate_scan
+
+    rng = np.random.default_rng(4)
+    world = corridor_world(60.0, 2.0, rng=rng, side_rooms=0, doorways=0, clutter=0)
+    a = simulate_scan(world, Pose2(20.0, 1.0, 0.0), rng=rng, max_range=8.0)
+    b = simulate_scan(world, Pose2(20.5, 1.0, 0.0), rng=rng, max_range=8.0)
+    return a, b
+
+
+def test_weak_direction_of_a_corridor_and_of_a_room():
+    from scanclique.mapping.frontend import weak_direction
+    from scanclique.match import prepare_scan
+    from scanclique.sim import room_world, simulate_scan
+
+    a, b = _corridor_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    e, w = weak_direction(pa.cloud, np.ascontiguousarray(pb.points), Pose2(0.5, 0.0, 0.0), 0.1)
+    assert w < 0.02 and abs(e[0]) > 0.99  # slides along the corridor (x)
+    rng = np.random.default_rng(2)
+    room = room_world(6.0, 5.0, rng=rng, pillars=0, clutter=0)
+    r = prepare_scan(simulate_scan(room, Pose2(3.0, 2.5, 0.3), rng=rng))
+    _, w_room = weak_direction(r.cloud, np.ascontiguousarray(r.points), Pose2.identity(), 0.1)
+    assert w_room > 0.2
+
+
+def test_icp_fallback_takes_the_corridor_axis_from_the_prior():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import icp_fallback
+    from scanclique.match import prepare_scan
+
+    a, b = _corridor_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    prior = Pose2(0.45, 0.0, 0.0)  # the motion model: 5 cm short of the truth (0.5 m)
+    prior_cov = np.diag([0.1**2, 0.1**2, math.radians(3.0) ** 2])
+    # a seed slid 1.2 m along the corridor: the walls explain it as well as the truth
+    step = icp_fallback(
+        pa, pb, [Pose2(1.7, 0.05, 0.02), prior], [(prior, prior_cov)], FrontEndConfig(),
+        MatchConfig(),
+    )  # fmt: skip
+    assert step is not None
+    assert abs(step.pose.x - 0.45) < 0.02 and abs(step.pose.y) < 0.02  # x from the prior
+    assert step.covariance[0, 0] >= 0.1**2 * 0.9  # with the prior's variance along x

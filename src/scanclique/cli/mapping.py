@@ -38,6 +38,16 @@ def map_cmd(
     plot: Annotated[
         bool, typer.Option("--plot", help="Also write map.png with the trajectory and closures.")
     ] = False,
+    workers: Annotated[
+        int,
+        typer.Option(
+            "--workers",
+            "-w",
+            min=1,
+            help="N processes at work, one per core: loop candidates are verified on N-1 "
+            "forked processes beside this one (the map is the same as with 1).",
+        ),
+    ] = 1,
     json_out: JsonOpt = False,
 ) -> None:
     """Map a log: trajectory.tum, graph.g2o, map.pgm + map.yaml (ROS map_server),
@@ -49,6 +59,7 @@ def map_cmd(
     scanclique map ../shared/data/carmen/fr079.clf.bz2 --out runs/fr079
     scanclique map intel-raw --out runs/intel --no-odometry
     scanclique map my.bag --topic /scan --out runs/mine --plot
+    scanclique map fr079-raw --out runs/fr079 --workers 2
     ```
     """
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -84,6 +95,7 @@ def map_cmd(
                 topic=topic,
                 plot=plot,
                 progress=tick,
+                workers=workers,
             )
         )
     if json_out:

@@ -70,6 +70,13 @@ class FrontEndConfig:
         Without odometry, an ICP pose scoring at least ``icp_ungated_score`` is accepted
         outside the gate of the constant-velocity prediction, when within
         ``icp_ungated_max_turn`` rad and ``icp_ungated_max_shift`` m of it.
+        ``icp_min_constraint``: when the smallest eigenvalue of the mean outer product
+        of the paired points' normals is below it (the scans let ICP slide along one
+        direction, as in a corridor: 0 for two parallel walls, 0.5 for a room; see
+        :func:`scanclique.mapping.frontend.weak_direction`), the pose along that
+        direction is the prior's, with the prior's variance. ``icp_score_tie``: ICP
+        results (from the several seeds) whose raw-scan scores lie within it of the best
+        are a tie the scans cannot break; the one nearest the first prior is taken.
     """
 
     keyframe_distance: float = 0.30
@@ -100,6 +107,8 @@ class FrontEndConfig:
     icp_ungated_score: float = 0.75
     icp_ungated_max_turn: float = math.radians(90.0)
     icp_ungated_max_shift: float = 1.0
+    icp_min_constraint: float = 0.05
+    icp_score_tie: float = 0.05
 
     def __post_init__(self) -> None:
         _positive(
@@ -140,6 +149,10 @@ class LoopConfig:
         Pairwise consistency maximisation runs over the closures of this many keyframes.
     pcm_gate : float
         Probability of the chi-square gate (3 dof) of pairwise consistency.
+    pcm_anchor_batches : int
+        Incremental PCM: the closures accepted over the last ``pcm_anchor_batches``
+        batches (their newer keyframe that recent) anchor the new ones; a new closure
+        must be pairwise consistent with each of them (0: each batch on its own).
     min_score : float
         A loop closure's match needs at least this raw-scan agreement
         (:func:`scanclique.match.pose_score`; the matcher's own floor is 0.1): a revisit
@@ -162,6 +175,7 @@ class LoopConfig:
     separation: int = 5
     pcm_batch: int = 10
     pcm_gate: float = 0.99
+    pcm_anchor_batches: int = 2
     min_score: float = 0.3
     appearance: bool = True
 

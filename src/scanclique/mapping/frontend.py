@@ -18,7 +18,7 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
-from ..refine import icp_point_to_line
+from ..refine import icp_point_to_line, nearest
 from ..validation import (
     AMBIGUOUS,
     GATE_99,
@@ -184,6 +184,24 @@ def associate(
     return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)
 
 
+def weak_direction(
+    ref, points_b: np.ndarray, pose: Pose2, max_distance: float
+) -> tuple[np.ndarray, float] | None:
+    """The direction of translation the point-to-line alignment of ``points_b`` onto
+    ``ref`` (a ReferenceCloud, at ``pose``, which maps B into A) constrains least, and how
+    much it constrains it: the eigenvector of smallest eigenvalue of ``mean(n n^T)`` over
+    the paired points' normals ``n`` (A's frame), with that eigenvalue (0: the scans slide
+    freely along it, as in a featureless corridor; 0.5: both directions alike). None when
+    fewer than 10 points pair within ``max_distance`` m."""
+    idx, d = nearest(ref, points_b, pose, max_distance)
+    n = ref.normals[idx[np.isfinite(d)]]
+    n = n[np.einsum("ij,ij->i", n, n) > 0.5]
+    if len(n) < 10:
+        return None
+    w, v = np.linalg.eigh(n.T @ n / len(n))
+    return v[:, 0], float(w[0])
+
+
 def icp_fallback(
     pk: PreparedScan,
     pj: PreparedScan,
@@ -204,9 +222,12 @@ def icp_fallback(
     break the chain), or scores at least ``ungated`` and lies within
     ``fe.icp_ungated_max_turn`` / ``icp_ungated_max_shift`` of the first prior (without
     odometry: a sharp turn no velocity model predicts, that the raw scans confirm, but no
-    half-turn: a corridor turned by 180 degrees matches as well); its covariance is ``2 x`` the floor plus a hundredth of the
-    first prior's. None otherwise."""
-    best = None
+    half-turn: a corridor turned by 180 degrees matches as well); its covariance is ``2 x``
+    the floor plus a hundredth of the first prior's. With wheel odometry (``ungated`` None)
+    ICP poses the scans cannot tell apart (scores within ``fe.icp_score_tie``) go to the
+    one nearest the odometry, and in a corridor (:func:`weak_direction` below
+    ``fe.icp_min_constraint``) the component along it is the odometry's. None otherwise."""
+    found = []
     for seed in seeds:
         icp = icp_point_to_line(
             pk.cloud,
@@ -218,12 +239,20 @@ def icp_fallback(
         )
         if icp.fitness < fe.icp_min_fitness:
             continue
-        score = pose_score(pk, pj, icp.pose, config)
-        if best is None or score > best[1]:
-            best = (icp.pose, score)
-    if best is None or best[1] < fe.icp_min_score:
+        found.append((icp.pose, pose_score(pk, pj, icp.pose, config)))
+    if not found or max(sc for _, sc in found) < fe.icp_min_score:
         return None
-    pose, score = best
+    # poses the raw scans cannot tell apart (scores within ``icp_score_tie`` of the best,
+    # e.g. slid along a corridor): the wheel odometry (the first prior) decides; without
+    # it the best score does (a constant-velocity guess is no measurement: a robot that
+    # stops at a door moves nothing where it predicts a full step)
+    top = max(sc for _, sc in found)
+    p0, c0 = priors[0]
+    measured = ungated is None
+    pose, score = min(
+        (f for f in found if f[1] >= top - fe.icp_score_tie) if measured else found,
+        key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0) if measured else -f[1],
+    )
     inside = False
     for prior, prior_cov in priors:
         d = pose.as_array() - prior.as_array()
@@ -242,6 +271,23 @@ def icp_fallback(
         ):
             return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
+    weak = (
+        weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1) if measured else None
+    )
+    if measured and weak is not None and weak[1] < fe.icp_min_constraint:
+        # the scans do not fix the pose along ``e`` (a corridor): ICP slides along it as
+        # far as its seed allows; take that component from the prior (the first one, the
+        # motion model) and give the edge the prior's uncertainty along it
+        e = weak[0]
+        prior, prior_cov = priors[0]
+        dt = np.array([prior.x - pose.x, prior.y - pose.y])
+        shift = e * float(e @ dt)
+        pose = Pose2(pose.x + shift[0], pose.y + shift[1], pose.theta)
+        # e is in A's frame, as are the pose's translation and the prior's covariance
+        var = float(e @ prior_cov[:2, :2] @ e)
+        cov = cov.copy()
+        cov[:2, :2] += var * np.outer(e, e)
+        score = pose_score(pk, pj, pose, config)
     return Step(pose, cov, ICP, "icp", float(score))
 
 

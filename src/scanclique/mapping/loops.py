@@ -26,10 +26,10 @@ import numpy as np
 
 from ..config import MatchConfig
 from ..geometry import Pose2
-from ..match import PreparedScan, match_prepared
+from ..match import PreparedScan, match_prepared, pose_score
 from ..validation import OdometryNoise, validate_match
 from .config import LoopConfig
-from .frontend import _quick_accept, floored, refine_pose
+from .frontend import _quick_accept, floored, refine_pose, weak_direction
 
 __all__ = [
     "LoopClosure",
@@ -50,7 +50,9 @@ class LoopClosure:
     ``pose`` maps points of scan ``j`` into scan ``i`` (None when the match had none);
     ``covariance`` of its ``(x, y, theta)``; ``verdict`` is the §7 verdict
     (``accepted``, ``rejected_odometry`` meaning here *rejected by the estimate's prior*,
-    ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"`` or ``"low_score"``; ``accepted`` whether it
+    ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``, ``"low_score"`` or
+    ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
+    :func:`scanclique.mapping.frontend.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the
     local chain (not a loop); ``source`` ``"estimate"`` or ``"appearance"``; ``score``
     the raw-scan agreement; ``reason`` in words."""
@@ -168,8 +170,12 @@ def verify(
 
     ``quick``: accept through the cheap form of the test first
     (:func:`scanclique.mapping.frontend._quick_accept`; for the local neighbours, whose
-    prior is the well-known chain). ``strict`` (appearance candidates): the match must be
-    accepted without the prior too, and the prior may not choose another hypothesis.
+    prior is the well-known chain). Otherwise (a loop candidate) the prior may not choose
+    another hypothesis than the matcher's best, and the returned score is the raw-scan
+    agreement at the refined pose, and the raw scans must fix that pose in every direction
+    (verdict ``"degenerate"`` otherwise: in a corridor only the features place a closure,
+    and doors repeat along corridors). ``strict`` (appearance candidates): the match must be
+    accepted without the prior too.
 
     Returns ``(pose, covariance, verdict, score, reason)``; pose and covariance are None
     unless the verdict is ``accepted``.
@@ -188,11 +194,29 @@ def verify(
         if not v0.accepted:
             return None, None, v0.verdict, float(m.score), "; ".join(v0.reasons)
     v = validate_match(m, est_i, est_j, noise)
-    if strict and v.accepted and v.hypothesis != 0:
+    if not quick and v.accepted and v.hypothesis != 0:
+        # a loop's prior (the drift model) is too broad to choose between the matcher's
+        # hypotheses: it may only veto the best one
         return None, None, "ambiguous", float(m.score), "the prior chose another hypothesis"
     reason = "; ".join(v.reasons)
     if v.accepted and v.pose is not None:
         cov = v.covariance if v.covariance is not None else m.covariance
         pose = v.pose if front_end is None else refine_pose(pi, pj, v.pose, front_end)
-        return pose, floored(cov, *sigma_floor), v.verdict, float(m.score), reason
+        score = float(m.score)
+        if not quick:
+            # the pose that enters the graph is the refined one: score the raw scans there
+            score = float(pose_score(pi, pj, pose, config))
+            if front_end is not None:
+                weak = weak_direction(pi.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
+                if weak is not None and weak[1] < front_end.icp_min_constraint:
+                    # a corridor: the raw scans do not fix the closure along it, only the
+                    # features do, and doors and pillars repeat along corridors
+                    e = weak[0]
+                    why = (
+                        f"the raw scans do not fix the pose along ({e[0]:.2f}, {e[1]:.2f}) "
+                        f"(eigenvalue {weak[1]:.3f} < front_end.icp_min_constraint="
+                        f"{front_end.icp_min_constraint:g})"
+                    )
+                    return None, None, "degenerate", score, why
+        return pose, floored(cov, *sigma_floor), v.verdict, score, reason
     return None, None, v.verdict, float(m.score), reason

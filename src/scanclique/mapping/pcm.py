@@ -73,19 +73,31 @@ def pcm_select(
     gate: float = 0.99,
     time_limit: float = 0.5,
     node_limit: int = 200_000,
+    anchors: Sequence[tuple[int, int, Pose2, np.ndarray]] = (),
 ) -> np.ndarray:
     """Indices of the largest pairwise-consistent subset of ``closures`` (sorted).
 
-    One closure alone is returned as is (nothing to check it against); with several, only
+    ``anchors``: closures accepted before (incremental PCM: the new closures must be
+    consistent with what the graph already holds); a closure inconsistent with any of them
+    is dropped first. Of the rest, one closure alone is returned as is; with several, only
     those in the maximum clique of :func:`consistency_graph`, and none when no two agree.
     The clique search spends at most ``node_limit`` search nodes (the budget that decides
     the result, the same on every machine); ``time_limit`` seconds is an outer guard.
     """
     n = len(closures)
-    if n <= 1:
-        return np.arange(n)
-    A = consistency_graph(closures, chain, gate)
+    thr = float(chdtri(3, 1.0 - gate))
+    alive = np.array(
+        [
+            all(math.isfinite(d2 := _cycle(c, a, chain)) and d2 <= thr for a in anchors)
+            for c in closures
+        ],
+        dtype=bool,
+    ).reshape(n)
+    idx = np.flatnonzero(alive)
+    if len(idx) <= 1:
+        return idx
+    A = consistency_graph([closures[k] for k in idx], chain, gate)
     if not A.any():
         return np.zeros(0, dtype=int)
     res = max_clique(A, time_limit=time_limit, node_limit=node_limit)
-    return np.asarray(res.vertices, dtype=int)
+    return np.sort(idx[np.asarray(res.vertices, dtype=int)])

@@ -44,6 +44,7 @@ from .frontend import (
     prior_step,
 )
 from .loops import LoopClosure
+from .parallel import Verifier
 from .pcm import pcm_select
 
 __all__ = ["Edge", "MapResult", "map_scans"]
@@ -156,7 +157,7 @@ def _cov_xy_rot(s_xy: float, s_th: float) -> np.ndarray:
 class _Mapper:
     """The state carried across scans by :func:`map_scans` (keyframes, estimate, graph)."""
 
-    def __init__(self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig):
+    def __init__(self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig, workers: int = 1):
         self.scans = scans
         self.odo = use_odometry
         self.cfg = cfg
@@ -187,6 +188,11 @@ class _Mapper:
         self.new_factors = gtsam.NonlinearFactorGraph()
         self.new_values = gtsam.Values()
         self.sig_mod = _loops.signature_module() if self.lc.appearance else None
+        # verifications proposed since the last flush: (keyframe, [(i, local, source)],
+        # handle of their verdicts)
+        self.batch: list = []
+        self.anchors: list = []  # accepted closures of the recent batches (PCM anchors)
+        self.verifier = Verifier(cfg.match, self.fe, self.floor, workers)
 
     # -- helpers ----------------------------------------------------------------------
     def prepare(self, j: int):
@@ -262,6 +268,7 @@ class _Mapper:
                     if i not in tried:
                         jobs.append((i, False, "appearance"))
                         tried.add(i)
+        tasks, meta = [], []
         for i, local, source in jobs:
             est_i = self.estimate_of(i)
             drift = cum[kidx] - cum[i]
@@ -271,32 +278,19 @@ class _Mapper:
             if local:
                 sigma = (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
             if source == "appearance":
-                # beyond the estimate's radius, but not anywhere: a look-alike place of a
-                # symmetric building (a corridor seen the other way) is still refused
-                sigma = (max(2.0 * sigma[0], lc.max_radius / 2.0),
-                         min(max(2.0 * sigma[1], math.radians(15.0)), math.radians(40.0)))  # fmt: skip
-            pose, cov, verdict, score, reason = _loops.verify(
-                self.kf_prep[i], self.kf_prep[kidx], est_i, est_j, sigma, self.cfg.match,
-                self.floor, self.fe, quick=local, strict=source == "appearance",
-            )  # fmt: skip
-            if pose is not None and not local and score < lc.min_score:
-                pose, verdict = None, "low_score"
-                reason = f"raw-scan score {score:.2f} < loops.min_score={lc.min_score:g}"
-            if pose is None:
-                self.closures.append(
-                    LoopClosure(self.kf[i], self.kf[kidx], None, None, verdict, False, local,
-                                source, score, reason)
-                )  # fmt: skip
-                continue
-            if local:
-                self.closures.append(
-                    LoopClosure(self.kf[i], self.kf[kidx], pose, cov, verdict, True, True,
-                                source, score, reason)
-                )  # fmt: skip
-                self.kf_edges.append((i, kidx, pose, cov, "local"))
-                self._add_isam_edge(i, kidx, pose, cov, False)
-            else:
-                self.pending.append((i, kidx, pose, cov, source, score, reason))
+                # beyond the estimate's radius, but not anywhere: twice the drift the
+                # estimate may have accumulated (a 6-sigma bound), so that a look-alike
+                # place of a symmetric building (a corridor seen the other way, a twin
+                # room metres away) is refused when the estimate is known to be good
+                sigma = (2.0 * sigma[0], min(2.0 * sigma[1], math.radians(40.0)))
+            tasks.append(
+                (self.kf[i], self.kf[kidx], est_i, est_j, sigma, local, source == "appearance")
+            )
+            meta.append((i, local, source))
+        if tasks:
+            prepared = {self.kf[i]: self.kf_prep[i] for i, _, _ in meta}
+            prepared[self.kf[kidx]] = self.kf_prep[kidx]
+            self.batch.append((kidx, meta, self.verifier.submit(tasks, prepared)))
         self.seconds["loops"] += time.perf_counter() - t
 
     def chain_rel(self, a: int, b: int) -> tuple[Pose2, np.ndarray]:
@@ -309,11 +303,48 @@ class _Mapper:
         return pa.inverse() @ pb, _cov_xy_rot(s_xy, s_th)
 
     # -- step 4: PCM over the batch, then iSAM2 ----------------------------------------
+    def consume(self) -> None:
+        """The verdicts of the batch's candidates, in the order they were proposed (the
+        same whether they were verified here or on worker processes)."""
+        lc = self.lc
+        for kidx, meta, handle in self.batch:
+            for (i, local, source), out in zip(meta, handle.result(), strict=True):
+                pose, cov, verdict, score, reason = out
+                if pose is not None and not local and score < lc.min_score:
+                    pose, verdict = None, "low_score"
+                    reason = f"raw-scan score {score:.2f} < loops.min_score={lc.min_score:g}"
+                if pose is None:
+                    self.closures.append(
+                        LoopClosure(self.kf[i], self.kf[kidx], None, None, verdict, False,
+                                    local, source, score, reason)
+                    )  # fmt: skip
+                    continue
+                if local:
+                    self.closures.append(
+                        LoopClosure(self.kf[i], self.kf[kidx], pose, cov, verdict, True, True,
+                                    source, score, reason)
+                    )  # fmt: skip
+                    self.kf_edges.append((i, kidx, pose, cov, "local"))
+                    self._add_isam_edge(i, kidx, pose, cov, False)
+                else:
+                    self.pending.append((i, kidx, pose, cov, source, score, reason))
+        self.batch = []
+
     def flush(self) -> None:
+        t = time.perf_counter()
+        self.consume()
+        self.seconds["loops"] += time.perf_counter() - t
         t = time.perf_counter()
         if self.pending:
             cl = [(i, j, Z, P) for i, j, Z, P, *_ in self.pending]
-            keep = set(pcm_select(cl, self.chain_rel, self.lc.pcm_gate).tolist())
+            # incremental PCM: the closures accepted over the previous batches anchor the
+            # new ones (a closure alone in its batch is checked against them too)
+            newest = max(j for _, j, *_ in self.pending)
+            span = self.lc.pcm_anchor_batches * self.lc.pcm_batch
+            self.anchors = [a for a in self.anchors if newest - a[1] <= span]
+            keep = set(
+                pcm_select(cl, self.chain_rel, self.lc.pcm_gate, anchors=self.anchors).tolist()
+            )
             for k, (i, j, Z, P, source, score, reason) in enumerate(self.pending):
                 ok = k in keep
                 self.closures.append(
@@ -321,6 +352,7 @@ class _Mapper:
                                 ok, False, source, score, reason)
                 )  # fmt: skip
                 if ok:
+                    self.anchors.append((i, j, Z, P))
                     self.kf_edges.append((i, j, Z, P, "loop"))
                     self._add_isam_edge(i, j, Z, P, True)
                     self.last_closure_path = max(self.last_closure_path, self.kf_path[j])
@@ -463,6 +495,7 @@ def map_scans(
     use_odometry: bool | None = None,
     config: MapConfig | None = None,
     progress: Progress | None = None,
+    workers: int = 1,
 ) -> MapResult:
     """Map a whole log: the pose of every scan in the frame of scan 0.
 
@@ -476,6 +509,11 @@ def map_scans(
     config : MapConfig, optional
     progress : callable (done, total, closures), optional
         Called every 50 scans.
+    workers : int
+        Processes at work: 1 (default) verifies the loop candidates (and local matches) in
+        this process; N > 1 verifies them on N - 1 forked local processes while this one
+        goes on with the front end (:mod:`scanclique.mapping.parallel`; one per core). The
+        result is the same, pose for pose, for every value.
 
     Returns
     -------
@@ -500,8 +538,11 @@ def map_scans(
         return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg)
     if use_odometry is None:
         use_odometry = all(s.odometry is not None for s in scans)
-    m = _Mapper(scans, bool(use_odometry), cfg)
-    m.run(progress)
+    m = _Mapper(scans, bool(use_odometry), cfg, workers)
+    try:
+        m.run(progress)
+    finally:
+        m.verifier.close()
     t = time.perf_counter()
     poses = m.optimize()
     seconds = dict(m.seconds)

@@ -122,10 +122,12 @@ def run_map(
     plot: bool = True,
     config: MapConfig | None = None,
     progress: Callable[[int, int, int], None] | None = None,
+    workers: int = 1,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
     ``report.json`` (and ``map.png`` when ``plot``) into ``out``. Loop verification runs
-    in this process (parallel verification is not built yet).
+    on ``workers - 1`` forked local processes beside this one (1: in this process; the map
+    is the same).
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
@@ -136,7 +138,9 @@ def run_map(
     t_read = time.perf_counter() - t0
     if not scans:
         raise ScanCliqueError(f"{log_or_name}: the log holds no laser scans")
-    result = map_scans(scans, use_odometry=use_odometry, config=cfg, progress=progress)
+    result = map_scans(
+        scans, use_odometry=use_odometry, config=cfg, progress=progress, workers=workers
+    )
     outdir = Path(out)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
@@ -165,6 +169,7 @@ def run_map(
         "log": str(log_or_name),
         "config": outputs.map_config_dict(cfg),
         "used_odometry": result.used_odometry,
+        "workers": workers,
         "counts": result.counts(),
         "seconds": {**result.seconds, **seconds},
         "metrics": metrics,
