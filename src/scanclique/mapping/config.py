@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field
 
 from ..config import MatchConfig
+from ..config import check_positive as _positive
 from ..errors import ConfigError
 from ..validation import OdometryNoise
 
@@ -20,13 +21,6 @@ __all__ = [
     "OccupancyConfig",
     "MapConfig",
 ]
-
-
-def _positive(obj, *names: str) -> None:
-    for name in names:
-        v = getattr(obj, name)
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ConfigError(f"{type(obj).__name__}.{name} must be a number > 0, got {v!r}")
 
 
 @dataclass(frozen=True, slots=True)
