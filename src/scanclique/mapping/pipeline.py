@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._records import readonly
 from ..errors import ScanError
 from ..geometry import Pose2
 from ..match import prepare_scan
@@ -55,9 +56,7 @@ Progress = Callable[[int, int, int], None]
 
 
 def _ro(a) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
+    return readonly(a, dtype=float, copy=True)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
