@@ -4,6 +4,7 @@ paired by its attribute and matched without any change of the matcher."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -215,6 +216,41 @@ def test_plot_draws_a_registered_kind_under_its_name():
         ax = plot_features(scan, extract_features(scan))
     assert "trunk" in ax.get_legend_handles_labels()[1]
     assert "trunk" in ax.get_title()
+
+
+def test_bad_extractor_output_is_refused_with_a_clear_error():
+    def kf(**over):
+        args = dict(xy=np.zeros((2, 2)), cov=np.zeros((2, 2, 2)), beam=[0, 1],
+                    attributes=np.zeros((2, 1)))  # fmt: skip
+        args.update(over)
+        return kinds.KindFeatures(**args)
+
+    with pytest.raises(ConfigError, match="xy: expected shape"):
+        kf(xy=np.zeros((2, 3)))  # never silently reshaped
+    with pytest.raises(ConfigError, match="cov"):
+        kf(cov=np.zeros((3, 2, 2)))
+    with pytest.raises(ConfigError, match="attributes"):
+        kf(attributes=np.zeros(2))
+    with pytest.raises(ConfigError, match="finite"):
+        kf(xy=np.array([[0.0, np.nan], [1.0, 1.0]]))
+    mine = np.zeros((2, 2))
+    kf(xy=mine)
+    assert mine.flags.writeable  # the extractor's own array is not frozen
+
+    scan = sim.simulate_scan(
+        _park(), Pose2.from_xytheta(0.0, 0.0, math.pi / 2), n_beams=721, range_sigma=0.0
+    )
+    wrong_type = kinds.FeatureKind("trunk", TRUNK_LABEL, "point", extract=lambda s, f: None)
+    with kinds.registered(wrong_type), pytest.raises(ScanCliqueError, match="KindFeatures"):
+        extract_features(scan)
+    too_many = kinds.FeatureKind(
+        "trunk", TRUNK_LABEL, "point", extract=lambda s, f: kf(attributes=np.zeros((2, 3)))
+    )
+    with kinds.registered(too_many), pytest.raises(ConfigError, match="declares 0"):
+        extract_features(scan)
+    f = _trunk_features([[0.0, 0.0], [3.0, 1.0]], [0.2, 0.3])
+    with pytest.raises(ScanCliqueError, match="points_attributes"):
+        dataclasses.replace(f, points_attributes=np.zeros((3, 1)))
 
 
 def test_features_of_an_unregistered_kind_with_attributes_are_refused():

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._lazy import kernel_module
+from ._records import readonly
 from .config import CorrespondenceConfig
 from .errors import ConfigError, GraphError
 from .graph import FeatureGraph
@@ -45,9 +46,7 @@ class CorrespondenceGraph:
 
     def __post_init__(self) -> None:
         for name in ("pairs", "adjacency"):
-            a = np.ascontiguousarray(getattr(self, name))
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
+            object.__setattr__(self, name, readonly(getattr(self, name)))
 
     @property
     def n_nodes(self) -> int:
@@ -84,6 +83,11 @@ def _pair_mask(graph_a: FeatureGraph, graph_b: FeatureGraph) -> np.ndarray:
     return ok
 
 
+def _labels(x) -> np.ndarray:
+    """Node labels of a feature graph, or the label array itself."""
+    return np.asarray(x.labels if isinstance(x, FeatureGraph) else x, dtype=np.int64).ravel()
+
+
 def count_pairs(labels_a, labels_b) -> int:
     """How many pairings :func:`candidate_pairs` forms, without forming them.
 
@@ -93,8 +97,7 @@ def count_pairs(labels_a, labels_b) -> int:
     """
     if _has_attributes(labels_a, labels_b):
         return int(np.count_nonzero(_pair_mask(labels_a, labels_b)))
-    a = np.asarray(getattr(labels_a, "labels", labels_a), dtype=np.int64).ravel()
-    b = np.asarray(getattr(labels_b, "labels", labels_b), dtype=np.int64).ravel()
+    a, b = _labels(labels_a), _labels(labels_b)
     if a.size == 0 or b.size == 0:
         return 0
     lo = int(min(a.min(), b.min()))
@@ -116,9 +119,7 @@ def candidate_pairs(labels_a, labels_b) -> np.ndarray:
     if _has_attributes(labels_a, labels_b):
         ia, ib = np.nonzero(_pair_mask(labels_a, labels_b))
     else:
-        la = np.asarray(getattr(labels_a, "labels", labels_a))
-        lb = np.asarray(getattr(labels_b, "labels", labels_b))
-        ia, ib = np.nonzero(la[:, None] == lb[None, :])
+        ia, ib = np.nonzero(_labels(labels_a)[:, None] == _labels(labels_b)[None, :])
     return np.column_stack((ia, ib)).astype(np.int64)
 
 

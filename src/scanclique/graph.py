@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kinds as _registry
+from ._records import readonly
 from .config import CorrespondenceConfig, FeatureConfig
 from .errors import GraphError
 from .features import (
@@ -154,9 +155,7 @@ class FeatureGraph:
             "attributes",
             "attribute_tolerances",
         ):
-            a = np.ascontiguousarray(getattr(self, name))
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
+            object.__setattr__(self, name, readonly(getattr(self, name)))
 
     @property
     def n_nodes(self) -> int:

@@ -51,6 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._records import readonly
 from .errors import ConfigError
 
 __all__ = [
@@ -149,33 +150,29 @@ class KindFeatures:
     attributes: np.ndarray
 
     def __post_init__(self) -> None:
-        xy = np.asarray(self.xy, dtype=np.float64).reshape(-1, 2)
-        n = xy.shape[0]
-        shapes = {
-            "cov": (np.asarray(self.cov, dtype=np.float64), (n, 2, 2)),
-            "beam": (np.asarray(self.beam, dtype=np.int64), (n,)),
+        # copies: freezing the arrays must never freeze the extractor's own
+        xy = readonly(self.xy, dtype=np.float64, copy=True)
+        n = xy.shape[0] if xy.ndim == 2 else -1
+        arrays = {
+            "xy": (xy, (n, 2)),
+            "cov": (readonly(self.cov, dtype=np.float64, copy=True), (n, 2, 2)),
+            "beam": (readonly(self.beam, dtype=np.int64, copy=True), (n,)),
         }
-        for name, (a, shape) in shapes.items():
+        attrs = readonly(self.attributes, dtype=np.float64, copy=True)
+        for name, (a, shape) in arrays.items():
             if a.shape != shape:
                 raise ConfigError(
                     f"KindFeatures.{name}: expected shape {shape} for {n} features, got {a.shape}"
                 )
-        attrs = np.asarray(self.attributes, dtype=np.float64)
         if attrs.ndim != 2 or attrs.shape[0] != n:
             raise ConfigError(
                 f"KindFeatures.attributes: expected shape ({n}, A), got {attrs.shape}"
             )
-        if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(shapes["cov"][0]))):
+        if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(arrays["cov"][0]))):
             raise ConfigError("KindFeatures: positions and covariances must be finite")
-        for name, a in (
-            ("xy", xy),
-            ("cov", shapes["cov"][0]),
-            ("beam", shapes["beam"][0]),
-            ("attributes", attrs),
-        ):
-            a = np.ascontiguousarray(a)
-            a.setflags(write=False)
+        for name, (a, _shape) in arrays.items():
             object.__setattr__(self, name, a)
+        object.__setattr__(self, "attributes", attrs)
 
 
 #: an extractor: ``(scan, features) -> KindFeatures``, given the scan and the built-in
