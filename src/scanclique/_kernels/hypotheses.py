@@ -31,6 +31,19 @@ _TIME_LIMIT = int(Status.TIME_LIMIT)
 _NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
+@_inline
+def _out_of_budget(used, node_limit, deadline):  # pragma: no cover - compiled
+    """Before another search of the hypothesis phases: ``Status.NODE_LIMIT`` when the
+    node budget is spent, ``Status.TIME_LIMIT`` when the clock has passed ``deadline``,
+    else ``Status.FINISHED`` (go on). (The searches themselves check through
+    ``bitset.spent``, which reads the clock only every few thousand nodes.)"""
+    if used >= node_limit:
+        return _NODE_LIMIT
+    if now() >= deadline:
+        return _TIME_LIMIT
+    return _FINISHED
+
+
 @_njit
 def _append(store, count, clique):  # pragma: no cover - compiled
     """Append ``clique`` to the flat store ``(data, indptr)``; returns the new store."""
@@ -126,11 +139,9 @@ def hypothesis_cliques(
         left = np.flatnonzero(alive)
         if left.shape[0] < min_size:
             break
-        if used >= node_limit:
-            stop = _NODE_LIMIT
-            break
-        if now() >= deadline:
-            stop = _TIME_LIMIT
+        out = _out_of_budget(used, node_limit, deadline)
+        if out != _FINISHED:
+            stop = out
             break
         r, k, st = _maximum_of(A, left, deadline, node_limit - used)
         used += k
@@ -152,11 +163,9 @@ def hypothesis_cliques(
             v = order[q]
             if deg[v] + 1 < min_size:
                 break
-            if used >= node_limit:
-                stop = _NODE_LIMIT
-                break
-            if now() >= deadline:
-                stop = _TIME_LIMIT
+            out = _out_of_budget(used, node_limit, deadline)
+            if out != _FINISHED:
+                stop = out
                 break
             if complete and in_max[v]:
                 continue
