@@ -14,46 +14,38 @@ against about 5 ms to prepare the scan again), the two estimated poses and the p
 standard deviations. The workers are forked with the configuration (and the compiled
 kernels) of the run; they keep no scans of their own.
 
-This follows the process pool of :func:`scanclique.places.loops.find_loops` (fork when the
-platform has it, an initializer installing the run's state, results consumed in
-submission order); its pool class is private to that module and verifies another kind of
-pair, so only the approach is shared.
+The pool, the per-process run state and the serial stand-in for a future are the ones
+:func:`scanclique.places.loops.find_loops` uses too (:mod:`scanclique._workers`).
 """
 
 from __future__ import annotations
 
-import logging
-import uuid
 from collections.abc import Sequence
 
+from .._workers import Done, RunState, local_pool, new_token
 from ..errors import ConfigError
 from . import loops as _loops
 
 __all__ = ["Job", "Verifier"]
-
-log = logging.getLogger(__name__)
 
 #: a verification: ``(i, j, est_i, est_j, sigma, quick, strict)`` with scan indices
 #: ``i < j``, the current estimates of both scans, the prior's ``(sigma_xy m, sigma_theta
 #: rad)``, ``quick`` for a local neighbour and ``strict`` for an appearance candidate
 Job = tuple
 
-_STATE: dict = {"token": None}
+_STATE = RunState("mapping.parallel")
 
 
 def _install(token: str, match_cfg, front_end, floor) -> None:
-    if _STATE.get("token") != token:
-        _STATE.clear()
-        _STATE.update(token=token, match=match_cfg, front_end=front_end, floor=floor)
+    _STATE.install(token, lambda: {"match": match_cfg, "front_end": front_end, "floor": floor})
 
 
 def _verify_jobs(token: str, jobs: Sequence[Job], prepared: dict) -> list:
     """Verify ``jobs`` (see :data:`Job`); one ``(pose, covariance, verdict, score,
     reason)`` per job (:func:`scanclique.mapping.loops.verify`); ``prepared``: scan index
     -> PreparedScan of every scan the jobs name."""
-    if _STATE.get("token") != token:  # pragma: no cover - a stale or foreign pool
-        raise RuntimeError("mapping.parallel: worker state of another run")
-    fe, cfg, floor = _STATE["front_end"], _STATE["match"], _STATE["floor"]
+    state = _STATE.require(token)
+    fe, cfg, floor = state["front_end"], state["match"], state["floor"]
     return [
         _loops.verify(
             prepared[i],
@@ -69,18 +61,6 @@ def _verify_jobs(token: str, jobs: Sequence[Job], prepared: dict) -> list:
         )  # fmt: skip
         for i, j, est_i, est_j, sigma, quick, strict in jobs
     ]
-
-
-class _Done:
-    """A finished serial task, shaped like a future."""
-
-    __slots__ = ("_value",)
-
-    def __init__(self, value):
-        self._value = value
-
-    def result(self):
-        return self._value
 
 
 class Verifier:
@@ -102,21 +82,11 @@ class Verifier:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ConfigError(f"map_scans: workers must be an integer >= 1, got {workers!r}")
         self.workers = workers
-        self.token = uuid.uuid4().hex
+        self.token = new_token()
         self.pool = None
         args = (self.token, match_cfg, front_end, floor)
         if workers > 1:
-            import concurrent.futures as cf  # noqa: PLC0415
-            import multiprocessing as mp  # noqa: PLC0415
-
-            method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
-            self.pool = cf.ProcessPoolExecutor(
-                max_workers=workers - 1,
-                mp_context=mp.get_context(method),
-                initializer=_install,
-                initargs=args,
-            )
-            log.debug("loop verification on %d %s processes", workers - 1, method)
+            self.pool = local_pool(workers - 1, _install, args)
         else:
             _install(*args)
 
@@ -125,13 +95,12 @@ class Verifier:
         they name."""
         jobs = [tuple(job) for job in jobs]
         if self.pool is None:
-            return _Done(_verify_jobs(self.token, jobs, prepared))
+            return Done(_verify_jobs(self.token, jobs, prepared))
         return self.pool.submit(_verify_jobs, self.token, jobs, prepared)
 
     def close(self) -> None:
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
             self.pool = None
-        elif _STATE.get("token") == self.token:
-            _STATE.clear()
-            _STATE["token"] = None
+        else:
+            _STATE.clear(self.token)

@@ -34,12 +34,12 @@ import logging
 import math
 import os
 import time
-import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from .._workers import RunState, local_pool, new_token
 from ..config import MatchConfig, config_from_dict, config_to_dict
 from ..errors import ConfigError, ScanCliqueError
 from ..geometry import Pose2
@@ -137,34 +137,40 @@ class LoopSearch:
 # ---------------------------------------------------------------------------------------
 # Worker side: the scans of the run and the scans prepared so far, per process
 # ---------------------------------------------------------------------------------------
-_STATE: dict = {"token": None}
+_STATE = RunState("places.loops")
 
 
-def _install(token: str, scans, config_dict: dict, limits: tuple) -> None:
-    if _STATE.get("token") != token:
-        _STATE.clear()
-        _STATE.update(
-            token=token,
-            scans=list(scans),
-            config=config_from_dict(config_dict),
-            limits=(float(limits[0]), int(limits[1])),
-            prepared={},
-        )
+def _install(token: str, scans, config_dict: dict, limits: tuple) -> dict:
+    return _STATE.install(
+        token,
+        lambda: {
+            "scans": list(scans),
+            "config": config_from_dict(config_dict),
+            "limits": (float(limits[0]), int(limits[1])),
+            "prepared": {},
+        },
+    )
 
 
-def _prepared(i: int):
-    cache = _STATE["prepared"]
+def _state(token, scans, config_dict, limits) -> dict:
+    """The run's state; a Dask task carries the run's inputs and installs them itself."""
+    if scans is not None:
+        return _install(token, scans, config_dict, limits)
+    return _STATE.require(token)
+
+
+def _prepared(state: dict, i: int):
+    cache = state["prepared"]
     p = cache.get(i)
     if p is None:
-        p = cache[i] = prepare_scan(_STATE["scans"][i], _STATE["config"])
+        p = cache[i] = prepare_scan(state["scans"][i], state["config"])
     return p
 
 
 def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0)):
     """Signatures of the scans ``indices`` (``(n, SIGNATURE_SIZE)``)."""
-    if scans is not None:
-        _install(token, scans, config_dict, limits)
-    return np.array([scan_signature(_prepared(int(i))) for i in indices]).reshape(
+    state = _state(token, scans, config_dict, limits)
+    return np.array([scan_signature(_prepared(state, int(i))) for i in indices]).reshape(
         -1, SIGNATURE_SIZE
     )
 
@@ -172,19 +178,20 @@ def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0
 def _verify_task(token, pairs, scans=None, config_dict=None, limits=(0.0, 0)):
     """Verification of the pairs ``(i, j)``: tuples ``(verdict, x, y, theta, score,
     n_features)`` (pose None when rejected)."""
-    if scans is not None:
-        _install(token, scans, config_dict, limits)
+    state = _state(token, scans, config_dict, limits)
     out = []
-    cfg, (ms, mf) = _STATE["config"], _STATE["limits"]
+    cfg, (ms, mf) = state["config"], state["limits"]
     for i, j in pairs:
-        v = verify_pair(_prepared(int(j)), _prepared(int(i)), cfg, min_score=ms, min_features=mf)
+        v = verify_pair(
+            _prepared(state, int(j)),
+            _prepared(state, int(i)),
+            cfg,
+            min_score=ms,
+            min_features=mf,
+        )
         p = None if v.pose is None else (v.pose.x, v.pose.y, v.pose.theta)
         out.append((v.verdict, p, v.score, v.n_features))
     return out
-
-
-def _pool_init(token, scans, config_dict, limits):
-    _install(token, scans, config_dict, limits)
 
 
 # ---------------------------------------------------------------------------------------
@@ -235,7 +242,7 @@ class _Runner:
     """Runs the two parallel steps on one backend."""
 
     def __init__(self, scans, cfg, limits, workers, scheduler):
-        self.token = uuid.uuid4().hex
+        self.token = new_token()
         self.args = (config_to_dict(cfg), (float(limits[0]), int(limits[1])))
         self.scans = scans
         self.workers = workers
@@ -260,17 +267,8 @@ class _Runner:
             self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
             self.scans_future = self.client.scatter([list(scans)], broadcast=True)[0]
         elif workers > 1:
-            import concurrent.futures as cf
-            import multiprocessing as mp
-
             self.backend = "processes"
-            method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
-            self.pool = cf.ProcessPoolExecutor(
-                max_workers=workers,
-                mp_context=mp.get_context(method),
-                initializer=_pool_init,
-                initargs=(self.token, list(scans), *self.args),
-            )
+            self.pool = local_pool(workers, _install, (self.token, list(scans), *self.args))
         else:
             self.backend = "serial"
             self.workers = 1
@@ -315,8 +313,7 @@ class _Runner:
         if self.client is not None and self._own_client:
             self.client.close()
         if self.backend == "serial":
-            _STATE.clear()
-            _STATE["token"] = None
+            _STATE.clear(self.token)
 
 
 def find_loops(
