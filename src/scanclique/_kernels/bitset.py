@@ -33,14 +33,13 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from .codes import Status
+from .codes import FINISHED as _FINISHED
+from .codes import TIME_LIMIT as _TIME_LIMIT
 
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
 _GATHER = np.uint64(0x0102040810204080)
 _SHIFT56 = np.uint64(56)
-_FINISHED = int(Status.FINISHED)
-_TIME_LIMIT = int(Status.TIME_LIMIT)
 
 
 @intrinsic

@@ -51,7 +51,18 @@ from .bitset import (
     sorted_into,
     spent,
 )
-from .codes import NO_LIMIT, Mode, Option, Status
+from .codes import ALL_MAXIMUM as _ALL
+from .codes import CLIQUE_LIMIT as _CLIQUES
+from .codes import ENUMERATE as _ENUMERATE
+from .codes import FINISHED as _FINISHED
+from .codes import INVALID as _INVALID
+from .codes import MAXIMUM as _MAXIMUM
+from .codes import NO_LIMIT, Option
+from .codes import NODE_LIMIT as _NODES
+from .codes import NOT_RUN as _NOT_RUN
+from .codes import OPT_LOCAL_SEARCH as _OPT_LOCAL_SEARCH
+from .codes import OPT_MAXSAT as _OPT_MAXSAT
+from .codes import PHASE_BUDGET as _PHASE
 from .colouring import colour_classes, colour_word
 from .heuristics import greedy_by_degree, greedy_clique, local_search
 from .maxsat import absorb, maxsat_scratch
@@ -64,19 +75,6 @@ from .ordering import (
     word_rows,
 )
 
-# the codes as plain integers (numba freezes module globals at compile time)
-_MAXIMUM = int(Mode.MAXIMUM)
-_ENUMERATE = int(Mode.ENUMERATE)
-_ALL = int(Mode.ALL_MAXIMUM)
-_FINISHED = int(Status.FINISHED)
-_TIME = int(Status.TIME_LIMIT)
-_PHASE = int(Status.PHASE_BUDGET)
-_CLIQUES = int(Status.CLIQUE_LIMIT)
-_NODES = int(Status.NODE_LIMIT)
-_NOT_RUN = int(Status.NOT_RUN)
-_INVALID = int(Status.INVALID)
-_OPT_MAXSAT = int(Option.MAXSAT)
-_OPT_LOCAL_SEARCH = int(Option.LOCAL_SEARCH)
 #: the default option bits of the full search
 OPT_DEFAULT = int(Option.DEFAULT)
 

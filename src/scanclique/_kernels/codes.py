@@ -1,15 +1,33 @@
 """Modes, statuses and options of the clique kernels, as ``IntEnum`` (no numba here).
 
 The kernels take and return plain integers (pass ``int(Mode.ALL_MAXIMUM)``); inside them
-the members are read as module-level integer constants, frozen at compile time (the
-cache stamp of :mod:`scanclique._kernels` recompiles them when this file changes).
+the members are read as the module-level integer constants at the end of this file, frozen
+at compile time (the cache stamp of :mod:`scanclique._kernels` recompiles them when this
+file changes).
 """
 
 from __future__ import annotations
 
 from enum import IntEnum, IntFlag
 
-__all__ = ["Mode", "Status", "Option", "NO_LIMIT"]
+__all__ = [
+    "Mode",
+    "Status",
+    "Option",
+    "NO_LIMIT",
+    "MAXIMUM",
+    "ENUMERATE",
+    "ALL_MAXIMUM",
+    "FINISHED",
+    "TIME_LIMIT",
+    "PHASE_BUDGET",
+    "CLIQUE_LIMIT",
+    "NODE_LIMIT",
+    "NOT_RUN",
+    "INVALID",
+    "OPT_MAXSAT",
+    "OPT_LOCAL_SEARCH",
+]
 
 #: a node limit that is never reached (2**62 nodes)
 NO_LIMIT = 1 << 62
@@ -54,3 +72,19 @@ class Option(IntFlag):
     #: improve the greedy initial clique by tabu local search
     LOCAL_SEARCH = 2
     DEFAULT = MAXSAT | LOCAL_SEARCH
+
+
+# The members as plain ints, the form the kernels read (numba freezes module-level ints at
+# compile time; an IntEnum member inside a kernel would be an object).
+MAXIMUM = int(Mode.MAXIMUM)
+ENUMERATE = int(Mode.ENUMERATE)
+ALL_MAXIMUM = int(Mode.ALL_MAXIMUM)
+FINISHED = int(Status.FINISHED)
+TIME_LIMIT = int(Status.TIME_LIMIT)
+PHASE_BUDGET = int(Status.PHASE_BUDGET)
+CLIQUE_LIMIT = int(Status.CLIQUE_LIMIT)
+NODE_LIMIT = int(Status.NODE_LIMIT)
+NOT_RUN = int(Status.NOT_RUN)
+INVALID = int(Status.INVALID)
+OPT_MAXSAT = int(Option.MAXSAT)
+OPT_LOCAL_SEARCH = int(Option.LOCAL_SEARCH)

@@ -15,20 +15,15 @@ import numpy as np
 
 from .bitset import ctpop, now, setbit
 from .clique_search import maximum_until, search_until
-from .codes import Status
+from .codes import FINISHED as _FINISHED
+from .codes import NODE_LIMIT as _NODE_LIMIT
+from .codes import TIME_LIMIT as _TIME_LIMIT
 from .ordering import induced_rows
 
 _njit = numba.njit(cache=True, nogil=True)
 #: for the helpers called once per point: inlined into the caller at numba IR level, so
 #: that the arrays they take are not reference-counted on every call
 _inline = numba.njit(cache=True, nogil=True, inline="always")
-
-#: statuses of the hypothesis search (:func:`hypothesis_cliques`), as compile-time ints
-_FINISHED = int(Status.FINISHED)
-
-_TIME_LIMIT = int(Status.TIME_LIMIT)
-
-_NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
 @_inline

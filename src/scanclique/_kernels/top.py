@@ -27,12 +27,10 @@ from .bitset import (
     setbit,
     spent,
 )
-from .codes import Status
+from .codes import FINISHED as _FINISHED
+from .codes import NODE_LIMIT as _NODE_LIMIT
 from .colouring import colour_count
 from .ordering import degeneracy_order, relabel
-
-_FINISHED = int(Status.FINISHED)
-_NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
 @numba.njit(cache=True)

@@ -22,13 +22,11 @@ from .bitset import (
     now,
     spent,
 )
-from .codes import Status
+from .codes import FINISHED as _FINISHED
+from .codes import NODE_LIMIT as _NODE_LIMIT
 from .colouring import colour_weighted
 from .heuristics import greedy_from
 from .ordering import degeneracy_order, relabel
-
-_FINISHED = int(Status.FINISHED)
-_NODE_LIMIT = int(Status.NODE_LIMIT)
 
 
 @numba.njit(cache=True)
