@@ -814,7 +814,7 @@ def main(argv=None) -> int:
         "",
         *lines,
         "",
-        *ratios,
+        *(f"- {x}" for x in ratios),
         f"- LM on {opt['poses']} poses ({opt['closures']} closures): {opt['seconds']:.2f} s from "
         f"iSAM2's estimate (as the mapper starts it), {opt['seconds_from_chain']:.2f} s from the "
         "raw chain.",

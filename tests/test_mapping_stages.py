@@ -360,3 +360,25 @@ def test_tangent_covariances_match_the_single_edge_form():
     for k in range(20):
         Z = Pose2(0.3, -0.1, float(thetas[k]))
         assert np.allclose(Q[k], tangent_covariance(Z, P[k]), rtol=1e-9, atol=1e-12)
+
+
+def test_a_closure_in_a_corridor_is_degenerate():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.loops import verify
+    from scanclique.match import prepare_scan
+    from scanclique.sim import corridor_world, simulate_scan
+
+    rng = np.random.default_rng(1)
+    world = corridor_world(60.0, 2.0, rng=rng, side_rooms=0, doorways=4, clutter=0)
+    a = simulate_scan(world, Pose2(20.0, 1.0, 0.0), rng=rng, max_range=8.0)
+    b = simulate_scan(world, Pose2(20.5, 1.0, 0.0), rng=rng, max_range=8.0)
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    args = (pa, pb, Pose2(20.0, 1.0, 0.0), Pose2(20.5, 1.0, 0.0), (0.5, math.radians(5.0)),
+            MatchConfig(), (0.01, math.radians(0.25)))  # fmt: skip
+    pose, cov, verdict, _, reason = verify(*args, front_end=FrontEndConfig())
+    assert verdict == "degenerate" and pose is None and cov is None
+    assert "along (" in reason and "icp_min_constraint" in reason
+    # the features alone (no raw-scan check) would have accepted it
+    pose, _, verdict, _, _ = verify(*args, front_end=None)
+    assert verdict == "accepted" and pose is not None
