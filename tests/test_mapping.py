@@ -183,3 +183,22 @@ def test_chained_only_config(office_drive):
     r = map_scans(office_drive, config=cfg)
     assert r.loop_closures == ()
     assert all(e.kind in ("match", "icp", "odometry", "constant_velocity") for e in r.edges)
+
+
+def test_imprecise_closures_are_refused():
+    import dataclasses
+
+    from scanclique.errors import ConfigError
+    from scanclique.mapping.config import LoopConfig
+
+    rng = np.random.default_rng(5)
+    scans = _circle_scans(rng)
+    cfg = MapConfig()
+    # no match fixes a heading to a thousandth of a degree: every closure is imprecise
+    tight = dataclasses.replace(cfg.loops, max_sigma_radians=math.radians(0.001))
+    r = map_scans(scans, config=dataclasses.replace(cfg, loops=tight))
+    loops = [c for c in r.loop_closures if not c.local]
+    assert not r.accepted_closures
+    assert any(c.verdict == "imprecise" and "max_sigma_radians" in c.reason for c in loops)
+    with pytest.raises(ConfigError):
+        LoopConfig(max_sigma_metres=0.0)

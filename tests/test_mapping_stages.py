@@ -298,3 +298,87 @@ def test_icp_fallback_takes_the_corridor_axis_from_the_prior():
     assert step is not None
     assert abs(step.pose.x - 0.45) < 0.02 and abs(step.pose.y) < 0.02  # x from the prior
     assert step.covariance[0, 0] >= 0.1**2 * 0.9  # with the prior's variance along x
+
+
+def test_along_corridor_takes_the_odometry_along_a_corridor_only():
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import along_corridor
+    from scanclique.match import prepare_scan
+    from scanclique.sim import room_world, simulate_scan
+    from scanclique.validation import OdometryNoise
+
+    a, b = _corridor_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    fe, noise = FrontEndConfig(), OdometryNoise()
+    cov = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    # a feature match slid 0.6 m along the corridor; the odometry says 0.5 m (the truth)
+    slid = Pose2(1.1, 0.01, 0.0)
+    pose, c = along_corridor(pa, pb, slid, cov, Pose2(20.0, 1.0, 0.0), Pose2(20.5, 1.0, 0.0),
+                             noise, fe)  # fmt: skip
+    assert abs(pose.x - 0.5) < 1e-3 and pose.y == pytest.approx(0.01, abs=2e-3)
+    assert c[0, 0] > cov[0, 0] and c[1, 1] == pytest.approx(cov[1, 1], rel=0.05)
+    # in a room the raw scans fix the pose: unchanged
+    rng = np.random.default_rng(2)
+    room = room_world(6.0, 5.0, rng=rng, pillars=0, clutter=0)
+    ra = prepare_scan(simulate_scan(room, Pose2(3.0, 2.5, 0.3), rng=rng))
+    rb = prepare_scan(simulate_scan(room, Pose2(3.3, 2.5, 0.3), rng=rng))
+    near = Pose2(0.3, 0.0, 0.0)
+    pose, c = along_corridor(ra, rb, near, cov, Pose2(0, 0, 0), Pose2(0.5, 0.2, 0.0), noise, fe)
+    assert pose is near and c is cov
+
+
+def test_contest_by_odometry_lets_the_raw_scans_decide():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import ICP, MATCH, Step, contest_by_odometry
+    from scanclique.match import prepare_scan
+
+    a, b = _corridor_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    fe, mc = FrontEndConfig(), MatchConfig()
+    cov = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    truth = Pose2(0.5, 0.0, 0.0)
+    # a match slid 0.7 m along the walls, which explain it as well: the odometry decides
+    slid = Step(Pose2(1.2, 0.0, 0.0), cov, MATCH, "accepted", 0.9)
+    out = contest_by_odometry(pa, pb, slid, Pose2(0.52, 0.01, 0.0), fe, mc)
+    assert out.kind == ICP and out.pose.distance_to(truth)[0] < 0.05
+    assert out.covariance[0, 0] > 0.1  # the hypotheses' separation along x
+    # a match the odometry agrees with is left alone
+    good = Step(truth, cov, MATCH, "accepted", 0.9)
+    assert contest_by_odometry(pa, pb, good, Pose2(0.55, 0.0, 0.0), fe, mc) is good
+
+
+def test_tangent_covariances_match_the_single_edge_form():
+    from scanclique.mapping.backend import tangent_covariances
+
+    rng = np.random.default_rng(3)
+    thetas = rng.uniform(-math.pi, math.pi, 20)
+    A = rng.normal(size=(20, 3, 3))
+    P = A @ A.transpose(0, 2, 1) * 1e-3
+    P[3] = np.diag([np.inf, 0.01, 0.01])
+    Q = tangent_covariances(thetas, P)
+    for k in range(20):
+        Z = Pose2(0.3, -0.1, float(thetas[k]))
+        assert np.allclose(Q[k], tangent_covariance(Z, P[k]), rtol=1e-9, atol=1e-12)
+
+
+def test_a_closure_in_a_corridor_is_degenerate():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.loops import verify
+    from scanclique.match import prepare_scan
+    from scanclique.sim import corridor_world, simulate_scan
+
+    rng = np.random.default_rng(1)
+    world = corridor_world(60.0, 2.0, rng=rng, side_rooms=0, doorways=4, clutter=0)
+    a = simulate_scan(world, Pose2(20.0, 1.0, 0.0), rng=rng, max_range=8.0)
+    b = simulate_scan(world, Pose2(20.5, 1.0, 0.0), rng=rng, max_range=8.0)
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    args = (pa, pb, Pose2(20.0, 1.0, 0.0), Pose2(20.5, 1.0, 0.0), (0.5, math.radians(5.0)),
+            MatchConfig(), (0.01, math.radians(0.25)))  # fmt: skip
+    pose, cov, verdict, _, reason = verify(*args, front_end=FrontEndConfig())
+    assert verdict == "degenerate" and pose is None and cov is None
+    assert "along (" in reason and "icp_min_constraint" in reason
+    # the features alone (no raw-scan check) would have accepted it
+    pose, _, verdict, _, _ = verify(*args, front_end=None)
+    assert verdict == "accepted" and pose is not None

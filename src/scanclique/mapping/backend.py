@@ -20,7 +20,7 @@ import numpy as np
 
 from ..geometry import Pose2
 
-__all__ = ["tangent_covariance", "optimize", "PoseGraph"]
+__all__ = ["tangent_covariance", "tangent_covariances", "optimize", "PoseGraph"]
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +55,26 @@ def tangent_covariance(Z: Pose2, P: np.ndarray) -> np.ndarray:
     w, V = np.linalg.eigh(Q)
     w = np.clip(w, 1e-10, BIG_VARIANCE)
     return (V * w) @ V.T
+
+
+def tangent_covariances(thetas: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """:func:`tangent_covariance` of many edges at once: ``thetas`` (m,) the headings of
+    the measurements ``Z``, ``P`` (m, 3, 3) their covariances; returns (m, 3, 3)."""
+    P = np.array(P, dtype=float)
+    bad = ~np.isfinite(P)
+    if bad.any():
+        diag = np.einsum("kii->ki", P).copy()
+        P[bad] = 0.0
+        idx = np.arange(3)
+        P[:, idx, idx] = np.where(np.isfinite(diag), diag, BIG_VARIANCE)
+    c, s = np.cos(thetas), np.sin(thetas)
+    J = np.zeros((len(thetas), 3, 3))
+    J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, s, -s, c, 1.0
+    Q = J @ P @ J.transpose(0, 2, 1)
+    Q = 0.5 * (Q + Q.transpose(0, 2, 1))
+    w, V = np.linalg.eigh(Q)
+    w = np.clip(w, 1e-10, BIG_VARIANCE)
+    return (V * w[:, None, :]) @ V.transpose(0, 2, 1)
 
 
 class PoseGraph:
@@ -93,12 +113,15 @@ class PoseGraph:
 
     def add_edge(
         self, i: int, j: int, Z: Pose2, covariance: np.ndarray, robust: str = "none",
-        robust_scale: float = 1.0,
+        robust_scale: float = 1.0, tangent: np.ndarray | None = None,
     ) -> None:  # fmt: skip
         """Edge ``x_i^-1 x_j = Z`` with the covariance of ``Z`` (frame-``i`` axes), under
-        an optional M-estimator (``"cauchy"``, ``"huber"``)."""
+        an optional M-estimator (``"cauchy"``, ``"huber"``); ``tangent``: the covariance
+        already in ``Z``'s tangent space (:func:`tangent_covariances`), when known."""
         gtsam = self._g
-        noise = gtsam.noiseModel.Gaussian.Covariance(tangent_covariance(Z, covariance))
+        if tangent is None:
+            tangent = tangent_covariance(Z, covariance)
+        noise = gtsam.noiseModel.Gaussian.Covariance(tangent)
         if robust == "cauchy":
             noise = gtsam.noiseModel.Robust.Create(
                 gtsam.noiseModel.mEstimator.Cauchy.Create(robust_scale), noise
@@ -158,7 +181,12 @@ def optimize(
     g = PoseGraph()
     for k, p in enumerate(guesses):
         g.add_node(k, p)
-    for i, j, Z, P, is_loop in edges:
-        g.add_edge(i, j, Z, P, robust if is_loop else "none", robust_scale)
+    if not edges:
+        return list(guesses)
+    Q = tangent_covariances(
+        np.array([e[2].theta for e in edges]), np.array([e[3] for e in edges], dtype=float)
+    )
+    for (i, j, Z, P, is_loop), q in zip(edges, Q, strict=True):
+        g.add_edge(i, j, Z, P, robust if is_loop else "none", robust_scale, tangent=q)
     out = g.optimize(max_iterations)
     return [out[k] for k in range(len(guesses))]

@@ -155,6 +155,14 @@ class LoopConfig:
     appearance : bool
         Also propose candidates by appearance (``scanclique.places.signature``) when that
         module exists.
+    max_sigma_metres, max_sigma_radians : float
+        A loop closure enters the graph only when its own covariance (the match's, with the
+        front end's sigma floor) fixes it precisely enough to be a right closure by the
+        issue's rule (within 0.20 m and 1 degree) with 99.5 % probability: the largest
+        standard deviation of its translation at most ``0.20 / sqrt(chi2_2(0.995))``
+        = 0.20 / 3.255 m, of its heading at most ``1 deg / 2.807`` (two-sided normal
+        99.5 % quantile); 1 degree is also the angular resolution of the benchmark's
+        scanners (181 beams over 180 degrees). Others get the verdict ``"imprecise"``.
     """
 
     enabled: bool = True
@@ -172,9 +180,14 @@ class LoopConfig:
     pcm_anchor_batches: int = 2
     min_score: float = 0.3
     appearance: bool = True
+    max_sigma_metres: float = 0.20 / 3.255
+    max_sigma_radians: float = math.radians(1.0) / 2.807
 
     def __post_init__(self) -> None:
-        _positive(self, "radius", "max_radius", "min_path", "pcm_batch", "every")
+        _positive(
+            self, "radius", "max_radius", "min_path", "pcm_batch", "every", "max_sigma_metres",
+            "max_sigma_radians",
+        )  # fmt: skip
         if not 0 < self.pcm_gate < 1:
             raise ConfigError(f"LoopConfig.pcm_gate must be in (0, 1), got {self.pcm_gate!r}")
 

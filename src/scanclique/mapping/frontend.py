@@ -40,6 +40,8 @@ __all__ = [
     "Step",
     "floored",
     "constant_velocity",
+    "along_corridor",
+    "contest_by_odometry",
     "associate",
 ]
 
@@ -137,6 +139,75 @@ def _quick_accept(m, prior_a, prior_b, noise, path) -> Pose2 | None:
     return m.pose
 
 
+def along_corridor(
+    pk: PreparedScan,
+    pj: PreparedScan,
+    pose: Pose2,
+    cov: np.ndarray,
+    prior_a: Pose2,
+    prior_b: Pose2,
+    noise: OdometryNoise,
+    fe,
+) -> tuple[Pose2, np.ndarray]:
+    """A consecutive match in a corridor: when the raw scans do not fix ``pose`` (maps B
+    into A) along one direction ``e`` (:func:`weak_direction` below
+    ``fe.icp_min_constraint``), only the features place it along ``e``, and doors and
+    pillars repeat along corridors; the component along ``e`` is then the wheel
+    odometry's (``prior_a^-1 prior_b``), with the odometry's variance along ``e`` added to
+    ``cov``, as the ICP fallback does (:func:`icp_fallback`). ``(pose, cov)`` unchanged
+    otherwise, or without a front-end config."""
+    if fe is None or not fe.icp_fallback:
+        return pose, cov
+    weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
+    if weak is None or weak[1] >= fe.icp_min_constraint:
+        return pose, cov
+    e = weak[0]
+    prior, prior_cov = odometry_prior(prior_a, prior_b, noise)
+    shift = e * float(e @ np.array([prior.x - pose.x, prior.y - pose.y]))
+    cov = cov.copy()
+    cov[:2, :2] += float(e @ prior_cov[:2, :2] @ e) * np.outer(e, e)
+    return Pose2(pose.x + shift[0], pose.y + shift[1], pose.theta), cov
+
+
+def contest_by_odometry(
+    pk: PreparedScan, pj: PreparedScan, step: Step, odometry: Pose2, fe, config: MatchConfig
+) -> Step:
+    """A consecutive match the wheel odometry disagrees with: when the match's position
+    lies outside the refinement's basin around the odometry increment ``odometry``
+    (farther than ``fe.refine_max_shift`` m), point-to-line ICP of the raw scans from the
+    odometry; when it converges outside the match's own 99 % ellipse (its covariance) and
+    nearer the odometry, it is a second hypothesis. The raw scans decide between the
+    two (:func:`scanclique.match.pose_score`); when they cannot (scores within
+    ``fe.icp_score_tie``, e.g. slid along a corridor whose doors repeat), the one nearer
+    the odometry is taken, as in :func:`icp_fallback`. ``step`` unchanged otherwise."""
+    if fe is None or not fe.icp_fallback or step.kind != MATCH:
+        return step
+    t, r = step.pose.distance_to(odometry)
+    if t <= fe.refine_max_shift:
+        return step
+    icp = icp_point_to_line(
+        pk.cloud, np.ascontiguousarray(pj.points), odometry, iterations=2 * fe.refine_iterations,
+        max_correspondence=fe.refine_max_correspondence,
+        min_correspondence=fe.refine_min_correspondence,
+    )  # fmt: skip
+    if icp.fitness < fe.icp_min_fitness:
+        return step
+    if mahalanobis_sq(icp.pose, np.zeros((3, 3)), step.pose, step.covariance) <= GATE_99:
+        return step  # ICP from the odometry went back to the match: one hypothesis
+    if icp.pose.distance_to(odometry)[0] >= t:
+        return step
+    s_match = pose_score(pk, pj, step.pose, config)
+    s_icp = pose_score(pk, pj, icp.pose, config)
+    if s_icp < s_match - fe.icp_score_tie:
+        return step
+    cov = step.covariance.copy()
+    d = np.array([icp.pose.x - step.pose.x, icp.pose.y - step.pose.y])
+    # the two hypotheses' separation is the uncertainty the features left along it
+    cov[:2, :2] += np.outer(d, d) / 4.0
+    return Step(icp.pose, cov, ICP, "contested_by_odometry", float(s_icp),
+                f"match {s_match:.2f} vs ICP from odometry {s_icp:.2f}")  # fmt: skip
+
+
 def associate(
     pk: PreparedScan,
     pj: PreparedScan,
@@ -166,7 +237,10 @@ def associate(
     quick = None if weak_prior else _quick_accept(m, prior_a, prior_b, noise, path)
     if quick is not None:
         pose = quick if front_end is None else refine_pose(pk, pj, quick, front_end)
-        return Step(pose, floored(m.covariance, *sigma_floor), MATCH, "accepted", float(m.score))
+        cov = floored(m.covariance, *sigma_floor)
+        if not weak_prior:
+            pose, cov = along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, front_end)
+        return Step(pose, cov, MATCH, "accepted", float(m.score))
     if weak_prior:
         # no odometry (the paper's setting): the match validates itself (§7: enough
         # features that fix the pose, no rival); the prediction only breaks a tie
@@ -178,7 +252,10 @@ def associate(
     if v.accepted and v.pose is not None:
         cov = v.covariance if v.covariance is not None else m.covariance
         pose = v.pose if front_end is None else refine_pose(pk, pj, v.pose, front_end)
-        return Step(pose, floored(cov, *sigma_floor), MATCH, v.verdict, float(m.score))
+        cov = floored(cov, *sigma_floor)
+        if not weak_prior:
+            pose, cov = along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, front_end)
+        return Step(pose, cov, MATCH, v.verdict, float(m.score))
     reason = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
     seed = m.pose if m.pose is not None else prior_a.inverse() @ prior_b
     return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)

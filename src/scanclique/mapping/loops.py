@@ -50,7 +50,8 @@ class LoopClosure:
     ``pose`` maps points of scan ``j`` into scan ``i`` (None when the match had none);
     ``covariance`` of its ``(x, y, theta)``; ``verdict`` is the §7 verdict
     (``accepted``, ``rejected_odometry`` meaning here *rejected by the estimate's prior*,
-    ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``, ``"low_score"`` or
+    ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``, ``"low_score"``,
+    ``"imprecise"`` (its covariance too loose: :class:`~.config.LoopConfig`) or
     ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
     :func:`scanclique.mapping.frontend.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the

@@ -32,7 +32,7 @@ from ..match import prepare_scan
 from ..scan import Scan
 from ..validation import compose_covariance, odometry_prior
 from . import loops as _loops
-from .backend import PoseGraph, _gtsam, tangent_covariance
+from .backend import PoseGraph, _gtsam, tangent_covariance, tangent_covariances
 from .config import MapConfig
 from .frontend import (
     CONSTANT_VELOCITY,
@@ -41,6 +41,7 @@ from .frontend import (
     ODOMETRY,
     associate,
     constant_velocity,
+    contest_by_odometry,
     icp_fallback,
     prior_step,
 )
@@ -312,6 +313,17 @@ class _Mapper:
                 if pose is not None and not local and score < lc.min_score:
                     pose, verdict = None, "low_score"
                     reason = f"raw-scan score {score:.2f} < loops.min_score={lc.min_score:g}"
+                elif pose is not None and not local:
+                    s_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+                    s_th = math.sqrt(max(float(cov[2, 2]), 0.0))
+                    if s_xy > lc.max_sigma_metres or s_th > lc.max_sigma_radians:
+                        pose, verdict = None, "imprecise"
+                        reason = (
+                            f"its covariance gives sigma {s_xy:.3f} m / "
+                            f"{math.degrees(s_th):.2f} deg > loops.max_sigma_metres="
+                            f"{lc.max_sigma_metres:.3f} / max_sigma_radians="
+                            f"{math.degrees(lc.max_sigma_radians):.2f} deg"
+                        )
                 if pose is None:
                     self.closures.append(
                         LoopClosure(self.kf[i], self.kf[kidx], None, None, verdict, False,
@@ -402,6 +414,12 @@ class _Mapper:
                 pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
                 sigma_floor=self.floor, front_end=fe, weak_prior=kind == CONSTANT_VELOCITY,
             )  # fmt: skip
+            if step.kind == MATCH and kind == ODOMETRY:
+                step = contest_by_odometry(
+                    pk, pj, step, prior_a.inverse() @ prior_b, fe, self.cfg.match
+                )
+                if step.kind == ICP:
+                    self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
             if step.kind != MATCH and fe.icp_fallback:
                 priors = [odometry_prior(prior_a, prior_b, noise, path=path)]
                 if kind == ODOMETRY:  # the chain's own constant-velocity prediction too
@@ -470,9 +488,17 @@ class _Mapper:
         g = PoseGraph()
         for kidx in range(len(self.kf)):
             g.add_node(kidx, self.estimate_of(kidx))
-        for i, j, Z, P, kind in self.kf_edges:
+        Q = (
+            tangent_covariances(
+                np.array([e[2].theta for e in self.kf_edges]),
+                np.array([e[3] for e in self.kf_edges], dtype=float),
+            )
+            if self.kf_edges
+            else []
+        )
+        for (i, j, Z, P, kind), q in zip(self.kf_edges, Q, strict=True):
             robust = be.robust if kind == "loop" else "none"
-            g.add_edge(i, j, Z, P, robust, be.robust_scale)
+            g.add_edge(i, j, Z, P, robust, be.robust_scale, tangent=q)
         out = g.optimize(be.max_iterations)
         kf_pose = {self.kf[k]: out[k] for k in range(len(self.kf))}
         poses = []
