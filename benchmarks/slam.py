@@ -10,8 +10,12 @@ the vehicle pose on simulated tree parks (known truth, the same noise as the fil
     python benchmarks/slam.py                 # full: clutter 0, 5, 10; 5 simulated parks
     python benchmarks/slam.py --clutter 0 --sims 2 --jobs 2
 
-Writes benchmarks/results/slam-2026-12-01-s6.json, .md and .png (the maps; the files without
-the suffix are the previous session's run, before the landmark-management changes).
+Each filter run is followed by the optional smoothing pass (scanclique.slam.smooth: a GTSAM
+pose graph with the filter's associations), reported on its own rows ("nn + smoothing", ...;
+run times include the filter's); ``--no-smooth`` leaves them out.
+
+Writes benchmarks/results/slam-2026-12-01-s7.json, .md and .png (the maps; the -s6 files are
+the previous session's run, the files without a suffix the one before).
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, git_state, machine  # noqa: E402
 
 DATE = "2026-12-01"
-TAG = "2026-12-01-s6"
+TAG = "2026-12-01-s7"
 METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
@@ -47,7 +51,7 @@ def _warm_up(method):
 
 
 def _vp_worker(args):
-    method, clutter, seed = args
+    method, clutter, seed, smooth = args
     _warm_up(method)
     from scanclique.slam import read_gps, read_victoria_park
     from scanclique.slam.ekf import SlamConfig, ekf_slam
@@ -64,19 +68,36 @@ def _vp_worker(args):
     g, m, (Rm, t) = summarise(r, model, gps, clutter)
     pos = sensor_positions(r.poses, model.sensor_x, model.sensor_y)
     keep = slice(None, None, 10)
-    return {
-        "method": method,
-        "clutter": clutter,
-        "metrics": {k: v for k, (v, _u) in m.items()},
-        "units": {k: u for k, (_v, u) in m.items()},
-        "_plot": (
-            pos[keep].tolist(),
-            r.landmarks.tolist(),
-            r.landmark_covariances.tolist(),
-            Rm.tolist(),
-            t.tolist(),
-        ),
-    }
+    extra = []
+    if smooth:
+        from scanclique.slam.run import summarise_smoothed
+        from scanclique.slam.smooth import smooth as smooth_run
+
+        sm = smooth_run(steps, model, r, config=cfg)
+        _g, ms, _a = summarise_smoothed(r, sm, model, gps, clutter)
+        extra.append(
+            {
+                "method": f"{method} + smoothing",
+                "clutter": clutter,
+                "metrics": {k: v for k, (v, _u) in ms.items()},
+                "units": {k: u for k, (_v, u) in ms.items()},
+            }
+        )
+    return [
+        {
+            "method": method,
+            "clutter": clutter,
+            "metrics": {k: v for k, (v, _u) in m.items()},
+            "units": {k: u for k, (_v, u) in m.items()},
+            "_plot": (
+                pos[keep].tolist(),
+                r.landmarks.tolist(),
+                r.landmark_covariances.tolist(),
+                Rm.tolist(),
+                t.tolist(),
+            ),
+        }
+    ] + extra
 
 
 def _nees_worker(args):
@@ -158,15 +179,16 @@ def main(argv=None):
     ap.add_argument("--methods", default=",".join(METHODS))
     ap.add_argument("--sims", type=int, default=5, help="simulated parks for the NEES")
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--no-smooth", action="store_true", help="leave out the smoothing rows")
     ap.add_argument("--out", default=str(RESULTS / f"slam-{TAG}"))
     args = ap.parse_args(argv)
     clutters = [int(c) for c in args.clutter.split(",") if c != ""]
     methods = [m for m in args.methods.split(",") if m]
     t0 = time.perf_counter()
-    tasks = [(m, c, 0) for c in clutters for m in methods]
+    tasks = [(m, c, 0, not args.no_smooth) for c in clutters for m in methods]
     nees_tasks = [(m, s) for m in methods for s in range(args.sims)]
     with ProcessPoolExecutor(args.jobs) as ex:
-        vp = list(ex.map(_vp_worker, tasks))
+        vp = [row for rows in ex.map(_vp_worker, tasks) for row in rows]
         sims = list(ex.map(_nees_worker, nees_tasks)) if nees_tasks else []
     lines = []
     head = "| clutter | method | " + " | ".join(c[1] for c in COLUMNS) + " |"
@@ -182,14 +204,17 @@ def main(argv=None):
     keys = ("GPS RMSE (best SE(2) alignment)", "GPS RMSE (start alignment)", "landmarks")
     for c in clutters:
         rs = {r["method"]: r["metrics"] for r in vp if r["clutter"] == c}
-        classic = [m for m in ("nn", "jcbb") if m in rs]
-        for cm in ("clique", "clique-jcbb"):
-            if cm in rs and classic:
-                parts = []
-                for key in keys[:2]:
-                    best = min(rs[m][key] for m in classic)
-                    parts.append(f"{key} {cm} / best of nn, jcbb = {rs[cm][key] / best:.3f}")
-                ratio_lines.append(f"clutter {c}: " + "; ".join(parts))
+        for suffix in ("", " + smoothing"):
+            classic = [m + suffix for m in ("nn", "jcbb") if m + suffix in rs]
+            for cm in ("clique" + suffix, "clique-jcbb" + suffix):
+                if cm in rs and classic:
+                    parts = []
+                    for key in keys[:2]:
+                        best = min(rs[m][key] for m in classic)
+                        parts.append(
+                            f"{key} {cm} / best of nn, jcbb{suffix} = {rs[cm][key] / best:.3f}"
+                        )
+                    ratio_lines.append(f"clutter {c}: " + "; ".join(parts))
     nees = {}
     for m in methods:
         recs = [s for s in sims if s["method"] == m]
@@ -215,7 +240,7 @@ def main(argv=None):
         c0 = min(clutters)
         runs = []
         for r in vp:
-            if r["clutter"] == c0:
+            if r["clutter"] == c0 and "_plot" in r:
                 pos, lm, lc, Rm, t = r["_plot"]
                 runs.append(
                     (
@@ -236,7 +261,7 @@ def main(argv=None):
     except Exception as exc:  # pragma: no cover - plotting optional
         print(f"figure not written: {exc}", file=sys.stderr)
     for r in vp:
-        r.pop("_plot")
+        r.pop("_plot", None)
     result = {
         "date": DATE,
         "git": git_state(),

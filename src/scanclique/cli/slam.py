@@ -31,6 +31,14 @@ def slam(
     ] = 0,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the clutter.")] = 0,
     plot: Annotated[bool, typer.Option("--plot", help="Also write map.png into --out.")] = False,
+    smooth: Annotated[
+        bool,
+        typer.Option(
+            "--smooth",
+            help="Also smooth the run (GTSAM pose graph with the filter's associations); "
+            "its metrics are added as 'smoothed ...' beside the filter's.",
+        ),
+    ] = False,
     json_out: JsonOpt = False,
 ) -> None:
     """EKF-SLAM of tree landmarks, each scan associated with the map as a whole.
@@ -46,6 +54,7 @@ def slam(
     scanclique slam victoria-park --association clique --out runs/vp --plot
     scanclique slam victoria-park --association jcbb --json
     scanclique slam /data/victoria-park -a nn --clutter 5
+    scanclique slam victoria-park -a clique --smooth
     ```
     """
     if association not in METHODS:
@@ -59,7 +68,13 @@ def slam(
     def work():
         if not show:
             return run_slam(
-                data, association=association, out=out, clutter=clutter, seed=seed, plot=plot
+                data,
+                association=association,
+                out=out,
+                clutter=clutter,
+                seed=seed,
+                plot=plot,
+                smooth=smooth,
             )
         from rich.progress import Progress
 
@@ -76,6 +91,7 @@ def slam(
                 clutter=clutter,
                 seed=seed,
                 plot=plot,
+                smooth=smooth,
                 progress=progress,
             )
 

@@ -21,7 +21,7 @@ from .metrics import GpsError, align_se2, duplicate_pairs, gps_error, gps_outlie
 from .models import Ackermann
 from .reader import Step, read_gps, read_victoria_park
 
-__all__ = ["SlamRun", "run_slam", "inject_clutter", "victoria_park_model"]
+__all__ = ["SlamRun", "run_slam", "inject_clutter", "victoria_park_model", "summarise_smoothed"]
 
 log = logging.getLogger(__name__)
 
@@ -149,6 +149,26 @@ def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0):
     return g, m, align
 
 
+def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clutter: int = 0):
+    """:func:`summarise` of the smoothed trajectory and map (a
+    :class:`~scanclique.slam.smooth.SmoothResult` of ``result``): the same metrics, the GPS
+    error over the observation steps' smoothed poses, the run times including the pass
+    ("smoothing time" on its own)."""
+    from dataclasses import replace
+
+    r = replace(
+        result,
+        times=smoothed.times,
+        poses=smoothed.poses,
+        landmarks=smoothed.landmarks,
+        cpu_seconds=result.cpu_seconds + smoothed.cpu_seconds,
+        seconds=result.seconds + smoothed.seconds,
+    )
+    g, m, align = summarise(r, model, gps_fixes, clutter)
+    m["smoothing time"] = (smoothed.seconds, "s")
+    return g, m, align
+
+
 def run_slam(
     source: str | os.PathLike = "victoria-park",
     *,
@@ -159,6 +179,7 @@ def run_slam(
     config: SlamConfig | None = None,
     progress=None,
     plot: bool = False,
+    smooth: bool = False,
 ) -> SlamRun:
     """Run EKF-SLAM on the Victoria Park data (a name or a directory) and measure it.
 
@@ -170,6 +191,10 @@ def run_slam(
         ``map.png`` with ``plot``).
     clutter : int
         Spurious detections injected per scan (:func:`inject_clutter`).
+    smooth : bool
+        After the filter, also smooth the run (:func:`~scanclique.slam.smooth.smooth`): its
+        metrics are added with the prefix "smoothed ", beside the filter's (which stay
+        the filter's), and ``trajectory-smoothed.tum`` is written.
     """
     cfg = config or SlamConfig()
     steps = read_victoria_park(source)
@@ -181,6 +206,22 @@ def run_slam(
     model = victoria_park_model()
     result = ekf_slam(steps, model, association=association, config=cfg, progress=progress)
     g, m, align = summarise(result, model, gps, clutter)
+    sm = None
+    if smooth:
+        from .smooth import smooth as _smooth
+
+        sm = _smooth(steps, model, result, config=cfg)
+        _g, ms, _a = summarise_smoothed(result, sm, model, gps, clutter)
+        for k in (
+            "GPS RMSE (start alignment)",
+            "GPS max (start alignment)",
+            "GPS RMSE (best SE(2) alignment)",
+            "GPS max (best SE(2) alignment)",
+            "landmarks in duplicate pairs",
+            "smoothing time",
+        ):
+            if k in ms:
+                m["smoothed " + k] = ms[k]
     run = SlamRun(result, g, m, {}, align)
     if out is not None:
         d = Path(out)
@@ -197,6 +238,10 @@ def run_slam(
                 result.landmark_hits,
             ),
         }
+        if sm is not None:
+            files["trajectory (smoothed)"] = write_tum(
+                d / "trajectory-smoothed.tum", sm.times, sm.poses
+            )
         if plot:
             pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
             files["map"] = plot_maps(

@@ -1,0 +1,85 @@
+"""The optional smoothing pass after the filter: on the simulated park (known truth) it
+brings the poses nearer to the truth than the filter; the landmark ids of the
+observations that started landmarks are recovered; ``--smooth`` of the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from scanclique import slam
+from scanclique.slam.association import NEW
+from scanclique.slam.sim import simulate_park
+from scanclique.slam.smooth import _landmark_of_new, smooth
+
+pytest.importorskip("gtsam")
+
+CFG = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05)
+
+
+@pytest.fixture(scope="module")
+def park():
+    return simulate_park(2, laps=1, length=50.0, width=30.0, n_trees=70, config=CFG)
+
+
+@pytest.fixture(scope="module")
+def run(park):
+    return slam.ekf_slam(park.steps, slam.Ackermann(), association="clique", config=CFG)
+
+
+def _pos_rmse(poses, truth):
+    return float(np.sqrt(np.mean(np.sum((poses[:, :2] - truth[:, :2]) ** 2, 1))))
+
+
+def test_smoothing_is_nearer_the_truth(park, run):
+    sm = smooth(park.steps, slam.Ackermann(), run)
+    obs = np.array([k for k, s in enumerate(park.steps) if s.n_observations])
+    assert sm.poses.shape == (len(obs), 3)
+    np.testing.assert_allclose(sm.times, [park.steps[k].time for k in obs])
+    assert sm.final_error < sm.initial_error
+    filt = _pos_rmse(run.poses[obs], park.poses[obs])
+    smoothed = _pos_rmse(sm.poses, park.poses[obs])
+    assert smoothed < filt
+    np.testing.assert_array_equal(sm.landmark_ids, run.landmark_ids)
+
+
+def test_new_observations_get_the_ids_the_filter_gave(park, run):
+    full = _landmark_of_new(run)
+    assert all(
+        np.all(a[np.asarray(r) != NEW] == np.asarray(r)[np.asarray(r) != NEW])
+        for a, r in zip(full, run.associations, strict=True)
+    )
+    # every landmark of the final map was started by one recovered NEW observation, and
+    # its later sightings carry its id: the position of the first sighting lies near it
+    first = {}
+    for k, (a, r) in enumerate(zip(full, run.associations, strict=True)):
+        for i in np.flatnonzero(np.asarray(r) == NEW):
+            first[int(a[i])] = k
+    assert set(run.landmark_ids.tolist()) <= set(first)
+
+
+def test_steps_must_match_the_run(park, run):
+    with pytest.raises(ValueError, match="not the ones"):
+        smooth(park.steps[: len(park.steps) // 2], slam.Ackermann(), run)
+
+
+def test_cli_smooth(tmp_path, park):
+    from test_slam_ekf import _write_vp
+
+    from scanclique.cli import app
+
+    d = tmp_path / "vp"
+    _write_vp(d, park)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(
+        app, ["slam", str(d), "-a", "nn", "--out", str(out), "--json", "--smooth"]
+    )
+    assert res.exit_code == 0, res.output
+    m = json.loads(res.stdout)["metrics"]
+    assert m["smoothed GPS RMSE (best SE(2) alignment)"]["value"] < 1.5
+    assert "GPS RMSE (best SE(2) alignment)" in m
+    tum = np.loadtxt(out / "trajectory-smoothed.tum")
+    assert tum.shape[1] == 8
