@@ -119,6 +119,47 @@ def pr_curve(answers: list[dict], n_true: int) -> dict:
     }
 
 
+#: the outcome of a query with a true place, in the order they are tested
+OUTCOMES = (
+    "right",
+    "no true place verified",
+    "true place: wrong pose accepted",
+    "true place outranked by a wrong answer",
+    "true place ambiguous",
+    "true place: no pose",
+    "true place: too few features",
+    "true place: pose not fixed",
+    "true place: rejected, other",
+)
+
+
+def miss_category(hits, true_rows: set, rec: dict, scans, q) -> str:
+    """Why a query with a true place got (or missed) its right answer: the verified
+    candidates' verdicts on its true places (the best verdict among them)."""
+    if rec["right"]:
+        return "right"
+    mine = [h for h in hits if h.place_id - 1 in true_rows]
+    if not mine:
+        return "no true place verified"
+    acc = [h for h in mine if h.verdict == "accepted"]
+    if acc:
+        for h in acc:
+            t, r = (scans[h.place_id - 1].reference @ h.pose).distance_to(q.reference)
+            if t <= RIGHT_T and r <= RIGHT_R:
+                return "true place outranked by a wrong answer"
+        return "true place: wrong pose accepted"
+    if any(h.verdict == "ambiguous" for h in mine):
+        return "true place ambiguous"
+    reasons = " ".join(h.reason for h in mine)
+    if "no pose" in reasons and all("no pose" in h.reason for h in mine):
+        return "true place: no pose"
+    if "fewer than" in reasons:
+        return "true place: too few features"
+    if "fix the pose" in reasons:
+        return "true place: pose not fixed"
+    return "true place: rejected, other"
+
+
 def recognition(
     name: str, every: int, candidates: int, tmp: Path, progress=True, search=False
 ) -> dict:
@@ -192,7 +233,10 @@ def recognition(
                 rank=best.rank,
                 n_features=best.n_features,
                 votes=best.votes,
+                source=best.source,
             )
+        if has_true:
+            rec["outcome"] = miss_category(hits, truth[i], rec, scans, q)
         records.append(rec)
         if progress and (qn + 1) % 50 == 0:
             el = time.perf_counter() - t0
@@ -228,6 +272,7 @@ def recognition(
             for key, v in alone.items()
             for m, at in enumerate((10, 50))
         },
+        "outcomes": {k: sum(r.get("outcome") == k for r in records) for k in OUTCOMES},
         "query_ms_median": float(np.median(q_ms)),
         "query_ms_p95": float(np.percentile(q_ms, 95)),
         "add_ms_median": float(np.median(add_ms)),
@@ -245,6 +290,7 @@ def recognition(
                     "n_features",
                     "rank",
                     "votes",
+                    "source",
                     "t_err",
                     "r_err",
                 )
@@ -531,6 +577,11 @@ def main(argv=None) -> None:
                     f"triangles {_f(r['triangles_recall_10'])} / "
                     f"{_f(r['triangles_recall_50'])}) query ms {r['query_ms_median']:.1f} "
                     f"(p95 {r['query_ms_p95']:.1f})",
+                    flush=True,
+                )
+                print(
+                    f"{'':9s} true queries by outcome: "
+                    + ", ".join(f"{k} {v}" for k, v in r["outcomes"].items()),
                     flush=True,
                 )
         if "scale" in stages:

@@ -90,3 +90,24 @@ def test_find_loops_bad_arguments():
     with pytest.raises(ConfigError):
         find_loops([], workers=-1)
     assert find_loops([], min_gap=1).loops == ()
+
+
+def test_hits_name_their_source_and_seeded_adds_only_triangle_candidates(tmp_path, worlds):
+    from scanclique.places.database import SEED_MIN_VOTES
+
+    with PlaceDB(tmp_path / "p.db", seeded=4) as db:
+        for w, traj in enumerate(worlds):
+            for k in (0, 2, 4):
+                db.add(traj[k], name=f"w{w}s{k}")
+        q = db.prepare(worlds[1][3])
+        ids0, _, _, _ = db._candidates(q, 2, None, extra=0)
+        ids, _, votes, poses = db._candidates(q, 2, None, extra=4)
+        assert len(ids0) == 2 and np.array_equal(ids[:2], ids0) and len(ids) <= 6
+        assert np.all(votes[2:] >= SEED_MIN_VOTES)
+        assert np.all(np.isfinite(poses[votes >= SEED_MIN_VOTES]))
+        assert np.all(np.isnan(poses[votes < SEED_MIN_VOTES]))
+        hits = db.query(q, k=2, candidates=2)
+        assert {h.source for h in hits} <= {"clique", "triangles"}
+        assert all(h.source == "triangles" for h in hits if h.rank >= 2)
+        assert hits[0].verdict == ACCEPTED and hits[0].name.startswith("w1")
+        assert hits[0].to_dict()["source"] == hits[0].source

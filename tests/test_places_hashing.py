@@ -135,3 +135,20 @@ def test_search_option_reaches_the_matcher(tmp_path, search):
     with PlaceDB(tmp_path / "p.db", search=search) as db:
         assert db.verify_config.refine.search is search
         assert db.config.refine.search is True  # the stored configuration is unchanged
+
+
+def test_votes_give_the_pose_of_the_best_bin():
+    """A place seen from elsewhere: its best bin's mean pose is the pose that maps the
+    query's points into the place's frame; places with no vote have none."""
+    rng = np.random.default_rng(5)
+    xy, lab = _place(rng, n=20)
+    sensor = (1.5, -2.0, 0.7)  # the query's sensor pose in the place's frame
+    idx = TriangleIndex()
+    idx.add([3, 4], [feature_triangles(xy, lab), feature_triangles(xy[:0], lab[:0])])
+    scores, poses = idx.votes(feature_triangles(_moved(xy, sensor), lab))
+    assert scores[0] > 0 and scores[1] == 0
+    assert np.allclose(poses[0], sensor, atol=1e-5)
+    assert np.all(np.isnan(poses[1]))
+    assert np.array_equal(scores, idx.scores(feature_triangles(_moved(xy, sensor), lab)))
+    _, gone = idx.votes(feature_triangles(_moved(xy, sensor), lab), exclude=[3])
+    assert np.all(np.isnan(gone[0]))
