@@ -161,7 +161,14 @@ def miss_category(hits, true_rows: set, rec: dict, scans, q) -> str:
 
 
 def recognition(
-    name: str, every: int, candidates: int, tmp: Path, progress=True, search=False
+    name: str,
+    every: int,
+    candidates: int,
+    tmp: Path,
+    progress=True,
+    search=False,
+    seeded=None,
+    aliases=False,
 ) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
@@ -174,7 +181,15 @@ def recognition(
     n = len(scans)
     # every answer accepted (validation and min_features), thresholded by score below
     # (the default min_score is one point of that curve)
-    db = PlaceDB(tmp / f"{name}.db", min_score=0.0, search=search)
+    from scanclique.places.database import SEEDED
+
+    db = PlaceDB(
+        tmp / f"{name}.db",
+        min_score=0.0,
+        search=search,
+        seeded=SEEDED if seeded is None else seeded,
+        aliases=aliases,
+    )
     t = time.perf_counter()
     add_ms = []
     for k, s in enumerate(scans):
@@ -537,6 +552,19 @@ def main(argv=None) -> None:
         help="recognition: let the matcher search the pose on raw scans (PlaceDB search=True)",
     )
     ap.add_argument(
+        "--seeded",
+        type=int,
+        default=None,
+        help="recognition: places checked by their triangle pose alone beyond the "
+        "candidates (PlaceDB seeded=; default SEEDED)",
+    )
+    ap.add_argument(
+        "--aliases",
+        action="store_true",
+        help="recognition: refuse clique hits with a quarter/half-turn alias "
+        "(PlaceDB aliases=True)",
+    )
+    ap.add_argument(
         "--full",
         action="store_true",
         help="every scan a query, all freiburg scans in the loop search",
@@ -562,7 +590,15 @@ def main(argv=None) -> None:
         tmp = Path(tmpd)
         if "recognition" in stages:
             res["recognition"] = [
-                recognition(n, a.query_every, a.candidates, tmp, search=a.search)
+                recognition(
+                    n,
+                    a.query_every,
+                    a.candidates,
+                    tmp,
+                    search=a.search,
+                    seeded=a.seeded,
+                    aliases=a.aliases,
+                )
                 for n in a.logs.split(",")
             ]
             for r in res["recognition"]:

@@ -25,8 +25,9 @@ A query is, in order:
 3. each candidate verified (:func:`.verify.verify_pair`): the clique matcher against
    the stored place (without its raw-scan pose search, see ``search``), then validation
    without odometry;
-4. the second path (``PlaceHit.source == "triangles"``): a candidate the matcher
-   rejects, and up to ``seeded`` more places down the triangle ranking, whose triangles
+4. the second path (``PlaceHit.source == "triangles"``), when the matcher accepted no
+   candidate: the candidates it rejected, and up to ``seeded`` more places down the
+   triangle ranking, whose triangles
    agree on one pose bin with at least :data:`SEED_MIN_VOTES` votes, verified from that
    pose on the raw scans (:func:`.verify.verify_seeded`: ICP, score, conditioning,
    agreement with the triangles' pose, no quarter- or half-turn alias);
@@ -261,8 +262,8 @@ class PlaceDB:
         features, so a database may be queried either way.
     seeded : int
         Places beyond the verified candidates checked by their triangle pose alone
-        (:data:`SEEDED`; 0: none). A candidate the matcher rejects is checked that way
-        too (any ``seeded``).
+        (:data:`SEEDED`; 0: none). That second path runs only when the matcher accepted
+        no candidate; it checks the candidates it rejected too (any ``seeded``).
     aliases : bool
         Refuse an accepted clique match whose pose turned by a quarter or a half turn
         explains the raw scans nearly as well (:func:`.verify.alias_score`, the matcher's
@@ -523,11 +524,31 @@ class PlaceDB:
         missing = [int(i) for i in ids if int(i) not in self._names]
         if missing:
             self._names.update(self.store.names(missing))
+        rows = list(enumerate(zip(ids.tolist(), dist.tolist(), votes.tolist(), strict=True)))
+        found: list[tuple[Verification, str] | None] = [None] * len(rows)
+        for rank, (pid, _, _) in rows[:n]:
+            found[rank] = (self._verify_clique(pid, p), "clique")
+        if not any(f is not None and f[0].verdict == ACCEPTED for f in found):
+            # the second path, for the revisits the clique matcher misses: the rejected
+            # candidates and the places only the triangles propose, from their pose
+            for rank, (pid, _, _) in rows:
+                if (found[rank] is None or found[rank][0].verdict == REJECTED) and np.all(
+                    np.isfinite(poses[rank])
+                ):
+                    w = verify_seeded(
+                        self.prepared(pid),
+                        p,
+                        Pose2.from_array(poses[rank]),
+                        self.config,
+                        min_score=self.min_score,
+                    )
+                    if found[rank] is None or w.verdict != REJECTED:
+                        found[rank] = (w, "triangles")
         hits = []
-        for rank, (pid, d, nv) in enumerate(
-            zip(ids.tolist(), dist.tolist(), votes.tolist(), strict=True)
-        ):
-            v, source = self._verify(pid, p, poses[rank], clique=rank < n)
+        for rank, (pid, d, nv) in rows:
+            if found[rank] is None:
+                continue
+            v, source = found[rank]
             hits.append(
                 PlaceHit(
                     pid,
@@ -547,50 +568,32 @@ class PlaceDB:
         hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.score, h.rank))
         return hits[: int(k)]
 
-    def _verify(
-        self, pid: int, p: PreparedScan, seed: np.ndarray, clique: bool
-    ) -> tuple[Verification, str]:
-        """One candidate's verification and its source: the clique matcher (when
-        ``clique``), its accepted pose checked against its aliases (``aliases``); then, if
-        it found nothing and the triangles gave a pose, that pose on the raw scans."""
+    def _verify_clique(self, pid: int, p: PreparedScan) -> Verification:
+        """The clique matcher's verdict on one candidate, its accepted pose checked
+        against its aliases when ``aliases``."""
         place = self.prepared(pid)
-        v = None
-        if clique:
-            v = verify_pair(
-                place,
-                p,
-                self.verify_config,
-                min_score=self.min_score,
-                min_features=self.min_features,
-            )
-            if v.verdict == ACCEPTED and self.aliases:
-                alias, _ = alias_score(place, p, v.pose, self.config)
-                if alias >= self.config.refine.ambiguous_score * v.score:
-                    v = Verification(
-                        AMBIGUOUS,
-                        v.pose,
-                        v.covariance,
-                        v.score,
-                        v.n_features,
-                        v.validation,
-                        f"the pose turned by a quarter or half turn scores {alias:.3f} "
-                        f"(of {v.score:.3f}); {v.reason}",
-                        v.seconds,
-                    )
-            if v.verdict != REJECTED:
-                return v, "clique"
-        if np.all(np.isfinite(seed)):
-            w = verify_seeded(
-                place, p, Pose2.from_array(seed), self.config, min_score=self.min_score
-            )
-            if v is None or w.verdict != REJECTED:
-                return w, "triangles"
-        if v is None:
-            return (
-                Verification(REJECTED, None, None, 0.0, 0, "seeded", "no pose", 0.0),
-                "triangles",
-            )
-        return v, "clique"
+        v = verify_pair(
+            place,
+            p,
+            self.verify_config,
+            min_score=self.min_score,
+            min_features=self.min_features,
+        )
+        if v.verdict == ACCEPTED and self.aliases:
+            alias, _ = alias_score(place, p, v.pose, self.config)
+            if alias >= self.config.refine.ambiguous_score * v.score:
+                v = Verification(
+                    AMBIGUOUS,
+                    v.pose,
+                    v.covariance,
+                    v.score,
+                    v.n_features,
+                    v.validation,
+                    f"the pose turned by a quarter or half turn scores {alias:.3f} "
+                    f"(of {v.score:.3f}); {v.reason}",
+                    v.seconds,
+                )
+        return v
 
     def best(self, scan: Scan | PreparedScan, **kw) -> PlaceHit | None:
         """The best hit if it is not rejected, else None (``kw`` as for :meth:`query`)."""
