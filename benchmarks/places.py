@@ -467,6 +467,21 @@ def report(res: dict) -> str:
                 f"{_f(r['query_ms_p95'], '.1f')} |"
             )
         lines.append("")
+        if all("outcomes" in r for r in res["recognition"]):
+            lines += [
+                "Queries with a true place, by outcome (the verified candidates' verdicts on "
+                "the query's true places):",
+                "",
+                "| outcome | " + " | ".join(r["log"] for r in res["recognition"]) + " |",
+                "|---|" + "---|" * len(res["recognition"]),
+            ]
+            for k in OUTCOMES:
+                lines.append(
+                    f"| {k} | "
+                    + " | ".join(str(r["outcomes"].get(k, 0)) for r in res["recognition"])
+                    + " |"
+                )
+            lines.append("")
     if "scale" in res:
         lines += [
             "## Scale (one database grown; queries k=5 from a second connection)",
