@@ -287,6 +287,39 @@ class TriangleIndex:
         poses = np.full((len(self._ids), 3), np.nan)
         if not len(query.keys) or not len(self._ids):
             return out, poses
+        from ._kernels import triangle_gather, triangle_reduce
+
+        qk, qt = query.query_keys()
+        o = np.argsort(qk, kind="stable")
+        qk, qt = np.ascontiguousarray(qk[o]), np.ascontiguousarray(qt[o])
+        qf = np.ascontiguousarray(query.frames, dtype=np.float64)
+        qc, qs = np.cos(qf[:, 2]), np.sin(qf[:, 2])
+        rs, vs = [], []
+        for seg in self._segs:
+            if len(seg["k"]):
+                r, v = triangle_gather(seg["k"], seg["r"], seg["f"], qk, qt, qf, qc, qs)
+                rs.append(r)
+                vs.append(v)
+        if rs:
+            r = np.concatenate(rs) if len(rs) > 1 else rs[0]
+            v = np.concatenate(vs) if len(vs) > 1 else vs[0]
+            triangle_reduce(r, v, len(self._ids), VOTE_XY, VOTE_THETA, _NXY, _NT, out, poses)
+        if exclude is not None:
+            ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
+            if len(ex):
+                gone = np.isin(self._ids, ex)
+                out[gone] = 0
+                poses[gone] = np.nan
+        return out, poses
+
+    def votes_reference(self, query: Triangles, exclude=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`votes` in NumPy: the reference the compiled loops must agree with (up to
+        the order of summation of the mean poses)."""
+        self._flush()
+        out = np.zeros(len(self._ids), dtype=np.int64)
+        poses = np.full((len(self._ids), 3), np.nan)
+        if not len(query.keys) or not len(self._ids):
+            return out, poses
         qk, qt = query.query_keys()
         o = np.argsort(qk, kind="stable")  # sorted needles: a faster lookup
         qk, qt = qk[o], qt[o]
