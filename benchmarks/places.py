@@ -119,8 +119,56 @@ def pr_curve(answers: list[dict], n_true: int) -> dict:
     }
 
 
+#: the outcome of a query with a true place, in the order they are tested
+OUTCOMES = (
+    "right",
+    "no true place verified",
+    "true place: wrong pose accepted",
+    "true place outranked by a wrong answer",
+    "true place ambiguous",
+    "true place: no pose",
+    "true place: too few features",
+    "true place: pose not fixed",
+    "true place: rejected, other",
+)
+
+
+def miss_category(hits, true_rows: set, rec: dict, scans, q) -> str:
+    """Why a query with a true place got (or missed) its right answer: the verified
+    candidates' verdicts on its true places (the best verdict among them)."""
+    if rec["right"]:
+        return "right"
+    mine = [h for h in hits if h.place_id - 1 in true_rows]
+    if not mine:
+        return "no true place verified"
+    acc = [h for h in mine if h.verdict == "accepted"]
+    if acc:
+        for h in acc:
+            t, r = (scans[h.place_id - 1].reference @ h.pose).distance_to(q.reference)
+            if t <= RIGHT_T and r <= RIGHT_R:
+                return "true place outranked by a wrong answer"
+        return "true place: wrong pose accepted"
+    if any(h.verdict == "ambiguous" for h in mine):
+        return "true place ambiguous"
+    reasons = " ".join(h.reason for h in mine)
+    if "no pose" in reasons and all("no pose" in h.reason for h in mine):
+        return "true place: no pose"
+    if "fewer than" in reasons:
+        return "true place: too few features"
+    if "fix the pose" in reasons:
+        return "true place: pose not fixed"
+    return "true place: rejected, other"
+
+
 def recognition(
-    name: str, every: int, candidates: int, tmp: Path, progress=True, search=False
+    name: str,
+    every: int,
+    candidates: int,
+    tmp: Path,
+    progress=True,
+    search=False,
+    seeded=None,
+    aliases=False,
 ) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
@@ -133,7 +181,15 @@ def recognition(
     n = len(scans)
     # every answer accepted (validation and min_features), thresholded by score below
     # (the default min_score is one point of that curve)
-    db = PlaceDB(tmp / f"{name}.db", min_score=0.0, search=search)
+    from scanclique.places.database import SEEDED
+
+    db = PlaceDB(
+        tmp / f"{name}.db",
+        min_score=0.0,
+        search=search,
+        seeded=SEEDED if seeded is None else seeded,
+        aliases=aliases,
+    )
     t = time.perf_counter()
     add_ms = []
     for k, s in enumerate(scans):
@@ -192,7 +248,10 @@ def recognition(
                 rank=best.rank,
                 n_features=best.n_features,
                 votes=best.votes,
+                source=best.source,
             )
+        if has_true:
+            rec["outcome"] = miss_category(hits, truth[i], rec, scans, q)
         records.append(rec)
         if progress and (qn + 1) % 50 == 0:
             el = time.perf_counter() - t0
@@ -228,6 +287,7 @@ def recognition(
             for key, v in alone.items()
             for m, at in enumerate((10, 50))
         },
+        "outcomes": {k: sum(r.get("outcome") == k for r in records) for k in OUTCOMES},
         "query_ms_median": float(np.median(q_ms)),
         "query_ms_p95": float(np.percentile(q_ms, 95)),
         "add_ms_median": float(np.median(add_ms)),
@@ -245,6 +305,7 @@ def recognition(
                     "n_features",
                     "rank",
                     "votes",
+                    "source",
                     "t_err",
                     "r_err",
                 )
@@ -406,6 +467,21 @@ def report(res: dict) -> str:
                 f"{_f(r['query_ms_p95'], '.1f')} |"
             )
         lines.append("")
+        if all("outcomes" in r for r in res["recognition"]):
+            lines += [
+                "Queries with a true place, by outcome (the verified candidates' verdicts on "
+                "the query's true places):",
+                "",
+                "| outcome | " + " | ".join(r["log"] for r in res["recognition"]) + " |",
+                "|---|" + "---|" * len(res["recognition"]),
+            ]
+            for k in OUTCOMES:
+                lines.append(
+                    f"| {k} | "
+                    + " | ".join(str(r["outcomes"].get(k, 0)) for r in res["recognition"])
+                    + " |"
+                )
+            lines.append("")
     if "scale" in res:
         lines += [
             "## Scale (one database grown; queries k=5 from a second connection)",
@@ -491,6 +567,19 @@ def main(argv=None) -> None:
         help="recognition: let the matcher search the pose on raw scans (PlaceDB search=True)",
     )
     ap.add_argument(
+        "--seeded",
+        type=int,
+        default=None,
+        help="recognition: places checked by their triangle pose alone beyond the "
+        "candidates (PlaceDB seeded=; default SEEDED)",
+    )
+    ap.add_argument(
+        "--aliases",
+        action="store_true",
+        help="recognition: refuse clique hits with a quarter/half-turn alias "
+        "(PlaceDB aliases=True)",
+    )
+    ap.add_argument(
         "--full",
         action="store_true",
         help="every scan a query, all freiburg scans in the loop search",
@@ -516,7 +605,15 @@ def main(argv=None) -> None:
         tmp = Path(tmpd)
         if "recognition" in stages:
             res["recognition"] = [
-                recognition(n, a.query_every, a.candidates, tmp, search=a.search)
+                recognition(
+                    n,
+                    a.query_every,
+                    a.candidates,
+                    tmp,
+                    search=a.search,
+                    seeded=a.seeded,
+                    aliases=a.aliases,
+                )
                 for n in a.logs.split(",")
             ]
             for r in res["recognition"]:
@@ -531,6 +628,11 @@ def main(argv=None) -> None:
                     f"triangles {_f(r['triangles_recall_10'])} / "
                     f"{_f(r['triangles_recall_50'])}) query ms {r['query_ms_median']:.1f} "
                     f"(p95 {r['query_ms_p95']:.1f})",
+                    flush=True,
+                )
+                print(
+                    f"{'':9s} true queries by outcome: "
+                    + ", ".join(f"{k} {v}" for k, v in r["outcomes"].items()),
                     flush=True,
                 )
         if "scale" in stages:

@@ -90,3 +90,47 @@ def test_find_loops_bad_arguments():
     with pytest.raises(ConfigError):
         find_loops([], workers=-1)
     assert find_loops([], min_gap=1).loops == ()
+
+
+def test_hits_name_their_source_and_seeded_adds_only_triangle_candidates(tmp_path, worlds):
+    from scanclique.places.database import SEED_MIN_VOTES
+
+    with PlaceDB(tmp_path / "p.db", seeded=4) as db:
+        for w, traj in enumerate(worlds):
+            for k in (0, 2, 4):
+                db.add(traj[k], name=f"w{w}s{k}")
+        q = db.prepare(worlds[1][3])
+        ids0, _, _, _ = db._candidates(q, 2, None, extra=0)
+        ids, _, votes, poses = db._candidates(q, 2, None, extra=4)
+        assert len(ids0) == 2 and np.array_equal(ids[:2], ids0) and len(ids) <= 6
+        assert np.all(votes[2:] >= SEED_MIN_VOTES)
+        assert np.all(np.isfinite(poses[votes >= SEED_MIN_VOTES]))
+        assert np.all(np.isnan(poses[votes < SEED_MIN_VOTES]))
+        hits = db.query(q, k=2, candidates=2)
+        assert {h.source for h in hits} <= {"clique", "triangles"}
+        assert all(h.source == "triangles" for h in hits if h.rank >= 2)
+        assert hits[0].verdict == ACCEPTED and hits[0].name.startswith("w1")
+        assert hits[0].to_dict()["source"] == hits[0].source
+
+
+def test_fused_loop_candidates_keep_the_gap_and_both_rankings(worlds):
+    from scanclique.match import prepare_scan
+    from scanclique.places.hashing import feature_triangles
+    from scanclique.places.loops import fused_loop_candidates, loop_candidates
+    from scanclique.places.signature import scan_signature
+
+    scans = [s for traj in worlds for s in traj]
+    ps = [prepare_scan(s) for s in scans]
+    sigs = np.array([scan_signature(p) for p in ps])
+    tris = [feature_triangles(p.features.points_xy, p.features.points_label) for p in ps]
+    fused = fused_loop_candidates(sigs, tris, 3, 4)
+    by_i: dict[int, list[int]] = {}
+    for i, j, rank, d in fused:
+        assert j <= i - 4 and rank == len(by_i.get(i, []))
+        assert d == pytest.approx(float(np.sum((sigs[i] - sigs[j]) ** 2)))
+        by_i.setdefault(i, []).append(j)
+    assert all(len(js) == len(set(js)) <= 3 for js in by_i.values())
+    first_sig = {i: j for i, j, rank, _ in loop_candidates(sigs, 3, 4) if rank == 0}
+    assert first_sig and all(first_sig[i] in by_i[i] for i in first_sig)
+    # a later scan of the same office finds an earlier one of it through the triangles
+    assert any(i // 6 == j // 6 for i, js in by_i.items() for j in js)

@@ -135,3 +135,50 @@ def test_search_option_reaches_the_matcher(tmp_path, search):
     with PlaceDB(tmp_path / "p.db", search=search) as db:
         assert db.verify_config.refine.search is search
         assert db.config.refine.search is True  # the stored configuration is unchanged
+
+
+def test_votes_give_the_pose_of_the_best_bin():
+    """A place seen from elsewhere: its best bin's mean pose is the pose that maps the
+    query's points into the place's frame; places with no vote have none."""
+    rng = np.random.default_rng(5)
+    xy, lab = _place(rng, n=20)
+    sensor = (1.5, -2.0, 0.7)  # the query's sensor pose in the place's frame
+    idx = TriangleIndex()
+    idx.add([3, 4], [feature_triangles(xy, lab), feature_triangles(xy[:0], lab[:0])])
+    scores, poses = idx.votes(feature_triangles(_moved(xy, sensor), lab))
+    assert scores[0] > 0 and scores[1] == 0
+    assert np.allclose(poses[0], sensor, atol=1e-5)
+    assert np.all(np.isnan(poses[1]))
+    assert np.array_equal(scores, idx.scores(feature_triangles(_moved(xy, sensor), lab)))
+    _, gone = idx.votes(feature_triangles(_moved(xy, sensor), lab), exclude=[3])
+    assert np.all(np.isnan(gone[0]))
+
+
+def test_compiled_votes_agree_with_the_numpy_reference():
+    """Many places, some sharing triangles with the query at different poses: the
+    compiled voting gives the reference's scores exactly and its poses up to rounding."""
+    rng = np.random.default_rng(8)
+    xy, lab = _place(rng, n=24)
+    idx = TriangleIndex()
+    ids, sets = [], []
+    for k in range(60):  # places: parts of the query's view, moved, and unrelated ones
+        if k % 3 == 0:
+            sub = rng.choice(len(xy), size=12, replace=False)
+            pose = (rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-np.pi, np.pi))
+            sets.append(feature_triangles(_moved(xy[sub], pose), lab[sub]))
+        else:
+            sets.append(feature_triangles(*_place(rng, n=16)))
+        ids.append(100 + k)
+    idx.add(ids[:40], sets[:40])
+    idx.votes(feature_triangles(xy, lab))  # merges the first places into the main segment
+    idx.add(ids[40:], sets[40:])  # and these stay in the recent one
+    q = feature_triangles(xy, lab)
+    for exclude in (None, [103, 150]):
+        s, p = idx.votes(q, exclude)
+        s_ref, p_ref = idx.votes_reference(q, exclude)
+        assert np.array_equal(s, s_ref) and (s > 0).sum() > 20
+        assert np.array_equal(np.isnan(p), np.isnan(p_ref))
+        ok = ~np.isnan(p_ref[:, 0])
+        d = p[ok] - p_ref[ok]
+        d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
+        assert np.abs(d).max() < 1e-9

@@ -150,7 +150,8 @@ def query(
     con.print(
         "pose: the query scan's frame in the place's frame (maps the query's points into the "
         "place's); err: against the reference poses, when both scans have one; rank: in the "
-        "signature prefilter",
+        "prefilter; a verdict marked (triangles): the triangle prefilter's pose verified on "
+        "the raw scans (the clique matcher accepted no candidate)",
         soft_wrap=True,
     )
 

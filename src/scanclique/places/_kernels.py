@@ -69,3 +69,82 @@ def normal_pair_hists(pts, nrm, n_norm, nd, na, far):
             b2 = min(max(math.floor(hi * na), 0.0), na - 1.0)
             h_pair[int((bd * na + b1) * na + b2)] += 1.0
     return h_norm, h_pair
+
+
+@njit(cache=True)
+def triangle_gather(keys, rows, frames, qk, qt, qf, qc, qs):
+    """The votes of the sorted query keys ``qk`` (triangle ``qt`` of frame ``qf``, with
+    its cosine and sine ``qc``, ``qs``) in one sorted segment of the triangle index:
+    ``(place rows, (theta, x, y) of T_place_query)`` (:meth:`.hashing.TriangleIndex.votes`)."""
+    nq = qk.shape[0]
+    lo = np.searchsorted(keys, qk, side="left")
+    hi = np.searchsorted(keys, qk, side="right")
+    tot = 0
+    for m in range(nq):
+        tot += hi[m] - lo[m]
+    r = np.empty(tot, dtype=np.int64)
+    v = np.empty((tot, 3))
+    k = 0
+    for m in range(nq):
+        t = qt[m]
+        cq, sq = qc[t], qs[t]
+        qx, qy = qf[t, 0], qf[t, 1]
+        for pos in range(lo[m], hi[m]):
+            fx = np.float64(frames[pos, 0])
+            fy = np.float64(frames[pos, 1])
+            fc = np.float64(frames[pos, 2])
+            fs = np.float64(frames[pos, 3])
+            c = fc * cq + fs * sq
+            s = fs * cq - fc * sq
+            r[k] = rows[pos]
+            v[k, 0] = math.atan2(s, c)
+            v[k, 1] = fx - (c * qx - s * qy)
+            v[k, 2] = fy - (s * qx + c * qy)
+            k += 1
+    return r, v
+
+
+@njit(cache=True)
+def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses):
+    """Bin the votes ``(r, v)`` by place and pose (``vote_xy`` m, ``vote_theta`` rad, bins
+    centred on the identity) and write each place's most votes in one bin to ``scores``
+    and that bin's mean pose (the first such bin in key order) to ``poses``."""
+    n = r.shape[0]
+    if n == 0:
+        return
+    two_pi = 2.0 * math.pi
+    half = nxy // 2
+    vk = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        th = (v[i, 0] + 0.5 * vote_theta) % two_pi
+        bt = min(int(th / vote_theta), nt - 1)
+        bx = int(math.floor(v[i, 1] / vote_xy + 0.5)) + half
+        by = int(math.floor(v[i, 2] / vote_xy + 0.5)) + half
+        bx = min(max(bx, 0), nxy - 1)
+        by = min(max(by, 0), nxy - 1)
+        vk[i] = ((r[i] * nxy + bx) * nxy + by) * nt + bt
+    o = np.argsort(vk, kind="mergesort")
+    per_place = nxy * nxy * nt
+    i = 0
+    while i < n:
+        key = vk[o[i]]
+        j = i
+        sc = 0.0
+        ss = 0.0
+        sx = 0.0
+        sy = 0.0
+        while j < n and vk[o[j]] == key:
+            e = o[j]
+            sc += math.cos(v[e, 0])
+            ss += math.sin(v[e, 0])
+            sx += v[e, 1]
+            sy += v[e, 2]
+            j += 1
+        cnt = j - i
+        row = key // per_place
+        if cnt > scores[row]:
+            scores[row] = cnt
+            poses[row, 0] = sx / cnt
+            poses[row, 1] = sy / cnt
+            poses[row, 2] = math.atan2(ss / cnt, sc / cnt)
+        i = j

@@ -25,7 +25,13 @@ A query is, in order:
 3. each candidate verified (:func:`.verify.verify_pair`): the clique matcher against
    the stored place (without its raw-scan pose search, see ``search``), then validation
    without odometry;
-4. the hits ranked: accepted first, then ambiguous, then rejected; by raw-scan score
+4. the second path (``PlaceHit.source == "triangles"``), when the matcher accepted no
+   candidate: the candidates it rejected, and up to ``seeded`` more places down the
+   triangle ranking, whose triangles
+   agree on one pose bin with at least :data:`SEED_MIN_VOTES` votes, verified from that
+   pose on the raw scans (:func:`.verify.verify_seeded`: ICP, score, conditioning,
+   agreement with the triangles' pose, no quarter- or half-turn alias);
+5. the hits ranked: accepted first, then ambiguous, then rejected; by raw-scan score
    within each.
 
 Places are stored in SQLite (:class:`.store.PlaceStore`); the signatures are loaded and
@@ -59,9 +65,28 @@ from .hashing import TriangleIndex, feature_triangles
 from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
 from .store import PlaceRecord, PlaceStore
-from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, REJECTED, VERDICT_RANK, verify_pair
+from .verify import (
+    ACCEPT_MIN_FEATURES,
+    ACCEPT_MIN_SCORE,
+    ACCEPTED,
+    AMBIGUOUS,
+    REJECTED,
+    VERDICT_RANK,
+    Verification,
+    alias_score,
+    verify_pair,
+    verify_seeded,
+)
 
-__all__ = ["PlaceDB", "PlaceHit", "PREPARE_KEYS", "MIN_VOTES", "feature_arrays"]
+__all__ = [
+    "PlaceDB",
+    "PlaceHit",
+    "PREPARE_KEYS",
+    "MIN_VOTES",
+    "SEEDED",
+    "SEED_MIN_VOTES",
+    "feature_arrays",
+]
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +98,15 @@ PREPARE_KEYS = ("clustering", "features", "refine.sample_points")
 #: votes in one pose bin: one triangle alone implies a pose with any place that has an
 #: equal triangle, two that agree on it are evidence
 MIN_VOTES = 2
+#: places beyond the verified candidates that a query checks by their triangle pose alone
+#: (:func:`.verify.verify_seeded`, an ICP from the pose bin the triangles agree on: a
+#: fraction of a clique match's cost), taken down the triangle ranking
+SEEDED = 10
+#: a place's triangle pose is verified on the raw scans (:func:`.verify.verify_seeded`)
+#: only when at least this many of its triangles agree on it: the pose has no mapped
+#: features for the validation to weigh, and the agreeing triangles stand in for them,
+#: as many as a clique match must map (:data:`.verify.ACCEPT_MIN_FEATURES`)
+SEED_MIN_VOTES = ACCEPT_MIN_FEATURES
 _TRIANGLE_FIELDS = ("features.points_xy", "features.points_label")
 
 
@@ -131,6 +165,11 @@ class PlaceHit:
     votes : int
         The place's score in the triangle prefilter (:mod:`.hashing`): triangles of the
         query agreeing on one pose with the place's.
+    source : str
+        What found the pose: ``"clique"`` (the clique matcher and validation,
+        :func:`.verify.verify_pair`) or ``"triangles"`` (the triangle prefilter's pose
+        refined on the raw scans, :func:`.verify.verify_seeded`, for a place the matcher
+        rejected or that only the triangle ranking proposed).
     """
 
     place_id: int
@@ -144,6 +183,7 @@ class PlaceHit:
     covariance: np.ndarray | None
     reason: str
     votes: int = 0
+    source: str = "clique"
 
     def to_dict(self) -> dict:
         p = self.pose
@@ -158,6 +198,7 @@ class PlaceHit:
             "n_features": self.n_features,
             "reason": self.reason,
             "votes": self.votes,
+            "source": self.source,
         }
 
 
@@ -219,6 +260,15 @@ class PlaceDB:
         recognition while costing most of the verification time of the candidates that
         are not the place (``benchmarks/places.py``). It does not change the stored
         features, so a database may be queried either way.
+    seeded : int
+        Places beyond the verified candidates checked by their triangle pose alone
+        (:data:`SEEDED`; 0: none). That second path runs only when the matcher accepted
+        no candidate; it checks the candidates it rejected too (any ``seeded``).
+    aliases : bool
+        Refuse an accepted clique match whose pose turned by a quarter or a half turn
+        explains the raw scans nearly as well (:func:`.verify.alias_score`, the matcher's
+        ambiguity rule): the hit is ``ambiguous``. The look-alike rooms of a building
+        are most of the wrong recognitions without it.
 
     Raises
     ------
@@ -238,6 +288,8 @@ class PlaceDB:
         min_features: int = ACCEPT_MIN_FEATURES,
         cache: int = 4096,
         search: bool = False,
+        seeded: int = SEEDED,
+        aliases: bool = False,
     ) -> None:
         given = None if config is None else config_to_dict(config)
         meta = {
@@ -254,6 +306,8 @@ class PlaceDB:
             self.store.close()
             raise
         self.search = bool(search)
+        self.seeded = int(seeded)
+        self.aliases = bool(aliases)
         self.verify_config = dataclasses.replace(
             self.config, refine=dataclasses.replace(self.config.refine, search=self.search)
         )
@@ -368,18 +422,23 @@ class PlaceDB:
         distances, nearest first (places in ``exclude`` left out)."""
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
-        ids, dist, _ = self._candidates(p, n, exclude)
+        ids, dist, _, _ = self._candidates(p, n, exclude)
         return ids, dist
 
-    def _candidates(self, p: PreparedScan, n: int, exclude):
-        """The fused prefilter: ``(ids, signature distances, triangle votes)``.
+    def _candidates(self, p: PreparedScan, n: int, exclude, extra: int = 0):
+        """The fused prefilter: ``(ids, signature distances, triangle votes, triangle
+        poses)``, poses ``(x, y, theta)`` rows of ``T_place_query`` (NaN for a place with
+        fewer than :data:`SEED_MIN_VOTES` votes).
 
         The two rankings, by triangle votes (:mod:`.hashing`, places with at least
         :data:`MIN_VOTES`) and by signature distance (:mod:`.signature`), taken in turn
         (the triangles' first, then the signature's first, ...), each place once, until
-        ``n`` places. The two fail on different revisits: the triangles need common point
-        features, the signature a similar view of the whole scan."""
+        ``n`` places; then up to ``extra`` more places down the triangle ranking that have
+        at least :data:`SEED_MIN_VOTES` votes. The two
+        fail on different revisits: the triangles need common point features, the
+        signature a similar view of the whole scan."""
         n = int(n)
+        extra = max(0, int(extra))
         ex = None
         if exclude is not None:
             ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
@@ -387,32 +446,42 @@ class PlaceDB:
         sig = scan_signature(p)
         s_ids, _ = self.index.search(sig, n, allowed)
         tri = feature_triangles(p.features.points_xy, p.features.points_label)
-        votes = self.triangles.scores(tri, ex)
+        votes, poses = self.triangles.votes(tri, ex)
         t_ids_all = self.triangles.ids
         rows = np.flatnonzero(votes >= MIN_VOTES)
-        if len(rows) > n > 0:  # the n best, and every place tied with the n-th
-            kth = np.partition(-votes[rows], n - 1)[n - 1]
+        m = n + extra
+        if len(rows) > m > 0:  # the m best, and every place tied with the m-th
+            kth = np.partition(-votes[rows], m - 1)[m - 1]
             rows = rows[-votes[rows] <= kth]
         t_ids = t_ids_all[rows]
         # ties of votes (neighbouring places see the same triangles) go to the nearer
         # signature, then to the smaller id
-        order = np.lexsort((t_ids, self._signature_distances(sig, t_ids), -votes[rows]))[:n]
-        t_ids = t_ids[order]
+        order = np.lexsort((t_ids, self._signature_distances(sig, t_ids), -votes[rows]))[:m]
+        t_ids, t_votes = t_ids[order], votes[rows[order]]
         out: list[int] = []
         seen: set[int] = set()
-        for a, b in zip_longest(t_ids.tolist(), s_ids.tolist()):
+        for a, b in zip_longest(t_ids[:n].tolist(), s_ids.tolist()):
             for c in (a, b):
                 if c is not None and c not in seen and len(out) < n:
                     seen.add(c)
                     out.append(c)
+        for c, nv in zip(t_ids.tolist(), t_votes.tolist(), strict=True):
+            if len(out) >= n + extra or nv < SEED_MIN_VOTES:
+                break
+            if c not in seen:
+                seen.add(c)
+                out.append(c)
         ids = np.array(out, dtype=np.int64)
         dist = self._signature_distances(sig, ids)
         trows = np.searchsorted(t_ids_all, ids)
         v = np.zeros(len(ids), dtype=np.int64)
+        pz = np.full((len(ids), 3), np.nan)
         okr = trows < len(t_ids_all)
         okr[okr] = t_ids_all[trows[okr]] == ids[okr]
         v[okr] = votes[trows[okr]]
-        return ids, dist, v
+        pz[okr] = poses[trows[okr]]
+        pz[v < SEED_MIN_VOTES] = np.nan
+        return ids, dist, v, pz
 
     def _signature_distances(self, sig: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """Signature distances from ``sig`` to the places ``ids`` (all in the index)."""
@@ -451,21 +520,35 @@ class PlaceDB:
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
         n = max(int(k), int(candidates or 0))
-        ids, dist, votes = self._candidates(p, n, exclude)
+        ids, dist, votes, poses = self._candidates(p, n, exclude, extra=self.seeded)
         missing = [int(i) for i in ids if int(i) not in self._names]
         if missing:
             self._names.update(self.store.names(missing))
+        rows = list(enumerate(zip(ids.tolist(), dist.tolist(), votes.tolist(), strict=True)))
+        found: list[tuple[Verification, str] | None] = [None] * len(rows)
+        for rank, (pid, _, _) in rows[:n]:
+            found[rank] = (self._verify_clique(pid, p), "clique")
+        if not any(f is not None and f[0].verdict == ACCEPTED for f in found):
+            # the second path, for the revisits the clique matcher misses: the rejected
+            # candidates and the places only the triangles propose, from their pose
+            for rank, (pid, _, _) in rows:
+                if (found[rank] is None or found[rank][0].verdict == REJECTED) and np.all(
+                    np.isfinite(poses[rank])
+                ):
+                    w = verify_seeded(
+                        self.prepared(pid),
+                        p,
+                        Pose2.from_array(poses[rank]),
+                        self.config,
+                        min_score=self.min_score,
+                    )
+                    if found[rank] is None or w.verdict != REJECTED:
+                        found[rank] = (w, "triangles")
         hits = []
-        for rank, (pid, d, nv) in enumerate(
-            zip(ids.tolist(), dist.tolist(), votes.tolist(), strict=True)
-        ):
-            v = verify_pair(
-                self.prepared(pid),
-                p,
-                self.verify_config,
-                min_score=self.min_score,
-                min_features=self.min_features,
-            )
+        for rank, (pid, d, nv) in rows:
+            if found[rank] is None:
+                continue
+            v, source = found[rank]
             hits.append(
                 PlaceHit(
                     pid,
@@ -479,10 +562,38 @@ class PlaceDB:
                     v.covariance,
                     v.reason,
                     int(nv),
+                    source,
                 )
             )
         hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.score, h.rank))
         return hits[: int(k)]
+
+    def _verify_clique(self, pid: int, p: PreparedScan) -> Verification:
+        """The clique matcher's verdict on one candidate, its accepted pose checked
+        against its aliases when ``aliases``."""
+        place = self.prepared(pid)
+        v = verify_pair(
+            place,
+            p,
+            self.verify_config,
+            min_score=self.min_score,
+            min_features=self.min_features,
+        )
+        if v.verdict == ACCEPTED and self.aliases:
+            alias, _ = alias_score(place, p, v.pose, self.config)
+            if alias >= self.config.refine.ambiguous_score * v.score:
+                v = Verification(
+                    AMBIGUOUS,
+                    v.pose,
+                    v.covariance,
+                    v.score,
+                    v.n_features,
+                    v.validation,
+                    f"the pose turned by a quarter or half turn scores {alias:.3f} "
+                    f"(of {v.score:.3f}); {v.reason}",
+                    v.seconds,
+                )
+        return v
 
     def best(self, scan: Scan | PreparedScan, **kw) -> PlaceHit | None:
         """The best hit if it is not rejected, else None (``kw`` as for :meth:`query`)."""

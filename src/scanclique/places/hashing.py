@@ -267,10 +267,59 @@ class TriangleIndex:
     def scores(self, query: Triangles, exclude=None) -> np.ndarray:
         """The score of every place (rows in the order added): the most votes in one
         pose bin; places whose id is in ``exclude`` score 0."""
+        return self.votes(query, exclude)[0]
+
+    def votes(self, query: Triangles, exclude=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`scores`, and the pose hypothesis of each place's best bin.
+
+        Returns
+        -------
+        scores : ndarray (N,) int64
+            Rows in the order added.
+        poses : ndarray (N, 3)
+            ``(x, y, theta)`` of ``T_place_query`` (maps the query's points into the
+            place's frame): the mean of the votes in the place's best pose bin (the
+            circular mean of their angles); NaN for places with no vote. Of the bins tied
+            for the most votes, the first in the order of the bin keys.
+        """
         self._flush()
         out = np.zeros(len(self._ids), dtype=np.int64)
+        poses = np.full((len(self._ids), 3), np.nan)
         if not len(query.keys) or not len(self._ids):
-            return out
+            return out, poses
+        from ._kernels import triangle_gather, triangle_reduce
+
+        qk, qt = query.query_keys()
+        o = np.argsort(qk, kind="stable")
+        qk, qt = np.ascontiguousarray(qk[o]), np.ascontiguousarray(qt[o])
+        qf = np.ascontiguousarray(query.frames, dtype=np.float64)
+        qc, qs = np.cos(qf[:, 2]), np.sin(qf[:, 2])
+        rs, vs = [], []
+        for seg in self._segs:
+            if len(seg["k"]):
+                r, v = triangle_gather(seg["k"], seg["r"], seg["f"], qk, qt, qf, qc, qs)
+                rs.append(r)
+                vs.append(v)
+        if rs:
+            r = np.concatenate(rs) if len(rs) > 1 else rs[0]
+            v = np.concatenate(vs) if len(vs) > 1 else vs[0]
+            triangle_reduce(r, v, len(self._ids), VOTE_XY, VOTE_THETA, _NXY, _NT, out, poses)
+        if exclude is not None:
+            ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
+            if len(ex):
+                gone = np.isin(self._ids, ex)
+                out[gone] = 0
+                poses[gone] = np.nan
+        return out, poses
+
+    def votes_reference(self, query: Triangles, exclude=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`votes` in NumPy: the reference the compiled loops must agree with (up to
+        the order of summation of the mean poses)."""
+        self._flush()
+        out = np.zeros(len(self._ids), dtype=np.int64)
+        poses = np.full((len(self._ids), 3), np.nan)
+        if not len(query.keys) or not len(self._ids):
+            return out, poses
         qk, qt = query.query_keys()
         o = np.argsort(qk, kind="stable")  # sorted needles: a faster lookup
         qk, qt = qk[o], qt[o]
@@ -299,7 +348,7 @@ class TriangleIndex:
                 )
             )
         if not rows:
-            return out
+            return out, poses
         r = np.concatenate(rows).astype(np.int64)
         v = np.concatenate(parts)
         # bins centred on the identity (a revisit from nearly the same pose, and a scan
@@ -310,18 +359,34 @@ class TriangleIndex:
         b = np.floor(v[:, 1:] / VOTE_XY + 0.5).astype(np.int64) + half
         np.clip(b, 0, _NXY - 1, out=b)
         vk = ((r * _NXY + b[:, 0]) * _NXY + b[:, 1]) * _NT + bt
-        vk.sort()
+        o = np.argsort(vk, kind="stable")
+        vk = vk[o]
         start = np.r_[0, np.flatnonzero(vk[1:] != vk[:-1]) + 1]
         counts = np.diff(np.r_[start, len(vk)])
         vr = vk[start] // (_NXY * _NXY * _NT)
-        # vr is sorted: the largest count of each place's bins
+        # vr is sorted: the largest count of each place's bins, and its first such bin
         first = np.r_[0, np.flatnonzero(vr[1:] != vr[:-1]) + 1]
-        out[vr[first]] = np.maximum.reduceat(counts, first)
+        best = np.maximum.reduceat(counts, first)
+        out[vr[first]] = best
+        # the bin of each place's best count: the first bin of the group reaching it
+        grp = np.repeat(np.arange(len(first)), np.diff(np.r_[first, len(vr)]))
+        hit = np.flatnonzero(counts == best[grp])
+        hit = hit[np.r_[True, grp[hit[1:]] != grp[hit[:-1]]]]
+        # the mean pose of the votes in those bins (circular mean of the angle)
+        vs = v[o]
+        cs = np.vstack([np.zeros((1, 4)), np.cumsum(
+            np.column_stack([np.cos(vs[:, 0]), np.sin(vs[:, 0]), vs[:, 1], vs[:, 2]]), axis=0
+        )])  # fmt: skip
+        lo, hi = start[hit], start[hit] + counts[hit]
+        m = (cs[hi] - cs[lo]) / counts[hit][:, None]
+        poses[vr[hit]] = np.column_stack([m[:, 2], m[:, 3], np.arctan2(m[:, 1], m[:, 0])])
         if exclude is not None:
             ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
             if len(ex):
-                out[np.isin(self._ids, ex)] = 0
-        return out
+                gone = np.isin(self._ids, ex)
+                out[gone] = 0
+                poses[gone] = np.nan
+        return out, poses
 
     def search(self, query: Triangles, k: int, exclude=None) -> tuple[np.ndarray, np.ndarray]:
         """The ids of the (at most) ``k`` places of highest score, best first (ties to

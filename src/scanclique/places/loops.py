@@ -4,9 +4,11 @@ over a Dask cluster, with identical results.
 The search, for a log of ``N`` scans (paper §2: place recognition used for loop closing):
 
 1. the signature of every scan (:func:`.signature.scan_signature`);
-2. the prefilter: for each scan ``i``, the ``candidates`` earlier scans ``j <= i -
-   min_gap`` of nearest signature (exact brute force in blocks of rows; ties go to the
-   smaller ``j``);
+2. the prefilter: for each scan ``i``, ``candidates`` earlier scans ``j <= i -
+   min_gap``, the two rankings of :class:`.database.PlaceDB` taken in turn: the most
+   triangle votes on one pose (:mod:`.hashing`, at least :data:`.database.MIN_VOTES`;
+   ties to the nearer signature, then the smaller ``j``) and the nearest signatures
+   (exact brute force in blocks of rows; ties go to the smaller ``j``);
 3. every candidate pair verified (:func:`.verify.verify_pair`): the clique matcher on
    scan ``j`` (the place) and scan ``i`` (the query), then validation without odometry.
 
@@ -45,10 +47,11 @@ from ..errors import ConfigError, ScanCliqueError
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
+from .hashing import TriangleIndex, Triangles, feature_triangles
 from .signature import SIGNATURE_SIZE, scan_signature
 from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, verify_pair
 
-__all__ = ["Loop", "LoopSearch", "find_loops", "loop_candidates"]
+__all__ = ["Loop", "LoopSearch", "find_loops", "fused_loop_candidates", "loop_candidates"]
 
 log = logging.getLogger(__name__)
 
@@ -168,11 +171,16 @@ def _prepared(state: dict, i: int):
 
 
 def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0)):
-    """Signatures of the scans ``indices`` (``(n, SIGNATURE_SIZE)``)."""
+    """Signatures of the scans ``indices`` (``(n, SIGNATURE_SIZE)``) and their feature
+    triangles (:func:`.hashing.feature_triangles`, as tuples of arrays)."""
     state = _state(token, scans, config_dict, limits)
-    return np.array([scan_signature(_prepared(state, int(i))) for i in indices]).reshape(
-        -1, SIGNATURE_SIZE
-    )
+    sigs, tris = [], []
+    for i in indices:
+        p = _prepared(state, int(i))
+        sigs.append(scan_signature(p))
+        t = feature_triangles(p.features.points_xy, p.features.points_label)
+        tris.append((t.keys, t.sides, t.kinds, t.frames))
+    return np.array(sigs).reshape(-1, SIGNATURE_SIZE), tris
 
 
 def _verify_task(token, pairs, scans=None, config_dict=None, limits=(0.0, 0)):
@@ -225,6 +233,52 @@ def loop_candidates(
             order = np.lexsort((js, d[js]))[:k]
             for rank, jj in enumerate(js[order].tolist()):
                 out.append((i, int(jj), rank, float(d[jj])))
+    return out
+
+
+def fused_loop_candidates(
+    signatures: np.ndarray, triangles: Sequence[Triangles], candidates: int, min_gap: int
+) -> list[tuple[int, int, int, float]]:
+    """:func:`loop_candidates` fused with the triangle ranking, as a place query fuses
+    them (:meth:`.database.PlaceDB.query`): for each scan ``i``, the scans ``j <= i -
+    min_gap`` of most triangle votes on one pose (at least
+    :data:`.database.MIN_VOTES`; ties to the nearer signature, then the smaller ``j``)
+    and of nearest signature, taken in turn, each once, until ``candidates``:
+    ``(i, j, rank, signature distance)`` sorted by ``(i, rank)``."""
+    from .database import MIN_VOTES
+
+    S = np.asarray(signatures, dtype=np.float64)
+    n = len(S)
+    by_sig: dict[int, list[int]] = {}
+    for i, j, _, _ in loop_candidates(S, candidates, min_gap):
+        by_sig.setdefault(i, []).append(j)
+    index = TriangleIndex()
+    out = []
+    for i in range(n):
+        last = i - min_gap
+        if last < 0:
+            continue
+        # the index holds exactly the scans 0 .. last
+        while len(index) <= last:
+            index.add([len(index)], [triangles[len(index)]])
+        votes = index.scores(triangles[i])
+        rows = np.flatnonzero(votes >= MIN_VOTES)
+        d_all = np.sum((S[: last + 1] - S[i]) ** 2, axis=1)
+        if len(rows):
+            order = np.lexsort((rows, d_all[rows], -votes[rows]))[:candidates]
+            t_js = rows[order].tolist()
+        else:
+            t_js = []
+        got: list[int] = []
+        seen: set[int] = set()
+        s_js = by_sig.get(i, [])
+        for k in range(max(len(t_js), len(s_js))):
+            for js in (t_js, s_js):
+                if k < len(js) and js[k] not in seen and len(got) < candidates:
+                    seen.add(js[k])
+                    got.append(js[k])
+        for rank, j in enumerate(got):
+            out.append((i, int(j), rank, float(d_all[j])))
     return out
 
 
@@ -392,11 +446,12 @@ def find_loops(
         t = time.perf_counter()
         chunks = _chunks(list(range(n)), nchunk if runner.backend != "serial" else max(1, n // 64))
         parts = runner.map(_signature_task, chunks, tick("signatures", n))
-        sigs = np.concatenate(parts) if parts else np.zeros((0, SIGNATURE_SIZE))
+        sigs = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, SIGNATURE_SIZE))
+        tris = [Triangles(*t) for p in parts for t in p[1]]
         seconds["signatures"] = time.perf_counter() - t
         # 2. prefilter
         t = time.perf_counter()
-        cand = loop_candidates(sigs, candidates, min_gap)
+        cand = fused_loop_candidates(sigs, tris, candidates, min_gap)
         seconds["prefilter"] = time.perf_counter() - t
         # 3. verification
         t = time.perf_counter()

@@ -143,7 +143,7 @@ class QueryRun:
                 (
                     str(h.rank),
                     f"{h.place_id} {h.name}" if h.name else str(h.place_id),
-                    h.verdict,
+                    h.verdict if h.source == "clique" else f"{h.verdict} ({h.source})",
                     f"{h.score:.2f}",
                     str(h.n_features),
                     "-" if p is None else f"{p.x:.2f} {p.y:.2f} {math.degrees(p.theta):.1f}",

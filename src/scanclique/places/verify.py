@@ -31,12 +31,18 @@ import numpy as np
 from .._records import readonly
 from ..config import MatchConfig
 from ..geometry import Pose2
-from ..match import PreparedScan, match_prepared
+from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
+from ..refine import icp_point_to_line, nearest
 from ..validation import ACCEPTED as _V_ACCEPTED
 from ..validation import AMBIGUOUS as _V_AMBIGUOUS
 from ..validation import ValidationConfig, validate_match
 
 __all__ = [
+    "ALIAS_TURNS",
+    "SEED_MIN_CONSTRAINT",
+    "SEED_MIN_FITNESS",
+    "verify_seeded",
+    "alias_score",
     "ACCEPTED",
     "AMBIGUOUS",
     "REJECTED",
@@ -68,6 +74,20 @@ ACCEPT_MIN_SCORE = 0.5
 #: answers that pass the score test map 3 or 4 features, against 48 of the 924 right
 #: ones (``benchmarks/places.py`` at cf7172d, where 3 sufficed).
 ACCEPT_MIN_FEATURES = 5
+#: the least information the raw scans give about the translation along their weakest
+#: direction for a pose found on the raw scans alone (:func:`verify_seeded`): the smallest
+#: eigenvalue of the mean outer product of the paired points' unit normals (0: the scans
+#: slide freely along a corridor; 0.5: every direction alike). The mapping back end's
+#: rule for a closure the raw scans place (``FrontEndConfig.icp_min_constraint``), for
+#: the same reason: along a corridor only features fix a pose, and doors repeat.
+SEED_MIN_CONSTRAINT = 0.05
+#: the least fraction of the query's sampled points ICP pairs at its final
+#: correspondence distance (``FrontEndConfig.icp_min_fitness``, the same rule)
+SEED_MIN_FITNESS = 0.6
+#: the turns of the alternatives a pose found on the raw scans must beat
+#: (:func:`verify_seeded`): a room, a corridor crossing or a hall looks alike turned by a
+#: quarter or a half turn, the aliases of indoor places
+ALIAS_TURNS = (0.5 * np.pi, np.pi, 1.5 * np.pi)
 #: order of verdicts when ranking hits (best first)
 VERDICT_RANK = {ACCEPTED: 0, AMBIGUOUS: 1, REJECTED: 2}
 
@@ -183,3 +203,128 @@ def verify_pair(
         reason,
         time.perf_counter() - t0,
     )
+
+
+def _icp(place: PreparedScan, query: PreparedScan, seed: Pose2, cfg: MatchConfig):
+    r = cfg.refine
+    return icp_point_to_line(
+        place.cloud,
+        query.sample,
+        seed,
+        iterations=2 * r.iterations,
+        max_correspondence=r.max_correspondence,
+        min_correspondence=r.inlier_distance,
+    )
+
+
+def weakest_constraint(place: PreparedScan, query: PreparedScan, pose: Pose2, dist: float):
+    """How well the raw scans fix the translation of ``pose`` (maps query into place) in
+    their weakest direction: the smallest eigenvalue of the mean outer product of the
+    unit normals of the place's points the query's sampled points pair with within
+    ``dist`` metres (0: a corridor, free along it; 0.5: every direction alike); 0 when
+    fewer than 10 points pair."""
+    idx, d = nearest(place.cloud, query.sample, pose, dist)
+    n = place.cloud.normals[idx[np.isfinite(d)]]
+    n = n[np.einsum("ij,ij->i", n, n) > 0.5]
+    if len(n) < 10:
+        return 0.0
+    return float(np.linalg.eigvalsh(n.T @ n / len(n))[0])
+
+
+def alias_score(
+    place: PreparedScan, query: PreparedScan, pose: Pose2, config: MatchConfig | None = None
+) -> tuple[float, Pose2 | None]:
+    """The best raw-scan score of the aliases of ``pose``: the pose turned by each of
+    :data:`ALIAS_TURNS` about the centroid of the query's sampled points (in the place's
+    frame), each refined by ICP; only aliases that stay distinct from ``pose``
+    (:func:`scanclique.match.distinct_poses`) count. ``(0, None)`` without one."""
+    cfg = config or MatchConfig()
+    pts = query.sample
+    if len(pts) < 3:
+        return 0.0, None
+    c, s = np.cos(pose.theta), np.sin(pose.theta)
+    cx, cy = (pts @ np.array([[c, s], [-s, c]])).mean(axis=0) + (pose.x, pose.y)
+    best, where = 0.0, None
+    for turn in ALIAS_TURNS:
+        spin = Pose2(cx, cy, float(turn)) @ Pose2(-cx, -cy, 0.0)  # turn about the centroid
+        alt = _icp(place, query, spin @ pose, cfg).pose
+        if not distinct_poses(alt, pose, cfg):
+            continue
+        sc = pose_score(place, query, alt, cfg)
+        if sc > best:
+            best, where = sc, alt
+    return float(best), where
+
+
+def verify_seeded(
+    place: PreparedScan,
+    query: PreparedScan,
+    seed: Pose2,
+    config: MatchConfig | None = None,
+    *,
+    min_score: float = ACCEPT_MIN_SCORE,
+    tolerance: tuple[float, float] = (1.0, 0.25),
+) -> Verification:
+    """Verify a pose hypothesis found without the clique matcher (the triangle
+    prefilter's best pose bin, :meth:`.hashing.TriangleIndex.votes`) on the raw scans.
+
+    ``seed`` (maps the query's points into the place's frame) is refined by point-to-line
+    ICP of the query's sampled points onto the place's cloud (the core's
+    :func:`scanclique.refine.icp_point_to_line`) and scored
+    (:func:`scanclique.match.pose_score`). It is ``accepted`` only when every piece of
+    evidence agrees:
+
+    1. ICP pairs at least :data:`SEED_MIN_FITNESS` of the points;
+    2. the refined pose stays within ``tolerance`` (metres, radians: one pose bin of the
+       votes) of the seed: the triangles and the raw scans agree on the pose;
+    3. the raw-scan score is at least ``min_score``;
+    4. the raw scans fix the translation in every direction (:func:`weakest_constraint`
+       at least :data:`SEED_MIN_CONSTRAINT`);
+    5. no alias (:func:`alias_score`: the pose turned by a quarter or a half turn)
+       scores ``refine.ambiguous_score`` of the pose's score or more (the matcher's own
+       ambiguity rule, :func:`scanclique.match.near_rival`): otherwise ``ambiguous``.
+
+    Otherwise ``rejected``. ``n_features`` is 0 and ``covariance`` None (no features
+    were mapped); ``validation`` is ``"seeded"``.
+    """
+    t0 = time.perf_counter()
+    cfg = config or MatchConfig()
+    r = cfg.refine
+
+    def out(verdict, pose, score, reason):
+        return Verification(
+            verdict, pose, None, float(score), 0, "seeded", reason, time.perf_counter() - t0
+        )
+
+    if len(query.sample) < 10 or len(place.cloud.points) < 10:
+        return out(REJECTED, None, 0.0, "too few points to align")
+    icp = _icp(place, query, seed, cfg)
+    pose = icp.pose
+    score = pose_score(place, query, pose, cfg)
+    if icp.fitness < SEED_MIN_FITNESS:
+        return out(REJECTED, None, score, f"ICP paired {icp.fitness:.2f} of the points only")
+    dt, dr = pose.distance_to(seed)
+    if dt > tolerance[0] or dr > tolerance[1]:
+        return out(
+            REJECTED, None, score,
+            f"ICP moved {dt:.2f} m, {np.degrees(dr):.1f} deg from the triangles' pose",
+        )  # fmt: skip
+    if score < min_score:
+        return out(REJECTED, None, score, f"raw-scan score {score:.3f} below {min_score:g}")
+    weak = weakest_constraint(place, query, pose, r.inlier_distance)
+    if weak < SEED_MIN_CONSTRAINT:
+        return out(
+            REJECTED, None, score,
+            f"the raw scans do not fix the pose in one direction (eigenvalue {weak:.3f})",
+        )  # fmt: skip
+    alias, _ = alias_score(place, query, pose, cfg)
+    if alias >= r.ambiguous_score * score:
+        return out(
+            AMBIGUOUS, pose, score,
+            f"the pose turned by a quarter or half turn scores {alias:.3f} (of {score:.3f})",
+        )  # fmt: skip
+    return out(
+        ACCEPTED, pose, score,
+        f"triangles' pose refined on the raw scans: score {score:.3f}, weakest direction "
+        f"{weak:.3f}, best alias {alias:.3f}",
+    )  # fmt: skip
