@@ -304,13 +304,18 @@ class TriangleIndex:
             r = np.concatenate(rs) if len(rs) > 1 else rs[0]
             v = np.concatenate(vs) if len(vs) > 1 else vs[0]
             triangle_reduce(r, v, len(self._ids), VOTE_XY, VOTE_THETA, _NXY, _NT, out, poses)
-        if exclude is not None:
-            ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
-            if len(ex):
-                gone = np.isin(self._ids, ex)
-                out[gone] = 0
-                poses[gone] = np.nan
+        self._exclude(out, poses, exclude)
         return out, poses
+
+    def _exclude(self, out: np.ndarray, poses: np.ndarray, exclude) -> None:
+        """Zero the votes (and NaN the poses), in place, of the places ``exclude`` names."""
+        if exclude is None:
+            return
+        ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
+        if len(ex):
+            gone = np.isin(self._ids, ex)
+            out[gone] = 0
+            poses[gone] = np.nan
 
     def votes_reference(self, query: Triangles, exclude=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`votes` in NumPy: the reference the compiled loops must agree with (up to
@@ -380,12 +385,7 @@ class TriangleIndex:
         lo, hi = start[hit], start[hit] + counts[hit]
         m = (cs[hi] - cs[lo]) / counts[hit][:, None]
         poses[vr[hit]] = np.column_stack([m[:, 2], m[:, 3], np.arctan2(m[:, 1], m[:, 0])])
-        if exclude is not None:
-            ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
-            if len(ex):
-                gone = np.isin(self._ids, ex)
-                out[gone] = 0
-                poses[gone] = np.nan
+        self._exclude(out, poses, exclude)
         return out, poses
 
     def search(self, query: Triangles, k: int, exclude=None) -> tuple[np.ndarray, np.ndarray]:

@@ -42,7 +42,7 @@ from .association import NEW, REJECTED, AssociationConfig, Predicted, associate_
 from .models import MotionModel, inverse_observe, observe, wrap
 from .reader import Step
 
-__all__ = ["SlamConfig", "SlamResult", "ekf_slam"]
+__all__ = ["SlamConfig", "SlamResult", "ekf_slam", "held_controls"]
 
 log = logging.getLogger(__name__)
 
@@ -345,6 +345,34 @@ class _Filter:
         self.n = len(keep_l)
 
 
+def held_controls(steps: Sequence[Step]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motion between consecutive steps, as the filter integrates it.
+
+    Returns ``(times, held, dts)``: the step times ``(N,)`` (s); ``held[k]`` ``(N, 2)``, the
+    control holding over ``(t[k-1], t[k]]``, which is the last one given at or before
+    ``t[k-1]`` (NaN before the first control, and for ``k = 0``); ``dts[k] = t[k] - t[k-1]``
+    (0 for ``k = 0``).
+
+    Examples
+    --------
+    >>> steps = [Step(0.0, (1.0, 0.0), []), Step(0.5, None, []), Step(1.5, (2.0, 0.1), [])]
+    >>> t, held, dt = held_controls(steps)
+    >>> held[1].tolist(), held[2].tolist(), dt.tolist()
+    ([1.0, 0.0], [1.0, 0.0], [0.0, 0.5, 1.0])
+    """
+    N = len(steps)
+    times = np.array([s.time for s in steps], float)
+    ctrl = np.full((N, 2), np.nan)
+    last = np.full(2, np.nan)
+    for k, s in enumerate(steps):
+        if s.control is not None:
+            last = s.control
+        ctrl[k] = last
+    held = np.vstack([np.full((1, 2), np.nan), ctrl[:-1]]) if N else ctrl
+    dts = np.diff(times, prepend=times[0] if N else 0.0)
+    return times, held, dts
+
+
 def ekf_slam(
     steps: Sequence[Step],
     motion_model: MotionModel,
@@ -397,18 +425,9 @@ def ekf_slam(
         f.ib = nv - 1
     sx, sy = motion_model.sensor_x, motion_model.sensor_y
     N = len(steps)
-    times = np.array([s.time for s in steps], float)
+    times, held, dts = held_controls(steps)
     poses = np.empty((N, 3))
     pcovs = np.empty((N, 3, 3))
-    # the control holding over (t[k-1], t[k]] is the last one given at or before t[k-1]
-    ctrl = np.full((N, 2), np.nan)
-    last = np.full(2, np.nan)
-    for k, s in enumerate(steps):
-        if s.control is not None:
-            last = s.control
-        ctrl[k] = last
-    held = np.vstack([np.full((1, 2), np.nan), ctrl[:-1]]) if N else ctrl
-    dts = np.diff(times, prepend=times[0] if N else 0.0)
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     obs_t, assoc_out, assoc_sec, jd2, jdof, amb = [], [], [], [], [], []
     Pvv = f.P[:nv, :nv].copy()

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .association import NEW
-from .ekf import SlamConfig, SlamResult
+from .ekf import SlamConfig, SlamResult, held_controls
 
 __all__ = ["SmoothResult", "smooth"]
 
@@ -145,16 +145,7 @@ def smooth(
     t0 = time.perf_counter()
     c0 = time.process_time()
     cfg = config or result.config
-    N = len(steps)
-    times = np.array([s.time for s in steps], float)
-    ctrl = np.full((N, 2), np.nan)
-    last = np.full(2, np.nan)
-    for k, s in enumerate(steps):
-        if s.control is not None:
-            last = s.control
-        ctrl[k] = last
-    held = np.vstack([np.full((1, 2), np.nan), ctrl[:-1]]) if N else ctrl
-    dts = np.diff(times, prepend=times[0] if N else 0.0)
+    times, held, dts = held_controls(steps)
     qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     if len(obs_steps) != len(result.associations):
