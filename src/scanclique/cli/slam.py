@@ -66,16 +66,9 @@ def slam(
     show = not json_out and sys.stderr.isatty()
 
     def work():
+        kw = dict(association=association, out=out, clutter=clutter, seed=seed, plot=plot)
         if not show:
-            return run_slam(
-                data,
-                association=association,
-                out=out,
-                clutter=clutter,
-                seed=seed,
-                plot=plot,
-                smooth=smooth,
-            )
+            return run_slam(data, smooth=smooth, **kw)
         from rich.progress import Progress
 
         with Progress(console=_err_console(), transient=True) as bar:
@@ -84,16 +77,7 @@ def slam(
             def progress(done, total):
                 bar.update(task, completed=done, total=total)
 
-            return run_slam(
-                data,
-                association=association,
-                out=out,
-                clutter=clutter,
-                seed=seed,
-                plot=plot,
-                smooth=smooth,
-                progress=progress,
-            )
+            return run_slam(data, smooth=smooth, progress=progress, **kw)
 
     run = _guard(work)
     if json_out:
