@@ -71,6 +71,12 @@ def test_user_errors_exit_2(tmp_path, log):
     assert r.exit_code == 2 and "out of range" in r.output
     r = invoke("places", "add", db, log, "--paper")  # features prepared differently
     assert r.exit_code == 2 and "configuration differs" in r.output
+    empty = tmp_path / "empty.log"
+    empty.write_text("")
+    for args in (("places", "add", tmp_path / "e.db", empty), ("loops", empty)):
+        r = invoke(*args)
+        assert r.exit_code == 2 and "holds no laser scans" in r.output, r.output
+    assert not (tmp_path / "e.db").exists()
 
 
 def test_loops(tmp_path, log):

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import MatchConfig
+from ..errors import ScanCliqueError
 from ..scan import Scan
 from .database import PlaceDB
 from .loops import LoopSearch, find_loops
@@ -42,7 +43,10 @@ def _scans(source) -> tuple[list[Scan], str]:
         from .. import datasets
 
         s = os.fspath(source)
-        return list(datasets.load_log(source)), os.path.basename(s) if os.sep in s else s
+        scans = list(datasets.load_log(source))
+        if not scans:
+            raise ScanCliqueError(f"{s}: the log holds no laser scans")
+        return scans, os.path.basename(s) if os.sep in s else s
     return list(source), "scans"
 
 
