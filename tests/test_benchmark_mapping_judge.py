@@ -2,7 +2,6 @@
 (benchmarks/mapping.py: relations_trajectory, judge_by_trajectory), on a planted
 trajectory with known truth: the judge is only as honest as this makes it."""
 
-import importlib.util
 import math
 import sys
 from pathlib import Path
@@ -16,28 +15,9 @@ from scanclique.geometry import Pose2
 
 pytest.importorskip("gtsam")
 
-_BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
-
-
-@pytest.fixture(scope="module")
-def bench():
-    sys.path.insert(0, str(_BENCH))
-    try:
-        spec = importlib.util.spec_from_file_location("_bench_mapping", _BENCH / "mapping.py")
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-    finally:
-        sys.path.remove(str(_BENCH))
-    return mod
-
-
-def _truth(n=40):
-    """A loop: n poses on a circle of radius 4 m, one per second."""
-    poses = []
-    for k in range(n):
-        a = 2 * math.pi * k / n
-        poses.append(Pose2(4 * math.cos(a), 4 * math.sin(a), a + math.pi / 2))
-    return poses
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import mapping as bench  # noqa: E402  (benchmarks/mapping.py)
+from test_mapping_stages import _truth_chain  # noqa: E402
 
 
 def _relations(truth, rng, sxy, sth):
@@ -53,9 +33,9 @@ def _relations(truth, rng, sxy, sth):
     return rels
 
 
-def test_relations_trajectory_recovers_the_planted_poses_and_noise(bench):
+def test_relations_trajectory_recovers_the_planted_poses_and_noise():
     rng = np.random.default_rng(3)
-    truth = _truth()
+    truth = _truth_chain(40)  # a loop, one pose per second
     scans = [SimpleNamespace(timestamp=float(k)) for k in range(len(truth))]
     sxy, sth = 0.01, math.radians(0.3)
     poses, comp, rotation_sigma = bench.relations_trajectory(
@@ -71,9 +51,9 @@ def test_relations_trajectory_recovers_the_planted_poses_and_noise(bench):
     assert 0.0 < rotation_sigma(0, 20) < math.radians(1.0) and rotation_sigma(4, 4) == 0.0
 
 
-def test_judge_by_trajectory_counts_right_and_wrong_closures(bench, monkeypatch):
+def test_judge_by_trajectory_counts_right_and_wrong_closures(monkeypatch):
     rng = np.random.default_rng(4)
-    truth = _truth()
+    truth = _truth_chain(40)  # a loop, one pose per second
     scans = [SimpleNamespace(timestamp=float(k)) for k in range(len(truth))]
     traj = bench.relations_trajectory(scans, _relations(truth, rng, 0.005, math.radians(0.1)), None)
     monkeypatch.setattr(bench, "_raw_scans_side_with_closure", lambda *a: False)

@@ -282,18 +282,11 @@ class TriangleIndex:
             circular mean of their angles); NaN for places with no vote. Of the bins tied
             for the most votes, the first in the order of the bin keys.
         """
-        self._flush()
-        out = np.zeros(len(self._ids), dtype=np.int64)
-        poses = np.full((len(self._ids), 3), np.nan)
-        if not len(query.keys) or not len(self._ids):
+        out, poses, qk, qt, qf, qc, qs = self._begin(query)
+        if qk is None:
             return out, poses
         from ._kernels import triangle_gather, triangle_reduce
 
-        qk, qt = query.query_keys()
-        o = np.argsort(qk, kind="stable")
-        qk, qt = np.ascontiguousarray(qk[o]), np.ascontiguousarray(qt[o])
-        qf = np.ascontiguousarray(query.frames, dtype=np.float64)
-        qc, qs = np.cos(qf[:, 2]), np.sin(qf[:, 2])
         rs, vs = [], []
         for seg in self._segs:
             if len(seg["k"]):
@@ -306,6 +299,22 @@ class TriangleIndex:
             triangle_reduce(r, v, len(self._ids), VOTE_XY, VOTE_THETA, _NXY, _NT, out, poses)
         self._exclude(out, poses, exclude)
         return out, poses
+
+    def _begin(self, query: Triangles):
+        """What both votings start from: the zeroed ``(scores, poses)``, then the query's
+        lookup keys and their triangle rows, sorted by key (sorted needles: a faster
+        lookup), its triangle frames and their cosines and sines (all None when nothing can
+        vote: an empty query or index)."""
+        self._flush()
+        out = np.zeros(len(self._ids), dtype=np.int64)
+        poses = np.full((len(self._ids), 3), np.nan)
+        if not len(query.keys) or not len(self._ids):
+            return out, poses, None, None, None, None, None
+        qk, qt = query.query_keys()
+        o = np.argsort(qk, kind="stable")
+        qk, qt = np.ascontiguousarray(qk[o]), np.ascontiguousarray(qt[o])
+        qf = np.ascontiguousarray(query.frames, dtype=np.float64)
+        return out, poses, qk, qt, qf, np.cos(qf[:, 2]), np.sin(qf[:, 2])
 
     def _exclude(self, out: np.ndarray, poses: np.ndarray, exclude) -> None:
         """Zero the votes (and NaN the poses), in place, of the places ``exclude`` names."""
@@ -320,16 +329,9 @@ class TriangleIndex:
     def votes_reference(self, query: Triangles, exclude=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`votes` in NumPy: the reference the compiled loops must agree with (up to
         the order of summation of the mean poses)."""
-        self._flush()
-        out = np.zeros(len(self._ids), dtype=np.int64)
-        poses = np.full((len(self._ids), 3), np.nan)
-        if not len(query.keys) or not len(self._ids):
+        out, poses, qk, qt, qf, qc, qs = self._begin(query)
+        if qk is None:
             return out, poses
-        qk, qt = query.query_keys()
-        o = np.argsort(qk, kind="stable")  # sorted needles: a faster lookup
-        qk, qt = qk[o], qt[o]
-        qf = query.frames
-        qc, qs = np.cos(qf[:, 2]), np.sin(qf[:, 2])
         rows, parts = [], []
         for seg in self._segs:
             if not len(seg["k"]):
