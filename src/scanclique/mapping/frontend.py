@@ -161,8 +161,13 @@ def along_corridor(
     weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
     if weak is None or weak[1] >= fe.icp_min_constraint:
         return pose, cov
-    e = weak[0]
-    prior, prior_cov = odometry_prior(prior_a, prior_b, noise)
+    return _prior_along(pose, cov, weak[0], *odometry_prior(prior_a, prior_b, noise))
+
+
+def _prior_along(pose: Pose2, cov: np.ndarray, e: np.ndarray, prior: Pose2, prior_cov):
+    """``pose`` (maps B into A) with its translation's component along the unit direction
+    ``e`` (A's frame) taken from ``prior``, and ``cov`` with the prior's variance along
+    ``e`` added: what a corridor's raw scans leave to the motion model."""
     shift = e * float(e @ np.array([prior.x - pose.x, prior.y - pose.y]))
     cov = cov.copy()
     cov[:2, :2] += float(e @ prior_cov[:2, :2] @ e) * np.outer(e, e)
@@ -355,15 +360,7 @@ def icp_fallback(
         # the scans do not fix the pose along ``e`` (a corridor): ICP slides along it as
         # far as its seed allows; take that component from the prior (the first one, the
         # motion model) and give the edge the prior's uncertainty along it
-        e = weak[0]
-        prior, prior_cov = priors[0]
-        dt = np.array([prior.x - pose.x, prior.y - pose.y])
-        shift = e * float(e @ dt)
-        pose = Pose2(pose.x + shift[0], pose.y + shift[1], pose.theta)
-        # e is in A's frame, as are the pose's translation and the prior's covariance
-        var = float(e @ prior_cov[:2, :2] @ e)
-        cov = cov.copy()
-        cov[:2, :2] += var * np.outer(e, e)
+        pose, cov = _prior_along(pose, cov, weak[0], *priors[0])
         score = pose_score(pk, pj, pose, config)
     return Step(pose, cov, ICP, "icp", float(score))
 
