@@ -166,11 +166,16 @@ def smooth(
     start = np.asarray(initial_pose, float)  # ekf_slam's initial_pose
     p_first = gtsam.Pose2(*start).compose(gtsam.Pose2(*d0))
     sig0 = np.asarray(cfg.initial_sigma, float)
-    J = np.eye(3)
-    c, s = math.cos(d0[2]), math.sin(d0[2])
-    J[:2, :2] = [[c, s], [-s, c]]
-    Pb = J @ (np.diag(sig0**2) + P0) @ J.T
-    Ps = ad @ Pb @ ad.T + _FLOOR
+
+    def at_sensor(d, P):
+        """The covariance ``P`` of a motion ``d`` (start frame) in the frame of its end,
+        moved to the sensor (GTSAM's body-frame perturbation), floored."""
+        J = np.eye(3)
+        c, s = math.cos(d[2]), math.sin(d[2])
+        J[:2, :2] = [[c, s], [-s, c]]
+        return ad @ (J @ P @ J.T) @ ad.T + _FLOOR
+
+    Ps = at_sensor(d0, np.diag(sig0**2) + P0)
     graph.add(
         gtsam.PriorFactorPose2(
             X(0), p_first.compose(mount), gtsam.noiseModel.Gaussian.Covariance(Ps)
@@ -181,10 +186,7 @@ def smooth(
         if o == 0:
             continue
         d, P = _odometry(model, held, dts, obs_steps[o - 1] + 1, k + 1, qadd)
-        c, s = math.cos(d[2]), math.sin(d[2])
-        J[:2, :2] = [[c, s], [-s, c]]
-        Pb = J @ P @ J.T
-        Ps = ad @ Pb @ ad.T + _FLOOR
+        Ps = at_sensor(d, P)
         rel = mount.inverse().compose(gtsam.Pose2(*d)).compose(mount)
         graph.add(
             gtsam.BetweenFactorPose2(X(o - 1), X(o), rel, gtsam.noiseModel.Gaussian.Covariance(Ps))
