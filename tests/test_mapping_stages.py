@@ -265,7 +265,7 @@ def _corridor_pair():
 
 
 def test_weak_direction_of_a_corridor_and_of_a_room():
-    from scanclique.mapping.frontend import weak_direction
+    from scanclique.refine import weak_direction
     from scanclique.match import prepare_scan
     from scanclique.sim import room_world, simulate_scan
 

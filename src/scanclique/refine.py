@@ -29,6 +29,7 @@ __all__ = [
     "agreement",
     "free_space_conflicts",
     "nearest",
+    "weak_direction",
     "free_ranges",
     "search_index",
     "icp_point_to_line",
@@ -93,6 +94,25 @@ def nearest(ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance
     K.nearest_many(ref.index, ref.points, pts, *_moved(pose), max_distance, idx, d2)
     found = idx >= 0
     return idx, np.where(found, np.sqrt(d2), np.inf)
+
+
+def weak_direction(
+    ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance: float
+) -> tuple[np.ndarray, float] | None:
+    """The direction of translation the point-to-line alignment of ``points_b`` onto
+    ``ref`` (at ``pose``, which maps B into A) constrains least, and how much it
+    constrains it: the eigenvector of smallest eigenvalue of ``mean(n n^T)`` over the unit
+    normals ``n`` (A's frame) of the A points that B's points pair with within
+    ``max_distance`` m, with that eigenvalue (0: the scans slide freely along it, as in a
+    featureless corridor; 0.5: every direction alike). None when fewer than 10 points
+    pair (or have a normal)."""
+    idx, d = nearest(ref, points_b, pose, max_distance)
+    n = ref.normals[idx[np.isfinite(d)]]
+    n = n[np.einsum("ij,ij->i", n, n) > 0.5]
+    if len(n) < 10:
+        return None
+    w, v = np.linalg.eigh(n.T @ n / len(n))
+    return v[:, 0], float(w[0])
 
 
 def agreement(
@@ -185,4 +205,3 @@ def icp_point_to_line(
         out,
     )
     return IcpResult(Pose2.from_array(out), float(fitness), float(rmse), int(it))
-

@@ -67,7 +67,7 @@ class FrontEndConfig:
         ``icp_min_constraint``: when the smallest eigenvalue of the mean outer product
         of the paired points' normals is below it (the scans let ICP slide along one
         direction, as in a corridor: 0 for two parallel walls, 0.5 for a room; see
-        :func:`scanclique.mapping.frontend.weak_direction`), the pose along that
+        :func:`scanclique.refine.weak_direction`), the pose along that
         direction is the prior's, with the prior's variance. ``icp_score_tie``: ICP
         results (from the several seeds) whose raw-scan scores lie within it of the best
         are a tie the scans cannot break; the one nearest the first prior is taken.

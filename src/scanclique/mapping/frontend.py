@@ -18,7 +18,7 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
-from ..refine import icp_point_to_line, nearest
+from ..refine import icp_point_to_line, weak_direction
 from ..validation import (
     AMBIGUOUS,
     GATE_99,
@@ -264,24 +264,6 @@ def associate(
     reason = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
     seed = m.pose if m.pose is not None else prior_a.inverse() @ prior_b
     return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)
-
-
-def weak_direction(
-    ref, points_b: np.ndarray, pose: Pose2, max_distance: float
-) -> tuple[np.ndarray, float] | None:
-    """The direction of translation the point-to-line alignment of ``points_b`` onto
-    ``ref`` (a ReferenceCloud, at ``pose``, which maps B into A) constrains least, and how
-    much it constrains it: the eigenvector of smallest eigenvalue of ``mean(n n^T)`` over
-    the paired points' normals ``n`` (A's frame), with that eigenvalue (0: the scans slide
-    freely along it, as in a featureless corridor; 0.5: both directions alike). None when
-    fewer than 10 points pair within ``max_distance`` m."""
-    idx, d = nearest(ref, points_b, pose, max_distance)
-    n = ref.normals[idx[np.isfinite(d)]]
-    n = n[np.einsum("ij,ij->i", n, n) > 0.5]
-    if len(n) < 10:
-        return None
-    w, v = np.linalg.eigh(n.T @ n / len(n))
-    return v[:, 0], float(w[0])
 
 
 def icp_fallback(

@@ -27,9 +27,10 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
+from ..refine import weak_direction
 from ..validation import OdometryNoise, validate_match
 from .config import LoopConfig
-from .frontend import _quick_accept, floored, refine_pose, weak_direction
+from .frontend import _quick_accept, floored, refine_pose
 
 __all__ = [
     "LoopClosure",
@@ -53,7 +54,7 @@ class LoopClosure:
     ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``, ``"low_score"``,
     ``"imprecise"`` (its covariance too loose: :class:`~.config.LoopConfig`) or
     ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
-    :func:`scanclique.mapping.frontend.weak_direction`); ``accepted`` whether it
+    :func:`scanclique.refine.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the
     local chain (not a loop); ``source`` ``"estimate"`` or ``"appearance"``; ``score``
     the raw-scan agreement; ``reason`` in words."""

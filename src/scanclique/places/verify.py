@@ -32,7 +32,7 @@ from .._records import readonly
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
-from ..refine import icp_point_to_line, nearest
+from ..refine import icp_point_to_line, weak_direction
 from ..validation import ACCEPTED as _V_ACCEPTED
 from ..validation import AMBIGUOUS as _V_AMBIGUOUS
 from ..validation import ValidationConfig, validate_match
@@ -223,12 +223,8 @@ def weakest_constraint(place: PreparedScan, query: PreparedScan, pose: Pose2, di
     unit normals of the place's points the query's sampled points pair with within
     ``dist`` metres (0: a corridor, free along it; 0.5: every direction alike); 0 when
     fewer than 10 points pair."""
-    idx, d = nearest(place.cloud, query.sample, pose, dist)
-    n = place.cloud.normals[idx[np.isfinite(d)]]
-    n = n[np.einsum("ij,ij->i", n, n) > 0.5]
-    if len(n) < 10:
-        return 0.0
-    return float(np.linalg.eigvalsh(n.T @ n / len(n))[0])
+    weak = weak_direction(place.cloud, query.sample, pose, dist)
+    return 0.0 if weak is None else weak[1]
 
 
 def alias_score(
