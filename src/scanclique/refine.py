@@ -30,6 +30,7 @@ __all__ = [
     "free_space_conflicts",
     "nearest",
     "weak_direction",
+    "icp_covariance",
     "free_ranges",
     "search_index",
     "icp_point_to_line",
@@ -113,6 +114,43 @@ def weak_direction(
         return None
     w, v = np.linalg.eigh(n.T @ n / len(n))
     return v[:, 0], float(w[0])
+
+
+def icp_covariance(
+    ref: ReferenceCloud, points_b: np.ndarray, pose: Pose2, max_distance: float
+) -> np.ndarray | None:
+    """Covariance ``(3, 3)`` of ``(x, y, theta)`` (m, rad) of a point-to-line alignment of
+    ``points_b`` onto ``ref`` at ``pose`` (maps B into A), from the curvature of its cost:
+    ``s^2 (J^T J)^-1`` with one row ``J_k = (n_x, n_y, n . (R' p_k))`` per B point paired
+    within ``max_distance`` m with an A point of unit normal ``n`` (``R'`` the derivative
+    of the rotation, ``p_k`` the B point), and ``s^2`` the mean squared point-to-line
+    residual of the pairs (at least ``(max_distance / 10)^2``: a perfect fit is no
+    perfect measurement).
+
+    The pairs' errors are treated as independent, which neighbouring points on one wall
+    are not: the result is a lower bound (Censi 2007), to be floored by the caller. None
+    when fewer than 10 points pair (or have a normal), or when the pairs leave a direction
+    unconstrained (singular ``J^T J``).
+    """
+    pts = np.ascontiguousarray(points_b, dtype=float).reshape(-1, 2)
+    idx, d = nearest(ref, pts, pose, max_distance)
+    ok = np.isfinite(d)
+    n = ref.normals[idx[ok]]
+    good = np.einsum("ij,ij->i", n, n) > 0.5
+    n, a, p = n[good], ref.points[idx[ok]][good], pts[ok][good]
+    if len(n) < 10:
+        return None
+    c, s = math.cos(pose.theta), math.sin(pose.theta)
+    rp = p @ np.array([[c, s], [-s, c]])  # R p, row-wise
+    q = rp + (pose.x, pose.y)
+    res = np.einsum("ij,ij->i", n, q - a)
+    J = np.column_stack((n, n[:, 0] * -rp[:, 1] + n[:, 1] * rp[:, 0]))
+    H = J.T @ J
+    if np.linalg.cond(H) > 1e12:
+        return None
+    s2 = max(float(np.mean(res**2)), (max_distance / 10.0) ** 2)
+    cov = s2 * np.linalg.inv(H)
+    return 0.5 * (cov + cov.T)
 
 
 def agreement(

@@ -27,7 +27,7 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
-from ..refine import weak_direction
+from ..refine import icp_covariance, icp_point_to_line, weak_direction
 from ..validation import OdometryNoise, validate_match
 from .config import LoopConfig
 from .frontend import _quick_accept, floored, refine_pose
@@ -39,6 +39,7 @@ __all__ = [
     "signature_module",
     "appearance_candidates",
     "verify",
+    "verify_by_icp",
 ]
 
 log = logging.getLogger(__name__)
@@ -221,4 +222,83 @@ def verify(
                     )
                     return None, None, "degenerate", score, why
         return pose, floored(cov, *sigma_floor), v.verdict, score, reason
+    if v.verdict == "too_few_features" and not strict and front_end is not None:
+        if front_end.icp_fallback:
+            # too few features to map (a corridor, a bare room): the raw scans alone, from
+            # the estimate, when they fix the pose on their own
+            return verify_by_icp(pi, pj, est_i.inverse() @ est_j, sigma, config, sigma_floor,
+                                 front_end)  # fmt: skip
     return None, None, v.verdict, float(m.score), reason
+
+
+def verify_by_icp(
+    pi: PreparedScan,
+    pj: PreparedScan,
+    prior: Pose2,
+    sigma: tuple[float, float],
+    config: MatchConfig,
+    sigma_floor: tuple[float, float],
+    fe,
+) -> tuple[Pose2 | None, np.ndarray | None, str, float, str]:
+    """A loop candidate that maps too few features, verified on the raw scans alone.
+
+    Point-to-line ICP of all of scan ``j``'s points onto scan ``i``'s cloud from the
+    estimate ``prior`` (maps ``j`` into ``i``) and from six seeds one ``sigma`` (m, rad:
+    the drift the estimate may have) away from it along x, y and theta. It is
+    ``accepted`` only when all of these hold (else the verdict in brackets):
+
+    1. the best-scoring converged pose (ICP paired at least ``fe.icp_min_fitness`` of the
+       points) has a raw-scan score of at least ``fe.icp_min_score`` [``low_score``];
+    2. every converged seed that scores within ``fe.icp_score_tie`` of it lands within
+       0.05 m and 0.5 deg of it: one basin, not a corridor's or a look-alike's several
+       [``ambiguous``];
+    3. it lies within ``fe.icp_gate`` sigma (per coordinate) of the estimate
+       [``rejected_odometry``];
+    4. the raw scans fix its translation in every direction
+       (:func:`scanclique.refine.weak_direction` at least ``fe.icp_min_constraint``)
+       [``degenerate``].
+
+    Its covariance is the alignment's curvature
+    (:func:`scanclique.refine.icp_covariance`) floored by ``sigma_floor``. Returns
+    ``(pose, covariance, verdict, score, reason)`` as :func:`verify` does.
+    """
+    pts = np.ascontiguousarray(pj.points)
+    s_xy, s_th = sigma
+    seeds = [prior] + [
+        prior @ Pose2(dx, dy, dt)
+        for dx, dy, dt in (
+            (s_xy, 0, 0), (-s_xy, 0, 0), (0, s_xy, 0), (0, -s_xy, 0), (0, 0, s_th), (0, 0, -s_th)
+        )
+    ]  # fmt: skip
+    found = []
+    for seed in seeds:
+        icp = icp_point_to_line(
+            pi.cloud, pts, seed, iterations=2 * fe.refine_iterations, max_correspondence=0.5,
+            min_correspondence=fe.refine_min_correspondence,
+        )  # fmt: skip
+        if icp.fitness >= fe.icp_min_fitness:
+            found.append((icp.pose, float(pose_score(pi, pj, icp.pose, config))))
+    pose, score = max(found, key=lambda f: f[1]) if found else (None, 0.0)
+
+    def no(verdict: str, reason: str):
+        return None, None, verdict, score, reason
+
+    if pose is None or score < fe.icp_min_score:
+        return no("low_score", f"ICP: raw-scan score {score:.3f} < {fe.icp_min_score:g}")
+    for other, sc in found:
+        dt, dr = other.distance_to(pose)
+        if sc >= score - fe.icp_score_tie and (dt > 0.05 or dr > math.radians(0.5)):
+            why = f"ICP from another seed: {dt:.2f} m, {math.degrees(dr):.1f} deg away, {sc:.3f}"
+            return no("ambiguous", why)
+    d = pose.as_array() - prior.as_array()
+    d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+    if np.any(np.abs(d) > fe.icp_gate * np.array([s_xy, s_xy, s_th])):
+        return no("rejected_odometry", f"ICP pose beyond {fe.icp_gate:g} sigma of the estimate")
+    weak = weak_direction(pi.cloud, pts, pose, 0.1)
+    if weak is None or weak[1] < fe.icp_min_constraint:
+        return no("degenerate", "ICP: the raw scans do not fix the pose in one direction")
+    cov = icp_covariance(pi.cloud, pts, pose, fe.refine_min_correspondence)
+    if cov is None:
+        return no("degenerate", "ICP: the pairs leave the pose unconstrained")
+    why = f"too few features: ICP from the estimate, score {score:.3f}, weakest {weak[1]:.3f}"
+    return pose, floored(cov, *sigma_floor), "accepted", score, why
