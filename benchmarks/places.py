@@ -17,12 +17,17 @@ One command::
    least 50 scans away is within 2 m with at least 50 % overlap under the reference
    (the revisit rule of :mod:`scanclique.pairsets`). Recall = right answers of queries
    with a true place / queries with a true place; precision = right answers / answers
-   (all queries). Thresholding the answers by raw-scan score gives the precision-recall
-   curve (figure); reported: recall at 99 % and at 100 % precision, precision and recall
-   of every accepted answer, the prefilter's recall at 10 and 50 candidates (a true
-   place among them) for the fused prefilter the query uses and for each of its two
-   rankings alone (signature distance; triangle votes, :mod:`scanclique.places.hashing`),
-   and time per query. ``--search`` verifies with the matcher's raw-scan pose search
+   (all queries). Thresholding the answers by their confidence
+   (:func:`scanclique.places.verify.confidence`; the query's hits ranked by it) gives the
+   precision-recall curve (figure); reported: recall at 99 % and at 100 % precision (also
+   with the answers thresholded by raw-scan score), precision and recall of every
+   accepted answer and of those the defaults accept (score 0.5, confidence 0.99), the
+   prefilter's recall at 10 and 50 candidates (a true place among them) for the fused
+   prefilter the query uses and for each of its two rankings alone (signature distance;
+   triangle votes, :mod:`scanclique.places.hashing`), and time per query.
+   ``--calibrate`` fits the confidence's weights on the logs run and, leaving each log
+   out, reports the curve on it under the others' fit. ``--search`` verifies with the
+   matcher's raw-scan pose search
    (``PlaceDB(search=True)``; off by default).
 2. **Scale**: one database grown to 1k, 5k and 50k places (the logs' scans added again
    and again with distinct names): add time per place (features, signature and
