@@ -17,12 +17,17 @@ One command::
    least 50 scans away is within 2 m with at least 50 % overlap under the reference
    (the revisit rule of :mod:`scanclique.pairsets`). Recall = right answers of queries
    with a true place / queries with a true place; precision = right answers / answers
-   (all queries). Thresholding the answers by raw-scan score gives the precision-recall
-   curve (figure); reported: recall at 99 % and at 100 % precision, precision and recall
-   of every accepted answer, the prefilter's recall at 10 and 50 candidates (a true
-   place among them) for the fused prefilter the query uses and for each of its two
-   rankings alone (signature distance; triangle votes, :mod:`scanclique.places.hashing`),
-   and time per query. ``--search`` verifies with the matcher's raw-scan pose search
+   (all queries). Thresholding the answers by their confidence
+   (:func:`scanclique.places.verify.confidence`; the query's hits ranked by it) gives the
+   precision-recall curve (figure); reported: recall at 99 % and at 100 % precision (also
+   with the answers thresholded by raw-scan score), precision and recall of every
+   accepted answer and of those the defaults accept (score 0.5, confidence 0.99), the
+   prefilter's recall at 10 and 50 candidates (a true place among them) for the fused
+   prefilter the query uses and for each of its two rankings alone (signature distance;
+   triangle votes, :mod:`scanclique.places.hashing`), and time per query.
+   ``--calibrate`` fits the confidence's weights on the logs run and, leaving each log
+   out, reports the curve on it under the others' fit. ``--search`` verifies with the
+   matcher's raw-scan pose search
    (``PlaceDB(search=True)``; off by default).
 2. **Scale**: one database grown to 1k, 5k and 50k places (the logs' scans added again
    and again with distinct names): add time per place (features, signature and
@@ -92,19 +97,21 @@ def true_places(scans, queries) -> dict[int, set]:
     return out
 
 
-def pr_curve(answers: list[dict], n_true: int) -> dict:
-    """Precision and recall of the answers thresholded by score (best first)."""
-    a = sorted(answers, key=lambda r: -r["score"])
+def pr_curve(answers: list[dict], n_true: int, key: str = "confidence") -> dict:
+    """Precision and recall of the answers thresholded by ``key`` (``"confidence"``, the
+    hits' :func:`scanclique.places.verify.confidence`, or ``"score"``, raw-scan score;
+    best first)."""
+    a = sorted(answers, key=lambda r: -r[key])
     right = np.array([r["right"] for r in a], dtype=float)
     counted = np.array([r["right"] and r["has_true"] for r in a], dtype=float)
     if not len(a):
         return {"precision": [], "recall": [], "threshold": [], "r99": 0.0, "r100": 0.0}
     prec = np.cumsum(right) / np.arange(1, len(a) + 1)
     rec = np.cumsum(counted) / max(1, n_true)
-    # a threshold can only sit between distinct scores
-    last = np.r_[np.diff([r["score"] for r in a]) != 0, True]
+    # a threshold can only sit between distinct values
+    last = np.r_[np.diff([r[key] for r in a]) != 0, True]
     prec, rec = prec[last], rec[last]
-    thr = np.array([r["score"] for r in a])[last]
+    thr = np.array([r[key] for r in a])[last]
 
     def at(p):
         ok = prec >= p - 1e-12
@@ -175,17 +182,18 @@ def recognition(
     from scanclique.places import ACCEPTED, PlaceDB
     from scanclique.places.hashing import feature_triangles
     from scanclique.places.signature import scan_signature
-    from scanclique.places.verify import ACCEPT_MIN_SCORE
+    from scanclique.places.verify import ACCEPT_MIN_CONFIDENCE, ACCEPT_MIN_SCORE
 
     scans = load_log(name)
     n = len(scans)
-    # every answer accepted (validation and min_features), thresholded by score below
-    # (the default min_score is one point of that curve)
+    # every answer accepted (validation and min_features), thresholded by confidence (and
+    # by score) below (the default min_score and min_confidence are one point of that)
     from scanclique.places.database import SEEDED
 
     db = PlaceDB(
         tmp / f"{name}.db",
         min_score=0.0,
+        min_confidence=0.0,
         search=search,
         seeded=SEEDED if seeded is None else seeded,
         aliases=aliases,
@@ -234,6 +242,7 @@ def recognition(
             "answered": best is not None,
             "right": False,
             "score": 0.0,
+            "confidence": 0.0,
             "verdicts": [h.verdict for h in hits],
         }
         if best is not None:
@@ -249,7 +258,16 @@ def recognition(
                 n_features=best.n_features,
                 votes=best.votes,
                 source=best.source,
+                confidence=best.confidence,
+                surprise=best.surprise,
+                rival_score=best.rival_score,
             )
+        # every accepted hit's evidence and rightness, for --calibrate
+        rec["accepted"] = [
+            [h.score, h.surprise, h.rival_score, _is_right(scans[h.place_id - 1], h, q)]
+            for h in hits
+            if h.verdict == ACCEPTED
+        ]
         if has_true:
             rec["outcome"] = miss_category(hits, truth[i], rec, scans, q)
         records.append(rec)
@@ -259,9 +277,14 @@ def recognition(
     db.close()
     answers = [r for r in records if r["answered"]]
     curve = pr_curve(answers, n_true)
+    by_score = pr_curve(answers, n_true, key="score")
     n_right = sum(r["right"] for r in answers)
     n_right_true = sum(r["right"] and r["has_true"] for r in answers)
-    dflt = [r for r in answers if r["score"] >= ACCEPT_MIN_SCORE]
+    dflt = [
+        r
+        for r in answers
+        if r["score"] >= ACCEPT_MIN_SCORE and r["confidence"] >= ACCEPT_MIN_CONFIDENCE
+    ]
     d_right = sum(r["right"] for r in dflt)
     d_right_true = sum(r["right"] and r["has_true"] for r in dflt)
     return {
@@ -275,11 +298,14 @@ def recognition(
         "precision": n_right / len(answers) if answers else float("nan"),
         "recall": n_right_true / n_true if n_true else float("nan"),
         "default_min_score": ACCEPT_MIN_SCORE,
+        "default_min_confidence": ACCEPT_MIN_CONFIDENCE,
         "default_answered": len(dflt),
         "default_precision": d_right / len(dflt) if dflt else float("nan"),
         "default_recall": d_right_true / n_true if n_true else float("nan"),
         "recall_at_99": curve["r99"],
         "recall_at_100": curve["r100"],
+        "recall_at_99_by_score": by_score["r99"],
+        "recall_at_100_by_score": by_score["r100"],
         "prefilter_recall_10": pre10 / n_true if n_true else float("nan"),
         "prefilter_recall_50": pre50 / n_true if n_true else float("nan"),
         **{
@@ -302,6 +328,9 @@ def recognition(
                     "has_true",
                     "right",
                     "score",
+                    "confidence",
+                    "surprise",
+                    "rival_score",
                     "n_features",
                     "rank",
                     "votes",
@@ -312,8 +341,79 @@ def recognition(
             }
             for r in answers
         ],
+        "accepted_hits": [[r["has_true"], r["accepted"]] for r in records if r["accepted"]],
         "curve": {k: curve[k] for k in ("precision", "recall", "threshold")},
     }
+
+
+def _is_right(place, hit, q) -> bool:
+    t_err, r_err = (place.reference @ hit.pose).distance_to(q.reference)
+    return bool(t_err <= RIGHT_T and r_err <= RIGHT_R)
+
+
+# ---------------------------------------------------------------------------------------
+# Calibration of the hit confidence (places.verify.CONFIDENCE_WEIGHTS)
+# ---------------------------------------------------------------------------------------
+def _evidence(rows) -> np.ndarray:
+    """``(score, surprise, rival ratio)`` rows of accepted hits ``[score, surprise,
+    rival_score, right]``, as :func:`scanclique.places.verify.confidence` reads them."""
+    a = np.asarray([r[:3] for r in rows], dtype=float).reshape(-1, 3)
+    s = a[:, 0]
+    ratio = np.where(s > 0, np.clip(np.maximum(a[:, 2], 0) / np.where(s > 0, s, 1), 0, 1), 1.0)
+    return np.c_[s, a[:, 1], ratio]
+
+
+def fit_logistic(X: np.ndarray, y: np.ndarray, lam: float = 1e-2) -> np.ndarray:
+    """L2-regularised logistic regression by Newton's method on standardised columns:
+    ``(w0, w1, ...)`` with log-odds ``w0 + X @ w[1:]`` (the intercept not penalised)."""
+    mu, sd = X.mean(axis=0), X.std(axis=0) + 1e-9
+    Z = np.c_[np.ones(len(X)), (X - mu) / sd]
+    w = np.zeros(Z.shape[1])
+    pen = lam * np.r_[0.0, np.ones(Z.shape[1] - 1)]
+    for _ in range(100):
+        p = 1.0 / (1.0 + np.exp(-Z @ w))
+        step = np.linalg.solve(
+            (Z * (p * (1 - p))[:, None]).T @ Z + np.diag(pen), Z.T @ (p - y) + pen * w
+        )
+        w -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return np.r_[w[0] - (w[1:] * mu / sd).sum(), w[1:] / sd]
+
+
+def calibrate(rec: list[dict]) -> dict:
+    """The confidence model fitted on all logs' accepted hits, and leave one log out: for
+    each log, the model fitted on the others, its answers (per query the accepted hit of
+    highest confidence) thresholded by that model on the log left out."""
+    from scanclique.places.verify import ACCEPT_MIN_CONFIDENCE
+
+    def data(logs):
+        rows = [h for r in rec if r["log"] in logs for _, hs in r["accepted_hits"] for h in hs]
+        return _evidence(rows), np.array([h[3] for h in rows], dtype=float)
+
+    logs = [r["log"] for r in rec]
+    X, y = data(logs)
+    out = {"all": {"weights": fit_logistic(X, y).tolist(), "hits": len(y), "right": int(y.sum())}}
+    for r in rec:
+        w = fit_logistic(*data([x for x in logs if x != r["log"]]))
+        answers = []
+        for has_true, hs in r["accepted_hits"]:
+            z = w[0] + _evidence(hs) @ w[1:]
+            k = int(np.argmax(z))
+            conf = 1.0 / (1.0 + np.exp(-z[k]))
+            answers.append({"confidence": conf, "right": hs[k][3], "has_true": has_true})
+        c = pr_curve(answers, r["with_true_place"])
+        d = [a for a in answers if a["confidence"] >= ACCEPT_MIN_CONFIDENCE]
+        out[r["log"]] = {
+            "weights": w.tolist(),
+            "recall_at_99": c["r99"],
+            "recall_at_100": c["r100"],
+            "default_answered": len(d),
+            "default_precision": sum(a["right"] for a in d) / len(d) if d else float("nan"),
+            "default_recall": sum(a["right"] and a["has_true"] for a in d)
+            / max(1, r["with_true_place"]),
+        }
+    return out
 
 
 # ---------------------------------------------------------------------------------------
@@ -450,17 +550,19 @@ def report(res: dict) -> str:
             "right: 0.5 m, 0.2 rad)",
             "",
             "| log | queries | with true place | accepted (any score) | precision | recall | "
-            "default (score >= 0.5): precision | recall | recall@99%P | recall@100%P | "
+            "default (score >= 0.5, confidence >= 0.99): precision | recall | recall@99%P | "
+            "recall@100%P | by score: recall@99%P | @100%P | "
             "prefilter recall@10 | @50 | signature alone @10 | @50 | triangles alone @10 | "
             "@50 | query ms median | p95 |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in res["recognition"]:
             lines.append(
                 f"| {r['log']} | {r['queries']} | {r['with_true_place']} | {r['answered']} | "
                 f"{_f(r['precision'])} | {_f(r['recall'])} | {_f(r['default_precision'])} | "
                 f"{_f(r['default_recall'])} | {_f(r['recall_at_99'])} | "
-                f"{_f(r['recall_at_100'])} | {_f(r['prefilter_recall_10'])} | "
+                f"{_f(r['recall_at_100'])} | {_f(r.get('recall_at_99_by_score'))} | "
+                f"{_f(r.get('recall_at_100_by_score'))} | {_f(r['prefilter_recall_10'])} | "
                 f"{_f(r['prefilter_recall_50'])} | {_f(r.get('signature_recall_10'))} | "
                 f"{_f(r.get('signature_recall_50'))} | {_f(r.get('triangles_recall_10'))} | "
                 f"{_f(r.get('triangles_recall_50'))} | {_f(r['query_ms_median'], '.1f')} | "
@@ -544,7 +646,7 @@ def figure(rec: list[dict], path: Path) -> None:
     ax.axhline(0.99, color="grey", lw=0.5, ls="--")
     ax.grid(alpha=0.3)
     ax.legend(loc="lower left")
-    ax.set_title("scanclique places: answers thresholded by raw-scan score")
+    ax.set_title("scanclique places: answers thresholded by confidence")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -578,6 +680,12 @@ def main(argv=None) -> None:
         action="store_true",
         help="recognition: refuse clique hits with a quarter/half-turn alias "
         "(PlaceDB aliases=True)",
+    )
+    ap.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="recognition: fit the hit confidence's weights on the logs run, and leave "
+        "one log out (needs two logs or more)",
     )
     ap.add_argument(
         "--full",
@@ -622,7 +730,9 @@ def main(argv=None) -> None:
                     f"answered {r['answered']:5d} precision {_f(r['precision'])} recall "
                     f"{_f(r['recall'])} default P {_f(r['default_precision'])} R "
                     f"{_f(r['default_recall'])} r@99 {_f(r['recall_at_99'])} r@100 "
-                    f"{_f(r['recall_at_100'])} prefilter@10 {_f(r['prefilter_recall_10'])} "
+                    f"{_f(r['recall_at_100'])} (by score {_f(r['recall_at_99_by_score'])} / "
+                    f"{_f(r['recall_at_100_by_score'])}) "
+                    f"prefilter@10 {_f(r['prefilter_recall_10'])} "
                     f"@50 {_f(r['prefilter_recall_50'])} (signature "
                     f"{_f(r['signature_recall_10'])} / {_f(r['signature_recall_50'])}, "
                     f"triangles {_f(r['triangles_recall_10'])} / "
@@ -635,6 +745,21 @@ def main(argv=None) -> None:
                     + ", ".join(f"{k} {v}" for k, v in r["outcomes"].items()),
                     flush=True,
                 )
+            if a.calibrate and len(res["recognition"]) > 1:
+                res["calibration"] = calibrate(res["recognition"])
+                for k, v in res["calibration"].items():
+                    print(
+                        f"calibration {k:9s} weights "
+                        + " ".join(f"{x:.3f}" for x in v["weights"])
+                        + (
+                            ""
+                            if k == "all"
+                            else f" left out: r@99 {_f(v['recall_at_99'])} r@100 "
+                            f"{_f(v['recall_at_100'])} default n {v['default_answered']} P "
+                            f"{_f(v['default_precision'])} R {_f(v['default_recall'])}"
+                        ),
+                        flush=True,
+                    )
         if "scale" in stages:
             res["scale"] = scale([int(x) for x in a.sizes.split(",")], a.scale_queries, tmp)
         if "scale_out" in stages:

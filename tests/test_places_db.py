@@ -7,7 +7,7 @@ import pytest
 
 import scanclique as sc
 from scanclique.errors import ConfigError
-from scanclique.places import ACCEPTED, REJECTED, PlaceDB, PlaceHit
+from scanclique.places import ACCEPTED, AMBIGUOUS, REJECTED, PlaceDB, PlaceHit
 from scanclique.places.loops import find_loops
 
 
@@ -43,11 +43,14 @@ def test_query_recognises_the_place_and_its_pose(tmp_path, worlds):
                 if h.verdict == ACCEPTED:  # precision: every accepted hit is right
                     ref = db.get(h.place_id).scan.reference
                     assert (ref @ h.pose).distance_to(q.reference)[0] < 0.2
-            # ranked: verdict first, then score
+            # ranked: verdict first, then confidence; accepted means confident
             keys = [
-                ({"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict], -h.score) for h in hits
+                ({"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict], -h.confidence)
+                for h in hits
             ]
             assert keys == sorted(keys)
+            assert all(h.confidence >= db.min_confidence for h in hits if h.verdict == ACCEPTED)
+            assert all(h.confidence == 0.0 for h in hits if h.pose is None)
 
 
 def test_exclude_and_candidates(tmp_path, worlds):
@@ -134,3 +137,32 @@ def test_fused_loop_candidates_keep_the_gap_and_both_rankings(worlds):
     assert first_sig and all(first_sig[i] in by_i[i] for i in first_sig)
     # a later scan of the same office finds an earlier one of it through the triangles
     assert any(i // 6 == j // 6 for i, js in by_i.items() for j in js)
+
+
+def test_an_empty_database_answers_nothing(tmp_path, worlds):
+    with PlaceDB(tmp_path / "p.db") as db:
+        assert db.query(worlds[0][0], k=3) == []
+        assert db.best(worlds[0][0]) is None
+
+
+def test_a_hit_the_confidence_doubts_is_ambiguous_with_its_reason(tmp_path, worlds):
+    """min_confidence turns accepted hits into ambiguous ones (pose kept, reason given),
+    and changes neither the confidence nor the order of the hits."""
+    traj = worlds[0]
+    found = {}
+    for floor in (0.0, 1.0):
+        with PlaceDB(tmp_path / f"p{floor}.db", min_confidence=floor) as db:
+            for k in (0, 2, 4):
+                db.add(traj[k], name=f"s{k}")
+            found[floor] = db.query(traj[3], k=3)
+    trusting, doubting = found[0.0], found[1.0]
+    assert trusting[0].verdict == ACCEPTED and 0.0 < trusting[0].confidence < 1.0
+    assert [h.place_id for h in doubting] == [h.place_id for h in trusting]
+    for a, b in zip(trusting, doubting, strict=True):
+        assert a.confidence == b.confidence
+        if a.verdict == ACCEPTED:
+            assert b.verdict == AMBIGUOUS and b.pose is not None
+            assert b.reason.startswith("confidence ") and "below min_confidence 1" in b.reason
+        else:
+            assert b.verdict == a.verdict
+    assert trusting[0].to_dict()["confidence"] == trusting[0].confidence

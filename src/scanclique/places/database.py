@@ -1,13 +1,13 @@
 """The place database: add observations as places, query a scan for the places it sees.
 
 >>> import tempfile, os, numpy as np, scanclique as sc
->>> pair = sc.sim.simulate_pair(np.random.default_rng(4))
+>>> pair = sc.sim.simulate_pair(np.random.default_rng(24))
 >>> path = os.path.join(tempfile.mkdtemp(), "places.db")
 >>> with PlaceDB(path) as db:
 ...     pid = db.add(pair.scan_a, name="room")
 ...     hits = db.query(pair.scan_b, k=1)
->>> hits[0].name, hits[0].verdict
-('room', 'accepted')
+>>> hits[0].name, hits[0].verdict, bool(hits[0].confidence >= 0.99)
+('room', 'accepted', True)
 >>> t_err, r_err = hits[0].pose.distance_to(pair.pose_a_b)
 >>> bool(t_err < 0.1 and r_err < 0.02)
 True
@@ -31,8 +31,12 @@ A query is, in order:
    agree on one pose bin with at least :data:`SEED_MIN_VOTES` votes, verified from that
    pose on the raw scans (:func:`.verify.verify_seeded`: ICP, score, conditioning,
    agreement with the triangles' pose, no quarter- or half-turn alias);
-5. the hits ranked: accepted first, then ambiguous, then rejected; by raw-scan score
-   within each.
+5. each hit's confidence (:func:`.verify.confidence`: the probability that its pose is
+   right, from its raw-scan score, how unlikely its clique is between unrelated places
+   and how nearly a distinct pose explains the same scans); an accepted hit below
+   ``min_confidence`` becomes ``ambiguous``;
+6. the hits ranked: accepted first, then ambiguous, then rejected; by confidence within
+   each (then raw-scan score).
 
 Places are stored in SQLite (:class:`.store.PlaceStore`); the signatures are loaded and
 the triangles computed from the stored point features when a database is opened (about
@@ -66,6 +70,7 @@ from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
 from .store import PlaceRecord, PlaceStore
 from .verify import (
+    ACCEPT_MIN_CONFIDENCE,
     ACCEPT_MIN_FEATURES,
     ACCEPT_MIN_SCORE,
     ACCEPTED,
@@ -170,6 +175,16 @@ class PlaceHit:
         :func:`.verify.verify_pair`) or ``"triangles"`` (the triangle prefilter's pose
         refined on the raw scans, :func:`.verify.verify_seeded`, for a place the matcher
         rejected or that only the triangle ranking proposed).
+    confidence : float
+        Probability that ``pose`` is right (:func:`.verify.confidence`); 0 without a pose.
+        Hits are ranked by it within a verdict; an accepted hit has at least the
+        database's ``min_confidence``.
+    surprise : float
+        How unlikely the clique of mapped features is between unrelated places
+        (:func:`.verify.clique_surprise`, decades; 0 without mapped features).
+    rival_score : float
+        Raw-scan score of the best distinct pose of the same place
+        (:attr:`.verify.Verification.rival_score`).
     """
 
     place_id: int
@@ -184,6 +199,9 @@ class PlaceHit:
     reason: str
     votes: int = 0
     source: str = "clique"
+    confidence: float = 0.0
+    surprise: float = 0.0
+    rival_score: float = 0.0
 
     def to_dict(self) -> dict:
         p = self.pose
@@ -199,6 +217,9 @@ class PlaceHit:
             "reason": self.reason,
             "votes": self.votes,
             "source": self.source,
+            "confidence": self.confidence,
+            "surprise": self.surprise,
+            "rival_score": self.rival_score,
         }
 
 
@@ -267,8 +288,13 @@ class PlaceDB:
     aliases : bool
         Refuse an accepted clique match whose pose turned by a quarter or a half turn
         explains the raw scans nearly as well (:func:`.verify.alias_score`, the matcher's
-        ambiguity rule): the hit is ``ambiguous``. The look-alike rooms of a building
-        are most of the wrong recognitions without it.
+        ambiguity rule): the hit is ``ambiguous``. Off by default: the wrong
+        recognitions are mostly *other* look-alike places, which this test of the
+        place's own aliases does not see (``benchmarks/places.py --aliases``).
+    min_confidence : float
+        An accepted hit whose confidence (:func:`.verify.confidence`) is below this is
+        ``ambiguous`` (default :data:`.verify.ACCEPT_MIN_CONFIDENCE`; 0: the validation
+        and ``min_score`` / ``min_features`` alone decide).
 
     Raises
     ------
@@ -290,6 +316,7 @@ class PlaceDB:
         search: bool = False,
         seeded: int = SEEDED,
         aliases: bool = False,
+        min_confidence: float = ACCEPT_MIN_CONFIDENCE,
     ) -> None:
         given = None if config is None else config_to_dict(config)
         meta = {
@@ -313,6 +340,7 @@ class PlaceDB:
         )
         self.min_score = float(min_score)
         self.min_features = int(min_features)
+        self.min_confidence = float(min_confidence)
         self.index = SignatureIndex(SIGNATURE_SIZE)
         self.triangles = TriangleIndex()
         self._last = 0
@@ -514,8 +542,9 @@ class PlaceDB:
         Returns
         -------
         list of PlaceHit
-            Accepted first, then ambiguous, then rejected; by raw-scan score within each.
-            ``hit.pose`` maps the query's points into the place's frame.
+            Accepted first, then ambiguous, then rejected; by confidence within each
+            (then raw-scan score). ``hit.pose`` maps the query's points into the place's
+            frame.
         """
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
@@ -549,6 +578,13 @@ class PlaceDB:
             if found[rank] is None:
                 continue
             v, source = found[rank]
+            if v.verdict == ACCEPTED and v.confidence < self.min_confidence:
+                v = dataclasses.replace(
+                    v,
+                    verdict=AMBIGUOUS,
+                    reason=f"confidence {v.confidence:.3f} below min_confidence "
+                    f"{self.min_confidence:g}; {v.reason}",
+                )
             hits.append(
                 PlaceHit(
                     pid,
@@ -563,9 +599,12 @@ class PlaceDB:
                     v.reason,
                     int(nv),
                     source,
+                    v.confidence,
+                    v.surprise,
+                    v.rival_score,
                 )
             )
-        hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.score, h.rank))
+        hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.confidence, -h.score, h.rank))
         return hits[: int(k)]
 
     def _verify_clique(self, pid: int, p: PreparedScan) -> Verification:
@@ -582,16 +621,11 @@ class PlaceDB:
         if v.verdict == ACCEPTED and self.aliases:
             alias, _ = alias_score(place, p, v.pose, self.config)
             if alias >= self.config.refine.ambiguous_score * v.score:
-                v = Verification(
-                    AMBIGUOUS,
-                    v.pose,
-                    v.covariance,
-                    v.score,
-                    v.n_features,
-                    v.validation,
-                    f"the pose turned by a quarter or half turn scores {alias:.3f} "
+                v = dataclasses.replace(
+                    v,
+                    verdict=AMBIGUOUS,
+                    reason=f"the pose turned by a quarter or half turn scores {alias:.3f} "
                     f"(of {v.score:.3f}); {v.reason}",
-                    v.seconds,
                 )
         return v
 

@@ -13,8 +13,10 @@ A candidate's verdict, with the meanings of pairwise validation:
     the validation accepted the match (and its raw-scan score is at least ``min_score``):
     the pose can be used;
 ``ambiguous``
-    distinct hypotheses explain the scans about equally well (the place repeats): the
-    pose is the best one's, and must not be used without other evidence;
+    distinct hypotheses explain the scans about equally well (the place repeats), or (a
+    place query, :class:`.database.PlaceDB`) the hit's :func:`confidence` is below
+    ``min_confidence``: the pose is the best one's, and must not be used without other
+    evidence;
 ``rejected``
     no pose, too few mapped features, a constellation that does not fix the pose, or an
     accepted match whose score is below ``min_score`` or that maps fewer than
@@ -23,6 +25,7 @@ A candidate's verdict, with the meanings of pairwise validation:
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -51,6 +54,10 @@ __all__ = [
     "ACCEPT_MIN_FEATURES",
     "Verification",
     "verify_pair",
+    "ACCEPT_MIN_CONFIDENCE",
+    "CONFIDENCE_WEIGHTS",
+    "clique_surprise",
+    "confidence",
 ]
 
 ACCEPTED = "accepted"
@@ -88,6 +95,16 @@ SEED_MIN_FITNESS = 0.6
 #: (:func:`verify_seeded`): a room, a corridor crossing or a hall looks alike turned by a
 #: quarter or a half turn, the aliases of indoor places
 ALIAS_TURNS = (0.5 * np.pi, np.pi, 1.5 * np.pi)
+#: the logistic model of :func:`confidence`: log-odds that a verified pose is right =
+#: ``w0 + w_score * score + w_surprise * surprise + w_rival * rival_ratio``. Fitted
+#: (L2-regularised logistic regression) on every accepted hit of the recognition runs on
+#: the three shared logs (``benchmarks/places.py --calibrate``: 4785 hits, 4565 right).
+#: The fits that leave one log out give w0 -2.3 to -3.7, w_score 9.6 to 11.3, w_surprise
+#: 0.04 to 0.10, w_rival -2.8 to -3.3; ``--calibrate`` prints their figures on the log left out
+CONFIDENCE_WEIGHTS = (-2.83, 9.94, 0.083, -2.80)
+#: the default ``min_confidence`` of place recognition: an accepted hit whose
+#: :func:`confidence` is below this is ``ambiguous`` ("right unless said otherwise")
+ACCEPT_MIN_CONFIDENCE = 0.99
 #: order of verdicts when ranking hits (best first)
 VERDICT_RANK = {ACCEPTED: 0, AMBIGUOUS: 1, REJECTED: 2}
 
@@ -117,6 +134,19 @@ class Verification:
         Why, in words.
     seconds : float
         Time of the match and its validation.
+    clique_size : int
+        Size of the chosen clique (0 without one, and for a seeded pose).
+    graph_nodes, graph_edges : int
+        Nodes and edges of the match's correspondence graph (:mod:`scanclique.correspondence`).
+    place_features, query_features : int
+        Features of the place and of the query.
+    rival_score : float
+        Best raw-scan score of a hypothesis with a pose distinct from the chosen one: the
+        match's other hypotheses (:func:`scanclique.match.distinct_poses`; scored on every
+        third sample point for all but the best few), for a seeded pose its best alias
+        (:func:`alias_score`); 0 without one.
+    confidence : float
+        Probability that ``pose`` is right (:func:`confidence`); 0 without a pose.
     """
 
     verdict: str
@@ -127,6 +157,18 @@ class Verification:
     validation: str
     reason: str
     seconds: float
+    clique_size: int = 0
+    graph_nodes: int = 0
+    graph_edges: int = 0
+    place_features: int = 0
+    query_features: int = 0
+    rival_score: float = 0.0
+    confidence: float = 0.0
+
+    @property
+    def surprise(self) -> float:
+        """:func:`clique_surprise` of the mapped features in the correspondence graph."""
+        return clique_surprise(self.n_features, self.graph_nodes, self.graph_edges)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "covariance", readonly(self.covariance, dtype=float, copy=True))
@@ -140,7 +182,58 @@ class Verification:
             "n_features": self.n_features,
             "validation": self.validation,
             "reason": self.reason,
+            "confidence": self.confidence,
         }
+
+
+def clique_surprise(n: int, nodes: int, edges: int) -> float:
+    """How unlikely ``n`` mutually consistent correspondences are by chance: ``-log10``
+    of the expected number of cliques of ``n`` nodes in a random graph with the
+    correspondence graph's ``nodes`` and ``edges`` (Erdős–Rényi, edge probability
+    ``p = edges / C(nodes, 2)``), ``E = C(nodes, n) p^(n (n - 1) / 2)``.
+
+    The null model of two unrelated places: their features pair up as often as the
+    tolerances let them (the graph's size) and pairs of pairs agree as often as they do
+    here (its density), but no pose links them. A clique that such a graph would hold
+    many times (surprise below 0) is no evidence of a place; each decade above 0 is one
+    more of evidence. Denser graphs (repetitive, Manhattan geometry) make a clique of a
+    given size less surprising. 0 when ``n < 2``, ``nodes < 2`` or ``n > nodes`` (no
+    clique to judge); ``p`` is floored at ``1e-12`` (a graph without edges).
+
+    >>> round(clique_surprise(6, 80, 400), 2)
+    4.99
+    >>> clique_surprise(8, 80, 400) > clique_surprise(6, 80, 400) > clique_surprise(6, 80, 800)
+    True
+    """
+    n, V, E = int(n), int(nodes), int(edges)
+    if n < 2 or V < 2 or n > V:
+        return 0.0
+    p = min(1.0, max(E / (V * (V - 1) / 2), 1e-12))
+    log_choose = math.lgamma(V + 1) - math.lgamma(n + 1) - math.lgamma(V - n + 1)
+    return -(log_choose + n * (n - 1) / 2 * math.log(p)) / math.log(10)
+
+
+def confidence(score: float, surprise: float = 0.0, rival_score: float = 0.0) -> float:
+    """Probability that a verified pose is right, from the evidence the verification
+    has: a logistic model (:data:`CONFIDENCE_WEIGHTS`) of
+
+    * ``score``, the raw scans' agreement under the pose (:func:`scanclique.match.pose_score`);
+    * ``surprise``, how unlikely its clique of mapped features is between unrelated
+      places (:func:`clique_surprise`; 0 for a pose with no mapped features);
+    * the rival ratio ``rival_score / score`` (clipped to ``[0, 1]``; 1 when ``score <= 0``):
+      how nearly a distinct pose explains the same scans (paper §7's symmetry; a place
+      that looks alike turned by a quarter turn gives a ratio near 1).
+
+    Increasing in ``score`` and ``surprise``, decreasing in ``rival_score``; in ``(0, 1)``.
+
+    >>> confidence(0.9, 20.0, 0.1) > 0.99 > confidence(0.5, 2.0, 0.4)
+    True
+    """
+    w0, ws, wn, wr = CONFIDENCE_WEIGHTS
+    s = float(score)
+    ratio = min(1.0, max(0.0, float(rival_score)) / s) if s > 0 else 1.0
+    z = w0 + ws * s + wn * float(surprise) + wr * ratio
+    return 1.0 / (1.0 + math.exp(-z)) if z > -700 else 0.0
 
 
 def verify_pair(
@@ -193,15 +286,30 @@ def verify_pair(
         verdict = REJECTED
     pose = v.pose if verdict != REJECTED else None
     cov = v.covariance if verdict != REJECTED else None
+    rival = 0.0
+    if m.pose is not None:
+        rival = max(
+            (h.score for h in m.hypotheses[1:] if distinct_poses(h.pose, m.pose, cfg)),
+            default=0.0,
+        )
+    score = float(m.score) if m.pose is not None else 0.0
+    surprise = clique_surprise(v.n_features, m.n_correspondence_nodes, m.n_correspondence_edges)
     return Verification(
         verdict,
         pose,
         cov,
-        float(m.score) if m.pose is not None else 0.0,
+        score,
         int(v.n_features),
         v.verdict,
         reason,
         time.perf_counter() - t0,
+        int(m.clique_size),
+        int(m.n_correspondence_nodes),
+        int(m.n_correspondence_edges),
+        len(place.features),
+        len(query.features),
+        float(rival),
+        confidence(score, surprise, rival) if pose is not None else 0.0,
     )
 
 
@@ -287,10 +395,12 @@ def verify_seeded(
     cfg = config or MatchConfig()
     r = cfg.refine
 
-    def out(verdict, pose, score, reason):
+    def out(verdict, pose, score, reason, alias=0.0):
         return Verification(
-            verdict, pose, None, float(score), 0, "seeded", reason, time.perf_counter() - t0
-        )
+            verdict, pose, None, float(score), 0, "seeded", reason, time.perf_counter() - t0,
+            rival_score=float(alias),
+            confidence=confidence(score, 0.0, alias) if pose is not None else 0.0,
+        )  # fmt: skip
 
     if len(query.sample) < 10 or len(place.cloud.points) < 10:
         return out(REJECTED, None, 0.0, "too few points to align")
@@ -318,9 +428,11 @@ def verify_seeded(
         return out(
             AMBIGUOUS, pose, score,
             f"the pose turned by a quarter or half turn scores {alias:.3f} (of {score:.3f})",
+            alias,
         )  # fmt: skip
     return out(
         ACCEPTED, pose, score,
         f"triangles' pose refined on the raw scans: score {score:.3f}, weakest direction "
         f"{weak:.3f}, best alias {alias:.3f}",
+        alias,
     )  # fmt: skip
