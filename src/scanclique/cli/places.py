@@ -144,14 +144,17 @@ def query(
         _print_json(run.to_dict())
         return
     con = _console()
-    cols = ("Rank", "Place", "Verdict", "Score", "Feat.", "x y [m] th [deg]", "err [m, deg]")
+    cols = (
+        "Rank", "Place", "Verdict", "Score", "Conf.", "Feat.", "x y [m] th [deg]", "err [m, deg]"
+    )  # fmt: skip
     con.print(_table(run.hit_rows(), f"{run.label}:{index} in {db}", cols))
     con.print(_table(run.rows(), "query", ("Metric", "Value", "Units")))
     con.print(
         "pose: the query scan's frame in the place's frame (maps the query's points into the "
         "place's); err: against the reference poses, when both scans have one; rank: in the "
-        "prefilter; a verdict marked (triangles): the triangle prefilter's pose verified on "
-        "the raw scans (the clique matcher accepted no candidate)",
+        "prefilter; conf.: the probability that the pose is right (an accepted hit below "
+        "min_confidence 0.99 is ambiguous); a verdict marked (triangles): the triangle "
+        "prefilter's pose verified on the raw scans (the clique matcher accepted no candidate)",
         soft_wrap=True,
     )
 

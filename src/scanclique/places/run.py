@@ -149,6 +149,7 @@ class QueryRun:
                     f"{h.place_id} {h.name}" if h.name else str(h.place_id),
                     h.verdict if h.source == "clique" else f"{h.verdict} ({h.source})",
                     f"{h.score:.2f}",
+                    f"{h.confidence:.3f}",
                     str(h.n_features),
                     "-" if p is None else f"{p.x:.2f} {p.y:.2f} {math.degrees(p.theta):.1f}",
                     "-" if e is None else f"{e[0]:.2f} {math.degrees(e[1]):.1f}",
