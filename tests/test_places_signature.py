@@ -97,3 +97,65 @@ def test_compiled_blocks_agree_with_reference():
         p = prepare_scan(s)
         for fast, ref in zip(_blocks(p), _blocks_reference(p), strict=True):
             np.testing.assert_allclose(fast, ref, rtol=1e-9, atol=1e-9)
+
+
+def _local_block(sig: np.ndarray) -> np.ndarray:
+    from scanclique.places.signature import SIGNATURE_BLOCKS
+
+    start = sum(n for name, n, _ in SIGNATURE_BLOCKS if name != "local")
+    assert SIGNATURE_BLOCKS[-1][0] == "local"
+    return sig[start:]
+
+
+@pytest.mark.parametrize("dtheta", [0.4, -2.0, math.pi])
+def test_local_block_unchanged_by_a_turn_of_the_sensor(pair, dtheta):
+    from scanclique.places.signature import _local_hist
+
+    a = _local_hist(prepare_scan(pair.scan_a))
+    b = _local_hist(prepare_scan(_turned(pair.scan_a, dtheta)))
+    assert a.sum() > 0
+    # the same thinned points and pairs; a pair exactly at a bin edge may move by one
+    # rounding error, so compare the counts, not their bins' exact floats
+    assert np.abs(a - b).sum() <= 0.01 * a.sum()
+
+
+def test_local_block_of_a_straight_wall():
+    from scanclique.places.signature import _PAIR_ANGLE_BINS as na
+    from scanclique.places.signature import _PAIR_DIST_BINS as nd
+    from scanclique.places.signature import _local_hist
+
+    n = 181
+    ang = np.linspace(-math.pi / 2, math.pi / 2, n)
+    r = np.where(np.abs(ang) < 0.6, 3.0 / np.cos(ang), np.nan)  # a wall 3 m ahead
+    s = Scan(r, ang)
+    h = _local_hist(prepare_scan(s))
+    assert h.sum() > 0
+    # pairs along one wall: both normals perpendicular to the segment joining them, so
+    # every count is in the (|cos| lo, |cos| hi) = (0, 0) cell of some distance bin; the
+    # wall is about 4 m long, so its pairs fill the distance bins up to LOCAL_RADIUS
+    cells = h.reshape(nd, na, na)
+    assert cells[:, 0, 0].sum() >= 0.9 * h.sum()
+    assert (cells[:, 0, 0] > 0).sum() >= nd - 1
+
+
+def test_local_block_of_bad_scans_is_defined():
+    from scanclique.places.signature import _local_hist, _thinned
+
+    for s in (
+        Scan.from_ranges(np.full(181, np.nan)),  # every beam invalid
+        Scan.from_ranges(np.r_[np.full(90, np.nan), 2.0, np.full(90, np.nan)]),  # one point
+        Scan(np.zeros(0), np.zeros(0)),  # no beams
+    ):
+        h = _local_hist(prepare_scan(s))
+        assert h.shape == (128,) and not h.any()
+        sig = scan_signature(prepare_scan(s))
+        assert np.all(np.isfinite(sig)) and not _local_block(sig).any()
+    assert _thinned(np.zeros((0, 2)), 0.25).shape == (0,)
+    assert _thinned(np.zeros((5, 2)), 0.25).tolist() == [0]  # all at one spot: one kept
+
+
+def test_local_block_identical_scans_distance_zero(pair):
+    a = scan_signature(prepare_scan(pair.scan_a))
+    b = scan_signature(prepare_scan(pair.scan_a))
+    assert signature_distance(_local_block(a), _local_block(b)) == 0.0
+    assert _local_block(a).any()

@@ -270,13 +270,49 @@ def test_second_process_reads_while_first_adds(tmp_path, db_path):
     assert seen[-1] >= seen[0] and len(set(seen)) > 1  # it saw places arrive
 
 
-def test_other_signature_version_refused(db_path):
-    PlaceDB(db_path).close()
+def _set_signature_version(db_path, version: str, size: int | None = None) -> None:
+    """Mark the file's signatures as of ``version`` (and, with ``size``, store zero
+    signatures of that length, as an older scanclique would have left them)."""
     con = sqlite3.connect(db_path)
-    con.execute("UPDATE meta SET value='1' WHERE key='signature_version'")
+    con.execute("UPDATE meta SET value=? WHERE key='signature_version'", (version,))
+    if size is not None:
+        con.execute("UPDATE meta SET value=? WHERE key='signature_size'", (str(size),))
+        dt, shape, crc, data = encode_array(np.zeros(size))
+        con.execute(
+            "UPDATE signatures SET dtype=?, shape=?, crc32=?, data=?", (dt, shape, crc, data)
+        )
     con.commit()
     con.close()
-    with pytest.raises(PlaceDatabaseError, match="signatures of version 1"):
+
+
+def test_older_signatures_recomputed_on_open(db_path):
+    from scanclique.places import SIGNATURE_SIZE, scan_signature
+    from scanclique.places.signature import SIGNATURE_VERSION
+
+    scans = [wavy_scan(s) for s in range(4)]
+    with PlaceDB(db_path) as db:
+        ids = [db.add(s, name=f"w{k}") for k, s in enumerate(scans)]
+        want = np.stack([scan_signature(db.prepare(s)) for s in scans])
+        before = [h.place_id for h in db.query(scans[2], k=2)]
+    _set_signature_version(db_path, str(SIGNATURE_VERSION - 1), size=12)
+    # read-only cannot rewrite them: a clear refusal
+    with pytest.raises(PlaceDatabaseError, match="open it once for writing"):
+        PlaceDB(db_path, readonly=True)
+    with PlaceDB(db_path) as db:  # recomputed from the stored scans, in the file
+        assert db.index.signatures.shape == (4, SIGNATURE_SIZE)
+        np.testing.assert_allclose(db.index.signatures, want, rtol=0, atol=1e-6)
+        assert db.info()["signature_version"] == SIGNATURE_VERSION
+        assert [h.place_id for h in db.query(scans[2], k=2)] == before
+    with PlaceDB(db_path, readonly=True) as db:  # and stay so: a reader opens it now
+        np.testing.assert_allclose(db.store.signatures_after(0)[1], want, rtol=0, atol=1e-6)
+        assert db.ids.tolist() == ids
+
+
+@pytest.mark.parametrize("version", ["99", "x"])
+def test_newer_or_unknown_signature_version_refused(db_path, version):
+    PlaceDB(db_path).close()
+    _set_signature_version(db_path, version)
+    with pytest.raises(PlaceDatabaseError, match=f"signatures of version {version}"):
         PlaceDB(db_path)
 
 

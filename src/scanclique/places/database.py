@@ -300,7 +300,9 @@ class PlaceDB:
     ------
     PlaceDatabaseError
         The file is not a place database, is newer, corrupted, or was built with an
-        incompatible configuration or signature.
+        incompatible configuration or a newer signature. Signatures of an older
+        version (:data:`.signature.SIGNATURE_VERSION`) are recomputed from the stored
+        scans when the database is opened for writing, and refused read-only.
     """
 
     def __init__(
@@ -329,6 +331,7 @@ class PlaceDB:
         self.path = self.store.path
         try:
             self.config = self._check_meta(given, config)
+            self._upgrade_signatures()
         except BaseException:
             self.store.close()
             raise
@@ -352,13 +355,6 @@ class PlaceDB:
     def _check_meta(self, given: dict | None, config: MatchConfig | None) -> MatchConfig:
         where = os.fspath(self.path)
         m = self.store.meta
-        sv = m.get("signature_version")
-        if sv != str(SIGNATURE_VERSION) or m.get("signature_size") != str(SIGNATURE_SIZE):
-            raise PlaceDatabaseError(
-                f"{where}: signatures of version {sv} ({m.get('signature_size')} values); this "
-                f"scanclique computes version {SIGNATURE_VERSION} ({SIGNATURE_SIZE}): rebuild "
-                "the database"
-            )
         try:
             stored = json.loads(m.get("config", ""))
             stored_cfg = config_from_dict(stored)
@@ -375,6 +371,38 @@ class PlaceDB:
                 f"with: {'; '.join(diff)}"
             )
         return config
+
+    def _upgrade_signatures(self) -> None:
+        """Recompute the stored signatures when they are of an older version than
+        :data:`.signature.SIGNATURE_VERSION` (from each place's stored scan, prepared
+        with the stored configuration; one transaction, :meth:`.PlaceStore.rewrite_signatures`).
+
+        Raises
+        ------
+        PlaceDatabaseError
+            The signatures are of a newer (or unknown) version, or of an older one and
+            the database is open read-only.
+        """
+        m = self.store.meta
+        sv, size = m.get("signature_version"), m.get("signature_size")
+        if sv == str(SIGNATURE_VERSION) and size == str(SIGNATURE_SIZE):
+            return
+        where = os.fspath(self.path)
+        found = (
+            f"{where}: signatures of version {sv} ({size} values); this scanclique computes "
+            f"version {SIGNATURE_VERSION} ({SIGNATURE_SIZE})"
+        )
+        if not (sv or "").isdigit() or int(sv) >= SIGNATURE_VERSION:
+            raise PlaceDatabaseError(f"{found}: upgrade scanclique, or rebuild the database")
+        if self.store.readonly:
+            raise PlaceDatabaseError(
+                f"{found}: open it once for writing to recompute them (read-only here)"
+            )
+        n = self.store.rewrite_signatures(
+            lambda scan: scan_signature(self.prepare(scan)),
+            {"signature_version": str(SIGNATURE_VERSION), "signature_size": str(SIGNATURE_SIZE)},
+        )
+        log.info("%s: signatures of version %s recomputed for %d places", where, sv, n)
 
     # -- writing -----------------------------------------------------------------------
     def prepare(self, scan: Scan) -> PreparedScan:

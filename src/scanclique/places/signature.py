@@ -26,6 +26,15 @@ the sensor, and all but the first to a translation of the same surfaces too:
     their normals and the segment joining them (as ``|cos|``, the smaller first, since a
     normal's sign is arbitrary): 8 distance bins x 4 x 4 angle bins. Joint, it tells a
     corridor (pairs across it meet both walls head-on) from a room of the same size.
+``local``
+    the same joint histogram over *local* pairs only, at most :data:`LOCAL_RADIUS`
+    apart (distance bins linear up to it), of the cloud's points thinned to about one per
+    :data:`LOCAL_SPACING` of the scan's length: a histogram of the local shapes of the
+    surfaces in view, to which each stretch of surface adds its own counts whatever else
+    is in view. A revisit that shares only part of the view (the other half of the
+    field of view is elsewhere, e.g. a corridor walked the other way) keeps the shared
+    part's counts, where every pair of the whole scan (``distance``, ``pair``) mixes the
+    shared part with the rest. It has as much weight as all the other blocks together.
 
 The prefilter's recall (a place it drops can never be recognised) is measured by
 ``benchmarks/places.py``; each block alone ranks a true place among the first 10 for
@@ -68,7 +77,8 @@ __all__ = [
 ]
 
 #: bump when the signature changes: stored signatures of another version are recomputed
-SIGNATURE_VERSION = 2
+#: (:class:`scanclique.places.PlaceDB`)
+SIGNATURE_VERSION = 3
 
 #: metres: ranges and distances are binned on a square-root scale up to this (farther
 #: values go to the last bin)
@@ -76,13 +86,23 @@ _FAR = 30.0
 #: at most this many points enter the pairwise histograms (evenly spaced in beam order)
 _PAIR_POINTS = 120
 
-#: (name, number of bins, weight before normalisation)
+#: metres: the ``local`` block's pairs are at most this far apart (a few metres of
+#: surface, about what a revisit a couple of metres off still sees of the same stretch)
+LOCAL_RADIUS = 2.0
+#: metres: the ``local`` block's points are thinned to about one per this length of the
+#: scan (arc length in beam order), so that its counts follow the length of surface in
+#: view and not the beam density, which falls with range
+LOCAL_SPACING = 0.25
+
+#: (name, number of bins, weight before normalisation); ``local`` weighs as much as the
+#: others together (its squared weight is the sum of theirs)
 SIGNATURE_BLOCKS: tuple[tuple[str, int, float], ...] = (
     ("range", 24, 1.0),
     ("distance", 24, 1.0),
     ("normal", 12, 1.0),
     ("feature", 24, 1.0),
     ("pair", 128, 2.0),
+    ("local", 128, math.sqrt(8.0)),
 )
 _PAIR_DIST_BINS = 8
 _PAIR_ANGLE_BINS = 4
@@ -122,10 +142,10 @@ def _evenly(n: int, k: int) -> np.ndarray:
     return np.linspace(0, n - 1, k).round().astype(np.int64)
 
 
-def _cloud_with_normals(prepared) -> tuple[np.ndarray, np.ndarray]:
+def _cloud_with_normals(prepared, cap: int | None = _PAIR_POINTS) -> tuple[np.ndarray, np.ndarray]:
     """The cloud's points that have a surface normal and their normals, in beam order
     (the cloud keeps them by bearing, which a rotation of the sensor would cut at
-    another point), at most ``_PAIR_POINTS`` of them evenly spaced."""
+    another point), at most ``cap`` of them evenly spaced (all when None)."""
     pts = np.asarray(prepared.cloud.points, dtype=float).reshape(-1, 2)
     nrm = np.asarray(prepared.cloud.normals, dtype=float).reshape(-1, 2)
     has = np.any(nrm != 0.0, axis=1)
@@ -135,8 +155,55 @@ def _cloud_with_normals(prepared) -> tuple[np.ndarray, np.ndarray]:
         rel = np.mod(np.arctan2(pts[:, 1], pts[:, 0]) - angles[0] + 1e-9, 2 * math.pi)
         order = np.argsort(rel, kind="stable")
         pts, nrm = pts[order], nrm[order]
-    sel = _evenly(len(pts), _PAIR_POINTS)
+    if cap is None:
+        return pts, nrm
+    sel = _evenly(len(pts), cap)
     return pts[sel], nrm[sel]
+
+
+def _thinned(pts: np.ndarray, spacing: float) -> np.ndarray:
+    """Indices of points ``(N, 2)`` (in scan order) kept one per ``spacing`` metres of
+    arc length along them: the first point of each ``spacing`` of the cumulative length
+    of the polyline through them (jumps between surfaces included). Depends only on the
+    points' distances, so a rotation or translation of the sensor keeps the same ones."""
+    if len(pts) == 0:
+        return np.zeros(0, dtype=np.int64)
+    step = np.hypot(*np.diff(pts, axis=0).T) if len(pts) > 1 else np.zeros(0)
+    arc = np.concatenate(([0.0], np.cumsum(step)))
+    cell = np.floor(arc / spacing)
+    return np.flatnonzero(np.concatenate(([True], np.diff(cell) > 0)))
+
+
+def _local_hist(prepared) -> np.ndarray:
+    """The ``local`` block: the joint histogram (hard bins) of (distance, smaller |cos|,
+    larger |cos|) over the pairs at most :data:`LOCAL_RADIUS` apart of the cloud's points
+    that have a normal, thinned (:func:`_thinned`, :data:`LOCAL_SPACING`); distance bins
+    linear over ``[0, LOCAL_RADIUS]``. Counts, not normalised: shape
+    ``(_PAIR_DIST_BINS * _PAIR_ANGLE_BINS ** 2,)``, all zero for fewer than two points."""
+    from scipy.spatial import cKDTree
+
+    nd, na = _PAIR_DIST_BINS, _PAIR_ANGLE_BINS
+    out = np.zeros(nd * na * na)
+    pts, nrm = _cloud_with_normals(prepared, cap=None)
+    keep = _thinned(pts, LOCAL_SPACING)
+    pts, nrm = pts[keep], nrm[keep]
+    if len(pts) < 2:
+        return out
+    ij = cKDTree(pts).query_pairs(LOCAL_RADIUS, output_type="ndarray")
+    if len(ij) == 0:
+        return out
+    i, j = ij[:, 0], ij[:, 1]
+    d = pts[j] - pts[i]
+    length = np.hypot(d[:, 0], d[:, 1])
+    u = d / np.maximum(length, 1e-12)[:, None]
+    c1 = np.abs(np.sum(nrm[i] * u, axis=1))
+    c2 = np.abs(np.sum(nrm[j] * u, axis=1))
+    lo, hi = np.minimum(c1, c2), np.maximum(c1, c2)
+    bd = np.clip(np.floor(length / LOCAL_RADIUS * nd), 0, nd - 1)
+    b1 = np.clip(np.floor(lo * na), 0, na - 1)
+    b2 = np.clip(np.floor(hi * na), 0, na - 1)
+    code = ((bd * na + b1) * na + b2).astype(np.int64)
+    return np.bincount(code, minlength=nd * na * na).astype(float)
 
 
 _KERNELS = None
@@ -170,7 +237,7 @@ def _blocks(prepared) -> list[np.ndarray]:
         _PAIR_DIST_BINS, _PAIR_ANGLE_BINS, _FAR,
     )  # fmt: skip
     h_feat = _feature_hist(prepared, nb["feature"])
-    return [h_range, h_dist, h_norm, h_feat, h_pair]
+    return [h_range, h_dist, h_norm, h_feat, h_pair, _local_hist(prepared)]
 
 
 def _blocks_reference(prepared) -> list[np.ndarray]:
@@ -198,7 +265,8 @@ def _blocks_reference(prepared) -> list[np.ndarray]:
     h_feat = _feature_hist(prepared, nb["feature"])
     # pair: joint histogram of 2D point pair features
     h_pair = _pair_hist(prepared)
-    return [h_range, h_dist, h_norm, h_feat, h_pair]
+    # local: the joint histogram of local pairs (the same function: no compiled copy)
+    return [h_range, h_dist, h_norm, h_feat, h_pair, _local_hist(prepared)]
 
 
 def _pair_hist(prepared) -> np.ndarray:

@@ -34,7 +34,7 @@ import os
 import sqlite3
 import time
 import zlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -212,6 +212,7 @@ class PlaceStore:
     ) -> None:
         self.path = Path(path)
         self._where = os.fspath(path)
+        self.readonly = bool(readonly)
         exists = self.path.exists() and self.path.stat().st_size > 0
         if readonly and not exists:
             raise PlaceDatabaseError(f"{self._where}: no such place database")
@@ -379,6 +380,47 @@ class PlaceStore:
                     c.execute("ROLLBACK")
                 raise
         return pid
+
+    def rewrite_signatures(
+        self, signature_of: Callable[[Scan], np.ndarray], meta: Mapping[str, str]
+    ) -> int:
+        """Replace every place's signature by ``signature_of(scan)`` of its stored scan and
+        set the ``meta`` values, in one transaction; returns how many were rewritten.
+
+        The write lock is held throughout, so no place is added meanwhile; when the
+        ``meta`` values are already stored (another process rewrote them first) nothing
+        is done and 0 returned. For a database whose signatures are of an older version
+        (:data:`~scanclique.places.signature.SIGNATURE_VERSION`).
+        """
+        c = self._conn
+        meta = {str(k): str(v) for k, v in meta.items()}
+        with self._errors("rewrite signatures"):
+            c.execute("BEGIN IMMEDIATE")
+            try:
+                now = dict(c.execute("SELECT key, value FROM meta").fetchall())
+                if all(now.get(k) == v for k, v in meta.items()):
+                    c.execute("ROLLBACK")
+                    self.meta = now
+                    return 0
+                ids = [int(r[0]) for r in c.execute("SELECT id FROM places ORDER BY id")]
+                rows = []
+                for pid in ids:
+                    sig = encode_array(np.asarray(signature_of(self.get(pid, arrays=False).scan)))
+                    rows.append((*sig, pid))
+                c.executemany(
+                    "UPDATE signatures SET dtype = ?, shape = ?, crc32 = ?, data = ? "
+                    "WHERE place_id = ?",
+                    rows,
+                )
+                c.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", sorted(meta.items()))
+                c.execute("COMMIT")
+            except BaseException:
+                if c.in_transaction:
+                    c.execute("ROLLBACK")
+                raise
+            self.meta = dict(c.execute("SELECT key, value FROM meta").fetchall())
+        log.info("%s: recomputed the signatures of %d places", self._where, len(ids))
+        return len(ids)
 
     # -- reading -----------------------------------------------------------------------
     def __len__(self) -> int:
