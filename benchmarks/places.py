@@ -40,7 +40,8 @@ One command::
    ``--full``) serially, over 2 local worker processes, and over a local Dask cluster of
    2 worker processes: wall time, speedup, and whether the results are identical.
 
-Results: ``benchmarks/results/places-2026-12-01.json`` / ``.md`` / ``.png``.
+Results: ``benchmarks/results/places-2026-12-02-s8.json`` / ``.md`` / ``.png`` (earlier
+sessions: ``places-2026-12-01*``).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import git_state, machine, results_path, versions  # noqa: E402
 
-DATE = "2026-12-01"
+DATE = "2026-12-02"
 LOGS = ("intel", "csail", "freiburg")
 RIGHT_T = 0.5  # metres
 RIGHT_R = 0.2  # radians
@@ -697,7 +698,7 @@ def main(argv=None) -> None:
     if a.full:
         a.query_every, a.loops_every = 1, 1
     stages = set(a.stages.split(","))
-    out_json = results_path(a.out, f"places-{DATE}.json")
+    out_json = results_path(a.out, f"places-{DATE}-s8.json")
     res = {
         "date": DATE,
         "args": vars(a),
