@@ -14,8 +14,9 @@ Each filter run is followed by the optional smoothing pass (scanclique.slam.smoo
 pose graph with the filter's associations), reported on its own rows ("nn + smoothing", ...;
 run times include the filter's); ``--no-smooth`` leaves them out.
 
-Writes benchmarks/results/slam-2026-12-01-s7.json, .md and .png (the maps; the -s6 files are
-the previous session's run, the files without a suffix the one before).
+Writes benchmarks/results/slam-2026-12-02-s8.json, .md and .png (the maps, and below them each
+clutter-0 run's error at every GPS fix with the GPS's own jumps marked; the -s7, -s6 files are
+earlier sessions' runs, the files without a suffix the first).
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, git_state, machine  # noqa: E402
 
-DATE = "2026-12-01"
-TAG = "2026-12-01-s7"
+DATE = "2026-12-02"
+TAG = "2026-12-02-s8"
 METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
@@ -55,7 +56,7 @@ def _vp_worker(args):
     _warm_up(method)
     from scanclique.slam import read_gps, read_victoria_park
     from scanclique.slam.ekf import SlamConfig, ekf_slam
-    from scanclique.slam.metrics import sensor_positions
+    from scanclique.slam.metrics import gps_fix_errors, gps_jumps, sensor_positions
     from scanclique.slam.run import inject_clutter, summarise, victoria_park_model
 
     cfg = SlamConfig()
@@ -67,6 +68,28 @@ def _vp_worker(args):
     r = ekf_slam(steps, model, association=method, config=cfg)
     g, m, (Rm, t) = summarise(r, model, gps, clutter)
     pos = sensor_positions(r.poses, model.sensor_x, model.sensor_y)
+    fixes, _e_start, e_best, est_best, _best = gps_fix_errors(r.times, pos, gps)
+    jumps = gps_jumps(fixes, est_best)
+    gap = np.r_[False, np.diff(fixes[:, 0]) > 2.0]
+    top = np.argsort(-e_best)[: max(1, len(e_best) // 20)]
+    diag = {
+        "median": float(np.median(e_best)),
+        "p90": float(np.percentile(e_best, 90)),
+        "share_top5": float(np.sum(e_best[top] ** 2) / np.sum(e_best**2)),
+        "jumps": int(jumps.sum()),
+        "top10_after_jump_or_gap": int(
+            sum(
+                bool(
+                    np.any(
+                        (jumps | gap)
+                        & (fixes[:, 0] <= fixes[i, 0])
+                        & (fixes[:, 0] > fixes[i, 0] - 1.0)
+                    )
+                )
+                for i in np.argsort(-e_best)[:10]
+            )
+        ),
+    }
     keep = slice(None, None, 10)
     extra = []
     if smooth:
@@ -89,12 +112,16 @@ def _vp_worker(args):
             "clutter": clutter,
             "metrics": {k: v for k, (v, _u) in m.items()},
             "units": {k: u for k, (_v, u) in m.items()},
+            "gps_diagnosis": diag,
             "_plot": (
                 pos[keep].tolist(),
                 r.landmarks.tolist(),
                 r.landmark_covariances.tolist(),
                 Rm.tolist(),
                 t.tolist(),
+                fixes[:, 0].tolist(),
+                e_best.tolist(),
+                fixes[jumps, 0].tolist(),
             ),
         }
     ] + extra
@@ -116,8 +143,8 @@ def _nees_worker(args):
     obs_ids = [a for a in r.associations]
     pairs_ok = pairs_all = 0
     votes: dict[int, dict[int, int]] = {}
-    for a, tr in zip(obs_ids, run.truth):
-        for lid, tree in zip(a.tolist(), tr.tolist()):
+    for a, tr in zip(obs_ids, run.truth, strict=True):
+        for lid, tree in zip(a.tolist(), tr.tolist(), strict=True):
             if lid >= 0:
                 votes.setdefault(lid, {}).setdefault(tree, 0)
                 votes[lid][tree] += 1
@@ -215,13 +242,27 @@ def main(argv=None):
                             f"{key} {cm} / best of nn, jcbb{suffix} = {rs[cm][key] / best:.3f}"
                         )
                     ratio_lines.append(f"clutter {c}: " + "; ".join(parts))
+    diag_lines = [
+        "| clutter | method | median [m] | p90 [m] | share of squared error in the worst 5 % "
+        "of fixes | GPS jumps | of the 10 worst fixes, within 1 s after a GPS jump or a > 2 s "
+        "gap |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in vp:
+        g = r.get("gps_diagnosis")
+        if g:
+            diag_lines.append(
+                f"| {r['clutter']} | {r['method']} | {g['median']:.2f} | {g['p90']:.2f} | "
+                f"{100 * g['share_top5']:.0f} % | {g['jumps']} | {g['top10_after_jump_or_gap']} |"
+            )
     nees = {}
     for m in methods:
         recs = [s for s in sims if s["method"] == m]
         if recs:
             nees[m] = _nees_summary(recs, len(recs))
     nees_lines = [
-        "| method | runs | ANEES | 95 % band | fraction of steps inside | pos RMSE [m] | pair consistency | landmarks |",
+        "| method | runs | ANEES | 95 % band | fraction of steps inside | pos RMSE [m] "
+        "| pair consistency | landmarks |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for m, s in nees.items():
@@ -238,10 +279,11 @@ def main(argv=None):
         from scanclique.slam.outputs import plot_maps
 
         c0 = min(clutters)
-        runs = []
+        runs, errors = [], []
         for r in vp:
             if r["clutter"] == c0 and "_plot" in r:
-                pos, lm, lc, Rm, t = r["_plot"]
+                pos, lm, lc, Rm, t, te, ee, tj = r["_plot"]
+                errors.append((r["method"], np.array(te), np.array(ee), np.array(tj)))
                 runs.append(
                     (
                         f"{r['method']} (clutter {c0})",
@@ -257,6 +299,7 @@ def main(argv=None):
                 runs,
                 np.asarray(read_gps("victoria-park")),
                 title="EKF-SLAM on Victoria Park: NN, JCBB, clique association",
+                errors=errors,
             )
     except Exception as exc:  # pragma: no cover - plotting optional
         print(f"figure not written: {exc}", file=sys.stderr)
@@ -279,6 +322,10 @@ def main(argv=None):
         "",
         *ratio_lines,
         "",
+        "## Where the GPS error lies (best SE(2) alignment, per fix; the figure's lower panel)",
+        "",
+        *diag_lines,
+        "",
         "## NEES of the vehicle pose on simulated tree parks",
         "",
         *nees_lines,
@@ -288,6 +335,8 @@ def main(argv=None):
     print("\n".join(lines))
     print()
     print("\n".join(ratio_lines))
+    print()
+    print("\n".join(diag_lines))
     print()
     print("\n".join(nees_lines))
     print(f"\nwrote {out.with_suffix('.json')}, .md, .png in {time.perf_counter() - t0:.0f} s")

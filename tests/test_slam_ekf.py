@@ -255,3 +255,79 @@ def test_confirm_range_keeps_far_only_trees_out_of_the_map():
     cfg = slam.SlamConfig(max_range=30.0, confirm_range=None, tentative_scans=100)
     r = slam.ekf_slam(steps, slam.Unicycle(), association="jcbb", config=cfg)
     assert len(r.landmarks) == 3
+
+
+def _map_cost(x, x0, P0, z, glob, R, sx, sy):
+    """The iterated EKF's objective: prior plus observations, Mahalanobis (squared)."""
+    dx = x - x0
+    dx[2] = slam.wrap(dx[2])
+    lm = np.array([x[3 + 2 * g : 5 + 2 * g] for g in glob])
+    nu = z - observe(x[:3], lm, sx, sy)[0]
+    nu[:, 1] = slam.wrap(nu[:, 1])
+    Ri = np.linalg.inv(R)
+    return dx @ np.linalg.solve(P0, dx) + np.einsum("ka,ab,kb->", nu, Ri, nu)
+
+
+def test_iterated_update_reaches_the_map_estimate():
+    """With a large heading uncertainty and a precise sensor, the EKF's one
+    linearisation stops short of the minimum of prior + observations; the iterated
+    update (Bell and Cathey 1993) reaches it (against scipy's minimiser), and its first
+    iteration is the EKF's update."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(7)
+    sx, sy = 3.78, 0.5
+    R = np.diag([0.05, math.radians(0.3)]) ** 2
+    lm = np.array([[15.0, 4.0], [12.0, -6.0], [20.0, 1.0]])
+    f0 = E._Filter(np.zeros(3), np.diag([0.05, 0.05, 0.01]), cap=4)
+    for m in lm:  # landmarks known to 0.3 m, independent of the pose
+        f0.add(m, np.zeros((2, 3)), np.eye(2), np.eye(2) * 0.09, 0.0)
+    f0.P[:3, :3] = np.diag([1.0, 1.0, math.radians(15.0) ** 2])
+    truth = f0.x[: f0.dim].copy()
+    truth[:3] = [0.6, -0.5, math.radians(20.0)]  # a 20 deg heading error: strongly nonlinear
+    glob = np.arange(3)
+    z = observe(truth[:3], lm, sx, sy)[0] + rng.normal(0, np.sqrt(np.diag(R)), (3, 2))
+    d = f0.dim
+    x0, P0 = f0.x[:d].copy(), f0.P[:d, :d].copy()
+    ref = minimize(_map_cost, x0, args=(x0, P0, z, glob, R, sx, sy), method="BFGS", tol=1e-12)
+    out = {}
+    for iters in (1, 8):
+        f = E._Filter(np.zeros(3), np.eye(3), cap=4)
+        f.x, f.P, f.n = f0.x.copy(), f0.P.copy(), f0.n
+        E._update(f, z, glob, R, sx, sy, iters)
+        out[iters] = f
+    ekf = E._Filter(np.zeros(3), np.eye(3), cap=4)
+    ekf.x, ekf.P, ekf.n = f0.x.copy(), f0.P.copy(), f0.n
+    E._update(ekf, z, glob, R, sx, sy)
+    np.testing.assert_array_equal(out[1].x, ekf.x)
+    np.testing.assert_array_equal(out[1].P, ekf.P)
+    err_ekf = np.abs(out[1].x[:d] - ref.x).max()
+    err_iekf = np.abs(out[8].x[:d] - ref.x).max()
+    assert err_iekf < 1e-4 < 0.05 < err_ekf
+    c8 = _map_cost(out[8].x[:d], x0, P0, z, glob, R, sx, sy)
+    assert c8 <= ref.fun + 1e-6 < _map_cost(out[1].x[:d], x0, P0, z, glob, R, sx, sy)
+    P = out[8].P[:d, :d]
+    assert np.allclose(P, P.T) and np.all(np.linalg.eigvalsh(P) > 0)
+
+
+def test_iterated_filter_runs_on_the_park(park):
+    cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, update_iterations=3)
+    r = slam.ekf_slam(park.steps, slam.Ackermann(), association="nn", config=cfg)
+    e = r.poses - park.poses
+    assert np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1))) < 1.5
+
+
+def test_gps_fix_errors_and_jumps():
+    from scanclique.slam.metrics import gps_fix_errors, gps_jumps
+
+    t = np.linspace(0, 100, 501)
+    pos = np.column_stack([3.0 * t, 20 * np.sin(t / 20)])
+    g = np.column_stack([t, pos])
+    g[200:260, 1] += 5.0  # the receiver steps 5 m off and back
+    fixes, e_start, e_best, est_best, _ = gps_fix_errors(t, pos, g)
+    agg = gps_error(t, pos, g)
+    assert abs(np.sqrt(np.mean(e_best**2)) - agg.rmse_best) < 1e-12
+    assert abs(e_start.max() - agg.max_start) < 1e-12
+    assert np.flatnonzero(gps_jumps(fixes, est_best)).tolist() == [200, 260]
+    # a step after a gap longer than max_dt is not called a jump
+    assert not gps_jumps(fixes, est_best, max_dt=0.1).any()

@@ -61,7 +61,12 @@ class SlamConfig:
         0.15 m the filter is overconfident on the simulated park, where this noise is the
         truth (ANEES about 7.5 over 5 parks, band [1.25, 5.5]; 3.96 with 0.5 m): the
         linearised heading makes a precise sensor's updates too strong, and an inflated
-        range noise keeps the filter consistent. Hence 0.5 m.
+        range noise keeps the filter consistent. The iterated update
+        (``update_iterations=3``) removes that overconfidence on the simulated park
+        (ANEES 2.78 over 3 parks at 0.15 m and 0.5 deg, 98.8 % of steps in the band) but
+        not on Victoria Park, where the same noises give a GPS RMSE of 5.3 m (SE(2)) and
+        322 landmarks, 24 % in duplicate pairs (clique): there the inflation covers
+        unmodelled error (see ``sigma_bearing``), not the linearisation. Hence 0.5 m.
     sigma_bearing : float
         Standard deviation of the bearing (rad): about the angular resolution of the
         laser (0.5 deg) plus the centre estimate. Victoria Park's bearing innovations
@@ -115,6 +120,9 @@ class SlamConfig:
         When set, the filter estimates a constant offset of the sensor's bearings (rad;
         a yaw misalignment of its mounting) as a vehicle state, with this prior standard
         deviation. Observations fix only heading plus offset; the motion separates them.
+    update_iterations : int
+        Linearisations of the observation model per update: 1 is the EKF; more is the
+        iterated EKF (Bell and Cathey 1993), which re-linearises at the updated estimate.
     association : AssociationConfig
     """
 
@@ -134,6 +142,7 @@ class SlamConfig:
     control_bias_sigma: float | None = None
     control_bias_rate: float | None = None
     bearing_bias_sigma: float | None = None
+    update_iterations: int = 1
     association: AssociationConfig = field(default_factory=AssociationConfig)
 
     @property
@@ -536,7 +545,7 @@ def ekf_slam(
                 glob = J[loc[paired]]
                 # 4. update with all pairs
                 if len(paired):
-                    _update(f, z[paired], glob, R, sx, sy)
+                    _update(f, z[paired], glob, R, sx, sy, cfg.update_iterations)
                     f.hits[glob] += 1
                     f.near[glob] |= z[paired, 0] <= confirm_r
                     f.misses[glob] = 0
@@ -647,28 +656,41 @@ def _predicted(zJ, Hx, Hm, Psub, positions, attributes) -> Predicted:
     return Predicted(zJ, Sz, positions, Pmm, attributes)
 
 
-def _update(f: _Filter, z, glob, R, sx, sy):
+def _update(f: _Filter, z, glob, R, sx, sy, iterations: int = 1):
     """Batch EKF update with observations ``z`` paired with landmarks ``glob`` (local
-    indices), Joseph form expanded: P - K H P - P H^T K^T + K S K^T."""
+    indices), Joseph form expanded: P - K H P - P H^T K^T + K S K^T.
+
+    With ``iterations`` > 1, the iterated EKF (Bell and Cathey 1993): the observation
+    model is re-linearised at the updated estimate ``x_i`` and the update recomputed from
+    the prior ``x_0``, ``x_{i+1} = x_0 + K_i (z - h(x_i) - H_i (x_0 - x_i))`` (Gauss-Newton
+    on the prior and the observations); the covariance uses the last linearisation."""
     d = f.dim
     x, P = f.x, f.P
     nv = f.nv
     m = len(glob)
-    lm = x[nv + 2 * glob[:, None] + np.arange(2)]
-    zhat, Hx, Hm = f.observe(lm, sx, sy)
     cols = np.r_[np.arange(nv), (nv + 2 * glob[:, None] + np.arange(2)).reshape(-1)].astype(int)
-    Hs = np.zeros((2 * m, nv + 2 * m))
-    Hs[:, f.obs_cols] = Hx.reshape(2 * m, -1)
-    for q in range(m):
-        Hs[2 * q : 2 * q + 2, nv + 2 * q : nv + 2 + 2 * q] = Hm[q]
-    PHt = P[:d, cols] @ Hs.T  # (d, 2m)
-    S = Hs @ PHt[cols] + np.kron(np.eye(m), R)
-    S = 0.5 * (S + S.T)
-    K = np.linalg.solve(S, PHt.T).T  # (d, 2m)
-    nu = z - zhat
-    nu[:, 1] = wrap(nu[:, 1])
-    x[:d] += K @ nu.reshape(-1)
-    x[2] = wrap(x[2])
+    Rm = np.kron(np.eye(m), R)
+    x0 = x[:d].copy()
+    for it in range(max(1, iterations)):
+        lm = x[nv + 2 * glob[:, None] + np.arange(2)]
+        zhat, Hx, Hm = f.observe(lm, sx, sy)
+        Hs = np.zeros((2 * m, nv + 2 * m))
+        Hs[:, f.obs_cols] = Hx.reshape(2 * m, -1)
+        for q in range(m):
+            Hs[2 * q : 2 * q + 2, nv + 2 * q : nv + 2 + 2 * q] = Hm[q]
+        PHt = P[:d, cols] @ Hs.T  # (d, 2m)
+        S = Hs @ PHt[cols] + Rm
+        S = 0.5 * (S + S.T)
+        K = np.linalg.solve(S, PHt.T).T  # (d, 2m)
+        nu = z - zhat
+        nu[:, 1] = wrap(nu[:, 1])
+        nu = nu.reshape(-1)
+        if it:
+            dx = x0[cols] - x[cols]
+            dx[2] = wrap(dx[2])
+            nu = nu - Hs @ dx
+        x[:d] = x0 + K @ nu
+        x[2] = wrap(x[2])
     # K S K^T - K PHt^T - PHt K^T = K M^T + M K^T with M = 0.5 K S - PHt
     from ._kernels import sym_update
 

@@ -25,6 +25,8 @@ __all__ = [
     "gps_outliers",
     "GpsError",
     "gps_error",
+    "gps_fix_errors",
+    "gps_jumps",
     "align_se2",
     "duplicate_pairs",
     "sensor_positions",
@@ -80,8 +82,8 @@ def gps_outliers(gps, max_speed: float = 15.0) -> np.ndarray:
     return out
 
 
-def gps_error(times, positions, gps, *, start_distance: float = 50.0) -> GpsError:
-    """Position error of a trajectory at the GPS fixes.
+def gps_fix_errors(times, positions, gps, *, start_distance: float = 50.0):
+    """Position error of a trajectory at each GPS fix, for both alignments.
 
     Parameters
     ----------
@@ -92,6 +94,18 @@ def gps_error(times, positions, gps, *, start_distance: float = 50.0) -> GpsErro
     gps : (G, 3) array
         ``time x y`` fixes; those outside ``[times[0], times[-1]]`` are ignored, and so
         are the outliers of :func:`gps_outliers`.
+
+    Returns
+    -------
+    fixes : (F, 3) ndarray
+        The fixes used (``time x y``).
+    e_start, e_best : (F,) ndarrays
+        Error (m) at each fix after the start alignment and after the best SE(2)
+        alignment.
+    estimate_best : (F, 2) ndarray
+        The estimate at the fixes' times, in the GPS frame by the best alignment.
+    best : (Rm (2, 2), t (2,), angle)
+        The best alignment (estimate -> GPS).
     """
     times = np.asarray(times, float)
     positions = np.asarray(positions, float)
@@ -109,16 +123,50 @@ def gps_error(times, positions, gps, *, start_distance: float = 50.0) -> GpsErro
     a = est @ Rs.T + ts
     e_start = np.hypot(*(a - ref).T)
     Rb, tb, angb = align_se2(est, ref)
-    e_best = np.hypot(*((est @ Rb.T + tb) - ref).T)
+    est_best = est @ Rb.T + tb
+    e_best = np.hypot(*(est_best - ref).T)
+    return g, e_start, e_best, est_best, (Rb, tb, angb)
+
+
+def gps_error(times, positions, gps, *, start_distance: float = 50.0) -> GpsError:
+    """RMS and max position error of a trajectory at the GPS fixes (see
+    :func:`gps_fix_errors`, which takes the same arguments)."""
+    g, e_start, e_best, _est, (_Rb, tb, angb) = gps_fix_errors(
+        times, positions, gps, start_distance=start_distance
+    )
     return GpsError(
         float(np.sqrt(np.mean(e_start**2))),
         float(e_start.max()),
         float(np.sqrt(np.mean(e_best**2))),
         float(e_best.max()),
-        len(ref),
+        len(g),
         float(angb),
         (float(tb[0]), float(tb[1])),
     )
+
+
+def gps_jumps(fixes, estimate, *, tolerance: float = 1.5, max_dt: float = 1.0) -> np.ndarray:
+    """Fixes (bool (F,)) where the GPS jumps: its step from the previous fix (less than
+    ``max_dt`` s before) differs from the estimate's step over the same interval by more
+    than ``tolerance`` (m). A smooth estimate cannot move that far from one fix to the
+    next (0.2 s on Victoria Park), so such a step is the receiver's (a change of
+    satellites or multipath) and the fixes that follow carry its offset until the next.
+
+    Parameters
+    ----------
+    fixes : (F, 3) array
+        ``time x y``.
+    estimate : (F, 2) array
+        The estimate at the fixes' times, in the GPS frame.
+    """
+    f = np.asarray(fixes, float)
+    e = np.asarray(estimate, float)
+    out = np.zeros(len(f), bool)
+    if len(f) < 2:
+        return out
+    step = np.hypot(*(np.diff(f[:, 1:], axis=0) - np.diff(e, axis=0)).T)
+    out[1:] = (step > tolerance) & (np.diff(f[:, 0]) < max_dt)
+    return out
 
 
 def duplicate_pairs(landmarks, distance: float = 1.0) -> tuple[int, int]:

@@ -45,9 +45,8 @@ def write_landmarks(path, ids, landmarks, covariances, hits) -> Path:
     with open(p, "w") as fh:
         fh.write("id,x,y,var_x,cov_xy,var_y,hits\n")
         for i, m, c, h in zip(ids, landmarks, covariances, hits, strict=False):
-            fh.write(
-                f"{int(i)},{m[0]:.4f},{m[1]:.4f},{c[0, 0]:.6g},{c[0, 1]:.6g},{c[1, 1]:.6g},{int(h)}\n"
-            )
+            cov = f"{c[0, 0]:.6g},{c[0, 1]:.6g},{c[1, 1]:.6g}"
+            fh.write(f"{int(i)},{m[0]:.4f},{m[1]:.4f},{cov},{int(h)}\n")
     return p
 
 
@@ -81,15 +80,19 @@ def _ellipse(ax, m, c, color, nsig=3.0):
     ax.plot(pts[:, 0], pts[:, 1], color=color, lw=0.5)
 
 
-def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park"):
+def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park", errors=None):
     """One panel per run: GPS fixes, trajectory and landmarks (3-sigma ellipses), all
-    in the GPS frame.
+    in the GPS frame; with ``errors``, a panel below of each run's error at every fix.
 
     Parameters
     ----------
     runs : list of (label, positions (N, 2), landmarks (n, 2), covariances (n, 2, 2),
         (Rm, t) alignment estimate -> GPS)
     gps : (G, 3) array, optional
+    errors : list of (label, fix times (F,) s, errors (F,) m), optional
+        Plotted against the time since the first fix; ``jumps`` (fix times, s) may follow
+        as a fourth item, marked below the curves (the GPS's own steps, see
+        :func:`scanclique.slam.metrics.gps_jumps`).
     """
     import matplotlib
 
@@ -97,8 +100,15 @@ def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park"):
     import matplotlib.pyplot as plt
 
     n = len(runs)
-    fig, axes = plt.subplots(1, n, figsize=(6 * n, 6), squeeze=False)
-    for ax, (label, pos, lms, covs, (Rm, t)) in zip(axes[0], runs, strict=False):
+    if errors:
+        fig = plt.figure(figsize=(6 * n, 9))
+        grid = fig.add_gridspec(2, n, height_ratios=(2, 1))
+        axes = [fig.add_subplot(grid[0, i]) for i in range(n)]
+        eax = fig.add_subplot(grid[1, :])
+    else:
+        fig, ax2 = plt.subplots(1, n, figsize=(6 * n, 6), squeeze=False)
+        axes, eax = list(ax2[0]), None
+    for ax, (label, pos, lms, covs, (Rm, t)) in zip(axes, runs, strict=False):
         if gps is not None:
             ax.plot(gps[:, 1], gps[:, 2], ".", color="0.6", ms=1.5, label="GPS")
         p = pos @ Rm.T + t
@@ -112,6 +122,18 @@ def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park"):
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.legend(loc="upper left", fontsize=7)
+    if eax is not None:
+        t0 = min(float(e[1][0]) for e in errors if len(e[1]))
+        for item in errors:
+            label, te, ee = item[:3]
+            eax.plot(np.asarray(te) - t0, ee, lw=0.6, label=label)
+            if len(item) > 3 and len(item[3]):
+                j = np.asarray(item[3]) - t0
+                eax.plot(j, np.full(len(j), -0.5), "|", color="k", ms=6)
+        eax.set_xlabel("time since the first fix [s]")
+        eax.set_ylabel("error at the GPS fix [m] (SE(2) alignment)")
+        eax.set_title("error at every GPS fix; black ticks: the GPS's jumps (see gps_jumps)")
+        eax.legend(loc="upper left", fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
