@@ -192,18 +192,7 @@ def _local_hist(prepared) -> np.ndarray:
     ij = cKDTree(pts).query_pairs(LOCAL_RADIUS, output_type="ndarray")
     if len(ij) == 0:
         return out
-    i, j = ij[:, 0], ij[:, 1]
-    d = pts[j] - pts[i]
-    length = np.hypot(d[:, 0], d[:, 1])
-    u = d / np.maximum(length, 1e-12)[:, None]
-    c1 = np.abs(np.sum(nrm[i] * u, axis=1))
-    c2 = np.abs(np.sum(nrm[j] * u, axis=1))
-    lo, hi = np.minimum(c1, c2), np.maximum(c1, c2)
-    bd = np.clip(np.floor(length / LOCAL_RADIUS * nd), 0, nd - 1)
-    b1 = np.clip(np.floor(lo * na), 0, na - 1)
-    b2 = np.clip(np.floor(hi * na), 0, na - 1)
-    code = ((bd * na + b1) * na + b2).astype(np.int64)
-    return np.bincount(code, minlength=nd * na * na).astype(float)
+    return _pair_feature_hist(pts, nrm, ij[:, 0], ij[:, 1], lambda length: length / LOCAL_RADIUS)
 
 
 _KERNELS = None
@@ -278,13 +267,24 @@ def _pair_hist(prepared) -> np.ndarray:
     i, j = _pair_values(pts)
     if len(i) == 0:
         return np.zeros(nd * na * na)
+    return _pair_feature_hist(
+        pts, nrm, i, j, lambda length: np.sqrt(np.minimum(length, _FAR) / _FAR)
+    )
+
+
+def _pair_feature_hist(pts, nrm, i, j, distance_unit) -> np.ndarray:
+    """Counts ``(_PAIR_DIST_BINS * _PAIR_ANGLE_BINS ** 2,)`` of the point pairs ``(i[k],
+    j[k])`` by (distance, smaller |cos|, larger |cos|), the cosines of the angles between
+    each point's normal and the segment joining them; ``distance_unit`` maps a distance (m)
+    to ``[0, 1]`` over the distance bins (hard bins, clipped)."""
+    nd, na = _PAIR_DIST_BINS, _PAIR_ANGLE_BINS
     d = pts[j] - pts[i]
     length = np.hypot(d[:, 0], d[:, 1])
     u = d / np.maximum(length, 1e-12)[:, None]
     c1 = np.abs(np.sum(nrm[i] * u, axis=1))
     c2 = np.abs(np.sum(nrm[j] * u, axis=1))
     lo, hi = np.minimum(c1, c2), np.maximum(c1, c2)
-    bd = np.clip(np.floor(np.sqrt(np.minimum(length, _FAR) / _FAR) * nd), 0, nd - 1)
+    bd = np.clip(np.floor(distance_unit(length) * nd), 0, nd - 1)
     b1 = np.clip(np.floor(lo * na), 0, na - 1)
     b2 = np.clip(np.floor(hi * na), 0, na - 1)
     code = ((bd * na + b1) * na + b2).astype(np.int64)
