@@ -328,9 +328,7 @@ def confusion(records: list[dict], key: str) -> dict:
     # the match's own pose was accepted (not another hypothesis) and the raw scans
     # dispute the reference (reference_disputed)
     disputed = [
-        r
-        for r in wrong
-        if r.get("reference_disputed") and r[key].get("hypothesis") in (None, 0)
+        r for r in wrong if r.get("reference_disputed") and r[key].get("hypothesis") in (None, 0)
     ]
     return {
         "n": len(records),

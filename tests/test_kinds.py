@@ -117,8 +117,16 @@ def test_builtin_kinds_are_registered_with_their_labels_and_geometries():
         (dict(name="pole", label=9, geometry="plane"), "geometry"),
         (dict(name="pole", label=99, geometry="point"), r"\[0, 63\]"),
         (dict(name="pole", label=9, geometry="point", attributes=("d",)), "one tolerance"),
-        (dict(name="pole", label=9, geometry="point", attributes=("d",),
-              attribute_tolerances=(-1.0,)), "> 0"),  # fmt: skip
+        (
+            dict(
+                name="pole",
+                label=9,
+                geometry="point",
+                attributes=("d",),
+                attribute_tolerances=(-1.0,),
+            ),
+            "> 0",
+        ),  # fmt: skip
         (dict(name="wall2", label=9, geometry="line"), "line geometry"),
         (dict(name="not an id", label=9, geometry="point"), "identifier"),
     ],

@@ -57,7 +57,9 @@ def test_drive_with_odometry(office_drive):
     odo = [s.odometry for s in scans]
     o0 = odo[0].inverse()
     r0 = scans[0].reference.inverse()
-    odo_err = np.array([(o0 @ o).distance_to(r0 @ s.reference)[0] for o, s in zip(odo, scans)])
+    odo_err = np.array(
+        [(o0 @ o).distance_to(r0 @ s.reference)[0] for o, s in zip(odo, scans, strict=True)]
+    )
     assert _aligned_errors(r, scans).max() < max(0.15, 0.5 * odo_err.max())
     c = r.counts()
     assert c["scans"] == 40 and c["keyframes"] >= 2

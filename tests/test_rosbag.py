@@ -71,7 +71,8 @@ def _msgs(ts, ros1: bool):
         tr = T["geometry_msgs/msg/TransformStamped"](
             header=header(t, "odom", seq), child_frame_id="base_link",
             transform=T["geometry_msgs/msg/Transform"](
-                translation=T["geometry_msgs/msg/Vector3"](x=p.x, y=p.y, z=0.0), rotation=quat(p.theta)
+                translation=T["geometry_msgs/msg/Vector3"](x=p.x, y=p.y, z=0.0),
+                rotation=quat(p.theta),
             ),
         )  # fmt: skip
         return T["tf2_msgs/msg/TFMessage"](transforms=[tr])

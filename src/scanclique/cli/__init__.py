@@ -32,7 +32,6 @@ from rich.table import Table
 from .. import __version__
 from ..errors import ScanCliqueError, ScanIndexError
 
-
 log = logging.getLogger(__name__)
 
 #: Names of the library layer kept importable from here for old scripts

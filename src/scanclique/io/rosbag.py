@@ -221,7 +221,8 @@ def read_bag(
             if not (math.isfinite(inc) and math.isfinite(a0)) or inc == 0.0:
                 raise ParseError(
                     name, None,
-                    f"{c.topic} message {k}: angle_min {a0} / angle_increment {inc} do not define beams",
+                    f"{c.topic} message {k}: angle_min {a0} / angle_increment {inc} "
+                    "do not define beams",
                 )  # fmt: skip
             ang = a0 + inc * np.arange(r.size)
             if inc < 0:

@@ -105,8 +105,10 @@ class MapRun:
             a = self.metrics["all"]
             rows += [
                 ("relations", str(a["n"]), ""),
-                ("relation error (translation)", f"{a['translation_mean']:.4f} ± {a['translation_std']:.4f}", "m"),
-                ("relation error (rotation)", f"{a['rotation_mean']:.3f} ± {a['rotation_std']:.3f}", "deg"),
+                ("relation error (translation)",
+                 f"{a['translation_mean']:.4f} ± {a['translation_std']:.4f}", "m"),
+                ("relation error (rotation)",
+                 f"{a['rotation_mean']:.3f} ± {a['rotation_std']:.3f}", "deg"),
             ]  # fmt: skip
         for k, v in self.files.items():
             rows.append((k, str(v), "file"))
