@@ -358,10 +358,11 @@ def _is_right(place, hit, q) -> bool:
 def _evidence(rows) -> np.ndarray:
     """``(score, surprise, rival ratio)`` rows of accepted hits ``[score, surprise,
     rival_score, right]``, as :func:`scanclique.places.verify.confidence` reads them."""
-    a = np.asarray([r[:3] for r in rows], dtype=float).reshape(-1, 3)
-    s = a[:, 0]
-    ratio = np.where(s > 0, np.clip(np.maximum(a[:, 2], 0) / np.where(s > 0, s, 1), 0, 1), 1.0)
-    return np.c_[s, a[:, 1], ratio]
+    from scanclique.places.verify import rival_ratio
+
+    return np.array(
+        [(float(r[0]), float(r[1]), rival_ratio(r[0], r[2])) for r in rows], dtype=float
+    ).reshape(-1, 3)
 
 
 def fit_logistic(X: np.ndarray, y: np.ndarray, lam: float = 1e-2) -> np.ndarray:

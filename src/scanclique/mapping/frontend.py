@@ -19,6 +19,7 @@ from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
 from ..refine import icp_point_to_line, weak_direction
+from ..uncertainty import pose_difference
 from ..validation import (
     AMBIGUOUS,
     GATE_99,
@@ -266,6 +267,34 @@ def associate(
     return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)
 
 
+def icp_from_seeds(
+    pk: PreparedScan, pj: PreparedScan, seeds, fe, config: MatchConfig
+) -> list[tuple[Pose2, float]]:
+    """Point-to-line ICP of all of scan ``j``'s points onto scan ``k``'s cloud from each
+    of ``seeds`` (poses mapping ``j`` into ``k``): ``(pose, raw-scan score)`` of each run
+    that paired at least ``fe.icp_min_fitness`` of the points, in seed order."""
+    pts = np.ascontiguousarray(pj.points)
+    found = []
+    for seed in seeds:
+        icp = icp_point_to_line(
+            pk.cloud,
+            pts,
+            seed,
+            iterations=2 * fe.refine_iterations,
+            max_correspondence=0.5,
+            min_correspondence=fe.refine_min_correspondence,
+        )
+        if icp.fitness >= fe.icp_min_fitness:
+            found.append((icp.pose, float(pose_score(pk, pj, icp.pose, config))))
+    return found
+
+
+def within_gate(pose: Pose2, prior: Pose2, sigmas, gate: float) -> bool:
+    """Whether each of ``pose``'s ``(x, y, theta)`` lies within ``gate`` standard
+    deviations ``sigmas`` (m, m, rad) of ``prior``'s (the angle wrapped)."""
+    return bool(np.all(np.abs(pose_difference(pose, prior)) <= gate * np.asarray(sigmas)))
+
+
 def icp_fallback(
     pk: PreparedScan,
     pj: PreparedScan,
@@ -291,19 +320,7 @@ def icp_fallback(
     ICP poses the scans cannot tell apart (scores within ``fe.icp_score_tie``) go to the
     one nearest the odometry, and in a corridor (:func:`weak_direction` below
     ``fe.icp_min_constraint``) the component along it is the odometry's. None otherwise."""
-    found = []
-    for seed in seeds:
-        icp = icp_point_to_line(
-            pk.cloud,
-            np.ascontiguousarray(pj.points),
-            seed,
-            iterations=2 * fe.refine_iterations,
-            max_correspondence=0.5,
-            min_correspondence=fe.refine_min_correspondence,
-        )
-        if icp.fitness < fe.icp_min_fitness:
-            continue
-        found.append((icp.pose, pose_score(pk, pj, icp.pose, config)))
+    found = icp_from_seeds(pk, pj, seeds, fe, config)
     if not found or max(sc for _, sc in found) < fe.icp_min_score:
         return None
     # poses the raw scans cannot tell apart (scores within ``icp_score_tie`` of the best,
@@ -317,12 +334,10 @@ def icp_fallback(
         (f for f in found if f[1] >= top - fe.icp_score_tie) if measured else found,
         key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0) if measured else -f[1],
     )
-    inside = False
-    for prior, prior_cov in priors:
-        d = pose.as_array() - prior.as_array()
-        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
-        if np.all(np.abs(d) <= fe.icp_gate * np.sqrt(np.diag(prior_cov))):
-            inside = True
+    inside = any(
+        within_gate(pose, prior, np.sqrt(np.diag(prior_cov)), fe.icp_gate)
+        for prior, prior_cov in priors
+    )
     if not inside:
         if ungated is None or score < ungated:
             return None

@@ -27,10 +27,10 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, match_prepared, pose_score
-from ..refine import icp_covariance, icp_point_to_line, weak_direction
+from ..refine import icp_covariance, weak_direction
 from ..validation import OdometryNoise, validate_match
 from .config import LoopConfig
-from .frontend import _quick_accept, floored, refine_pose
+from .frontend import _quick_accept, floored, icp_from_seeds, refine_pose, within_gate
 
 __all__ = [
     "LoopClosure",
@@ -270,14 +270,7 @@ def verify_by_icp(
             (s_xy, 0, 0), (-s_xy, 0, 0), (0, s_xy, 0), (0, -s_xy, 0), (0, 0, s_th), (0, 0, -s_th)
         )
     ]  # fmt: skip
-    found = []
-    for seed in seeds:
-        icp = icp_point_to_line(
-            pi.cloud, pts, seed, iterations=2 * fe.refine_iterations, max_correspondence=0.5,
-            min_correspondence=fe.refine_min_correspondence,
-        )  # fmt: skip
-        if icp.fitness >= fe.icp_min_fitness:
-            found.append((icp.pose, float(pose_score(pi, pj, icp.pose, config))))
+    found = icp_from_seeds(pi, pj, seeds, fe, config)
     pose, score = max(found, key=lambda f: f[1]) if found else (None, 0.0)
 
     def no(verdict: str, reason: str):
@@ -290,9 +283,7 @@ def verify_by_icp(
         if sc >= score - fe.icp_score_tie and (dt > 0.05 or dr > math.radians(0.5)):
             why = f"ICP from another seed: {dt:.2f} m, {math.degrees(dr):.1f} deg away, {sc:.3f}"
             return no("ambiguous", why)
-    d = pose.as_array() - prior.as_array()
-    d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
-    if np.any(np.abs(d) > fe.icp_gate * np.array([s_xy, s_xy, s_th])):
+    if not within_gate(pose, prior, (s_xy, s_xy, s_th), fe.icp_gate):
         return no("rejected_odometry", f"ICP pose beyond {fe.icp_gate:g} sigma of the estimate")
     weak = weak_direction(pi.cloud, pts, pose, 0.1)
     if weak is None or weak[1] < fe.icp_min_constraint:

@@ -254,30 +254,40 @@ class PlaceStore:
                 msg = f"not a place database, or corrupted ({exc})"
             raise PlaceDatabaseError(f"{self._where}: {what}: {msg}") from None
 
-    # -- opening ---------------------------------------------------------------------------
-    def _create(self, meta: dict) -> None:
+    @contextlib.contextmanager
+    def _write(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction (``BEGIN IMMEDIATE``: the write lock from the start),
+        committed when the block ends unless it rolled back itself; rolled back on any
+        exception."""
         c = self._conn
         c.execute("BEGIN IMMEDIATE")
         try:
-            tables = {r[0] for r in c.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-            if tables:  # raced with another creator, or a foreign empty-ish file
-                c.execute("ROLLBACK")
-                self._check()
-                return
-            c.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-            c.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
-            for statement in _SCHEMA.split(";"):
-                if statement.strip():
-                    c.execute(statement)
-            rows = {"format": FORMAT, "schema_version": str(SCHEMA_VERSION)}
-            rows.update({str(k): str(v) for k, v in meta.items()})
-            rows.setdefault("created", repr(time.time()))
-            c.executemany("INSERT INTO meta VALUES (?, ?)", sorted(rows.items()))
-            c.execute("COMMIT")
+            yield c
+            if c.in_transaction:
+                c.execute("COMMIT")
         except BaseException:
             if c.in_transaction:
                 c.execute("ROLLBACK")
             raise
+
+    # -- opening ---------------------------------------------------------------------------
+    def _create(self, meta: dict) -> None:
+        with self._write() as c:
+            tables = {r[0] for r in c.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            if tables:  # raced with another creator, or a foreign empty-ish file
+                c.execute("ROLLBACK")
+            else:
+                c.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                c.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+                for statement in _SCHEMA.split(";"):
+                    if statement.strip():
+                        c.execute(statement)
+                rows = {"format": FORMAT, "schema_version": str(SCHEMA_VERSION)}
+                rows.update({str(k): str(v) for k, v in meta.items()})
+                rows.setdefault("created", repr(time.time()))
+                c.executemany("INSERT INTO meta VALUES (?, ?)", sorted(rows.items()))
+        if tables:
+            self._check()
 
     def _check(self) -> None:
         c = self._conn
@@ -343,42 +353,34 @@ class PlaceStore:
         blobs = [("ranges", *encode_array(scan.ranges)), ("angles", *encode_array(scan.angles))]
         blobs += [(k, *encode_array(v)) for k, v in arrays.items()]
         sig = encode_array(np.asarray(signature))
-        c = self._conn
-        with self._errors("add"):
-            c.execute("BEGIN IMMEDIATE")
-            try:
-                if name is not None:
-                    row = c.execute("SELECT id FROM places WHERE name = ?", (name,)).fetchone()
-                    if row is not None:
-                        raise PlaceDatabaseError(
-                            f"{self._where}: the name {name!r} is already used by place {row[0]}"
-                        )
-                cur = c.execute(
-                    "INSERT INTO places (name, source, timestamp, range_min, range_max, ref_x, "
-                    "ref_y, ref_theta, odo_x, odo_y, odo_theta, n_features, added) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    (
-                        name,
-                        scan.source,
-                        scan.timestamp,
-                        scan.range_min,
-                        scan.range_max,
-                        *_xyt(scan.reference),
-                        *_xyt(scan.odometry),
-                        int(n_features),
-                        time.time(),
-                    ),
-                )
-                pid = int(cur.lastrowid)
-                c.executemany(
-                    "INSERT INTO arrays VALUES (?, ?, ?, ?, ?, ?)", [(pid, *b) for b in blobs]
-                )
-                c.execute("INSERT INTO signatures VALUES (?, ?, ?, ?, ?)", (pid, *sig))
-                c.execute("COMMIT")
-            except BaseException:
-                if c.in_transaction:
-                    c.execute("ROLLBACK")
-                raise
+        with self._errors("add"), self._write() as c:
+            if name is not None:
+                row = c.execute("SELECT id FROM places WHERE name = ?", (name,)).fetchone()
+                if row is not None:
+                    raise PlaceDatabaseError(
+                        f"{self._where}: the name {name!r} is already used by place {row[0]}"
+                    )
+            cur = c.execute(
+                "INSERT INTO places (name, source, timestamp, range_min, range_max, ref_x, "
+                "ref_y, ref_theta, odo_x, odo_y, odo_theta, n_features, added) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    name,
+                    scan.source,
+                    scan.timestamp,
+                    scan.range_min,
+                    scan.range_max,
+                    *_xyt(scan.reference),
+                    *_xyt(scan.odometry),
+                    int(n_features),
+                    time.time(),
+                ),
+            )
+            pid = int(cur.lastrowid)
+            c.executemany(
+                "INSERT INTO arrays VALUES (?, ?, ?, ?, ?, ?)", [(pid, *b) for b in blobs]
+            )
+            c.execute("INSERT INTO signatures VALUES (?, ?, ?, ?, ?)", (pid, *sig))
         return pid
 
     def rewrite_signatures(
@@ -392,33 +394,26 @@ class PlaceStore:
         is done and 0 returned. For a database whose signatures are of an older version
         (:data:`~scanclique.places.signature.SIGNATURE_VERSION`).
         """
-        c = self._conn
         meta = {str(k): str(v) for k, v in meta.items()}
         with self._errors("rewrite signatures"):
-            c.execute("BEGIN IMMEDIATE")
-            try:
+            with self._write() as c:
                 now = dict(c.execute("SELECT key, value FROM meta").fetchall())
-                if all(now.get(k) == v for k, v in meta.items()):
-                    c.execute("ROLLBACK")
-                    self.meta = now
-                    return 0
-                ids = [int(r[0]) for r in c.execute("SELECT id FROM places ORDER BY id")]
-                rows = []
-                for pid in ids:
-                    sig = encode_array(np.asarray(signature_of(self.get(pid, arrays=False).scan)))
-                    rows.append((*sig, pid))
-                c.executemany(
-                    "UPDATE signatures SET dtype = ?, shape = ?, crc32 = ?, data = ? "
-                    "WHERE place_id = ?",
-                    rows,
-                )
-                c.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", sorted(meta.items()))
-                c.execute("COMMIT")
-            except BaseException:
-                if c.in_transaction:
-                    c.execute("ROLLBACK")
-                raise
-            self.meta = dict(c.execute("SELECT key, value FROM meta").fetchall())
+                ids = []
+                if any(now.get(k) != v for k, v in meta.items()):
+                    ids = [int(r[0]) for r in c.execute("SELECT id FROM places ORDER BY id")]
+                    rows = []
+                    for pid in ids:
+                        scan = self.get(pid, arrays=False).scan
+                        rows.append((*encode_array(np.asarray(signature_of(scan))), pid))
+                    c.executemany(
+                        "UPDATE signatures SET dtype = ?, shape = ?, crc32 = ?, data = ? "
+                        "WHERE place_id = ?",
+                        rows,
+                    )
+                    c.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", sorted(meta.items()))
+            self.meta = dict(self._conn.execute("SELECT key, value FROM meta").fetchall())
+        if not ids:  # another process rewrote them first
+            return 0
         log.info("%s: recomputed the signatures of %d places", self._where, len(ids))
         return len(ids)
 

@@ -58,6 +58,7 @@ __all__ = [
     "CONFIDENCE_WEIGHTS",
     "clique_surprise",
     "confidence",
+    "rival_ratio",
 ]
 
 ACCEPTED = "accepted"
@@ -213,6 +214,13 @@ def clique_surprise(n: int, nodes: int, edges: int) -> float:
     return -(log_choose + n * (n - 1) / 2 * math.log(p)) / math.log(10)
 
 
+def rival_ratio(score: float, rival_score: float) -> float:
+    """``rival_score / score`` clipped to ``[0, 1]`` (1 when ``score <= 0``): how nearly a
+    distinct pose explains the same scans, as :func:`confidence` reads it."""
+    s = float(score)
+    return min(1.0, max(0.0, float(rival_score)) / s) if s > 0 else 1.0
+
+
 def confidence(score: float, surprise: float = 0.0, rival_score: float = 0.0) -> float:
     """Probability that a verified pose is right, from the evidence the verification
     has: a logistic model (:data:`CONFIDENCE_WEIGHTS`) of
@@ -230,9 +238,7 @@ def confidence(score: float, surprise: float = 0.0, rival_score: float = 0.0) ->
     True
     """
     w0, ws, wn, wr = CONFIDENCE_WEIGHTS
-    s = float(score)
-    ratio = min(1.0, max(0.0, float(rival_score)) / s) if s > 0 else 1.0
-    z = w0 + ws * s + wn * float(surprise) + wr * ratio
+    z = w0 + ws * float(score) + wn * float(surprise) + wr * rival_ratio(score, rival_score)
     return 1.0 / (1.0 + math.exp(-z)) if z > -700 else 0.0
 
 
