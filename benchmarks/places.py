@@ -177,13 +177,18 @@ def recognition(
     search=False,
     seeded=None,
     aliases=False,
+    min_features=None,
 ) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
     from scanclique.places.hashing import feature_triangles
     from scanclique.places.signature import scan_signature
-    from scanclique.places.verify import ACCEPT_MIN_CONFIDENCE, ACCEPT_MIN_SCORE
+    from scanclique.places.verify import (
+        ACCEPT_MIN_CONFIDENCE,
+        ACCEPT_MIN_FEATURES,
+        ACCEPT_MIN_SCORE,
+    )
 
     scans = load_log(name)
     n = len(scans)
@@ -198,6 +203,7 @@ def recognition(
         search=search,
         seeded=SEEDED if seeded is None else seeded,
         aliases=aliases,
+        min_features=ACCEPT_MIN_FEATURES if min_features is None else min_features,
     )
     t = time.perf_counter()
     add_ms = []
@@ -265,7 +271,7 @@ def recognition(
             )
         # every accepted hit's evidence and rightness, for --calibrate
         rec["accepted"] = [
-            [h.score, h.surprise, h.rival_score, _is_right(scans[h.place_id - 1], h, q)]
+            [h.score, h.surprise, h.rival_score, h.conflict, _is_right(scans[h.place_id - 1], h, q)]
             for h in hits
             if h.verdict == ACCEPTED
         ]
@@ -355,14 +361,20 @@ def _is_right(place, hit, q) -> bool:
 # ---------------------------------------------------------------------------------------
 # Calibration of the hit confidence (places.verify.CONFIDENCE_WEIGHTS)
 # ---------------------------------------------------------------------------------------
+#: the last column of an accepted hit's evidence row: whether its pose is right
+RIGHT = -1
+
+
 def _evidence(rows) -> np.ndarray:
-    """``(score, surprise, rival ratio)`` rows of accepted hits ``[score, surprise,
-    rival_score, right]``, as :func:`scanclique.places.verify.confidence` reads them."""
+    """``(score, surprise, rival ratio, conflict)`` rows of accepted hits ``[score,
+    surprise, rival_score, conflict, right]``, as
+    :func:`scanclique.places.verify.confidence` reads them."""
     from scanclique.places.verify import rival_ratio
 
     return np.array(
-        [(float(r[0]), float(r[1]), rival_ratio(r[0], r[2])) for r in rows], dtype=float
-    ).reshape(-1, 3)
+        [(float(r[0]), float(r[1]), rival_ratio(r[0], r[2]), float(r[3])) for r in rows],
+        dtype=float,
+    ).reshape(-1, 4)
 
 
 def fit_logistic(X: np.ndarray, y: np.ndarray, lam: float = 1e-2) -> np.ndarray:
@@ -391,7 +403,7 @@ def calibrate(rec: list[dict]) -> dict:
 
     def data(logs):
         rows = [h for r in rec if r["log"] in logs for _, hs in r["accepted_hits"] for h in hs]
-        return _evidence(rows), np.array([h[3] for h in rows], dtype=float)
+        return _evidence(rows), np.array([h[RIGHT] for h in rows], dtype=float)
 
     logs = [r["log"] for r in rec]
     X, y = data(logs)
@@ -403,7 +415,7 @@ def calibrate(rec: list[dict]) -> dict:
             z = w[0] + _evidence(hs) @ w[1:]
             k = int(np.argmax(z))
             conf = 1.0 / (1.0 + np.exp(-z[k]))
-            answers.append({"confidence": conf, "right": hs[k][3], "has_true": has_true})
+            answers.append({"confidence": conf, "right": hs[k][RIGHT], "has_true": has_true})
         c = pr_curve(answers, r["with_true_place"])
         d = [a for a in answers if a["confidence"] >= ACCEPT_MIN_CONFIDENCE]
         out[r["log"]] = {
@@ -684,6 +696,13 @@ def main(argv=None) -> None:
         "(PlaceDB aliases=True)",
     )
     ap.add_argument(
+        "--min-features",
+        type=int,
+        default=None,
+        help="recognition: mapped features an accepted hit needs (PlaceDB min_features=; "
+        "default ACCEPT_MIN_FEATURES)",
+    )
+    ap.add_argument(
         "--calibrate",
         action="store_true",
         help="recognition: fit the hit confidence's weights on the logs run, and leave "
@@ -723,6 +742,7 @@ def main(argv=None) -> None:
                     search=a.search,
                     seeded=a.seeded,
                     aliases=a.aliases,
+                    min_features=a.min_features,
                 )
                 for n in a.logs.split(",")
             ]

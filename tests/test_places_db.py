@@ -8,6 +8,7 @@ import pytest
 import scanclique as sc
 from scanclique.errors import ConfigError
 from scanclique.places import ACCEPTED, AMBIGUOUS, REJECTED, PlaceDB, PlaceHit
+from scanclique.places.database import CONFIDENCE_DIGITS
 from scanclique.places.loops import find_loops
 
 
@@ -45,7 +46,10 @@ def test_query_recognises_the_place_and_its_pose(tmp_path, worlds):
                     assert (ref @ h.pose).distance_to(q.reference)[0] < 0.2
             # ranked: verdict first, then confidence; accepted means confident
             keys = [
-                ({"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict], -h.confidence)
+                (
+                    {"accepted": 0, "ambiguous": 1, "rejected": 2}[h.verdict],
+                    -round(h.confidence, CONFIDENCE_DIGITS),
+                )
                 for h in hits
             ]
             assert keys == sorted(keys)
@@ -85,6 +89,12 @@ def test_find_loops_backends_identical(worlds):
     for lp in same:
         t_err, _ = (scans[lp.j].reference @ lp.pose).distance_to(scans[lp.i].reference)
         assert t_err < 0.2
+    # a pair is accepted only as confident as min_confidence asks; below, ambiguous
+    sure = find_loops(scans, candidates=2, min_gap=3, min_confidence=1.0)
+    assert [(lp.i, lp.j) for lp in sure.loops] == [(lp.i, lp.j) for lp in serial.loops]
+    was_accepted = {(lp.i, lp.j) for lp in serial.accepted}
+    assert not sure.accepted
+    assert {lp.verdict for lp in sure.loops if (lp.i, lp.j) in was_accepted} == {AMBIGUOUS}
 
 
 def test_find_loops_bad_arguments():

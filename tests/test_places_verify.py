@@ -17,6 +17,7 @@ from scanclique.places.verify import (
     alias_score,
     clique_surprise,
     confidence,
+    conflict_fraction,
     verify_pair,
     verify_seeded,
     weakest_constraint,
@@ -85,16 +86,23 @@ def test_confidence_is_a_probability_monotone_in_its_evidence():
     by_score = [confidence(s, 10.0, 0.1) for s in grid[1:]]
     by_surprise = [confidence(0.7, x, 0.1) for x in (-10.0, 0.0, 5.0, 20.0, 80.0)]
     by_rival = [confidence(0.7, 10.0, r) for r in grid * 0.7]
+    by_conflict = [confidence(0.7, 10.0, 0.1, c) for c in grid * 0.3]
     assert all(b > a for a, b in zip(by_score, by_score[1:], strict=False))
     assert all(b > a for a, b in zip(by_surprise, by_surprise[1:], strict=False))
     assert all(b < a for a, b in zip(by_rival, by_rival[1:], strict=False))
+    assert all(b < a for a, b in zip(by_conflict, by_conflict[1:], strict=False))
+    # a twin room: walls agree, a tenth of the points stand in the other's free space,
+    # which the default acceptance (0.99) refuses and the same room passes
+    assert confidence(0.8, 20.0, 0.1, 0.1) < 0.99 < confidence(0.8, 20.0, 0.1, 0.0)
     # a rival better than the pose counts as an equal one; edge cases stay defined
     assert confidence(0.7, 10.0, 2.0) == confidence(0.7, 10.0, 0.7)
     assert confidence(0.7, 10.0, -0.3) == confidence(0.7, 10.0, 0.0)
     for args in ((0.0,), (0.0, 0.0, 0.5), (-0.2, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1e6, 0.0)):
         c = confidence(*args)
         assert 0.0 <= c <= 1.0 and np.isfinite(c)
-    assert confidence(0.0) < 0.01 and confidence(0.95, 30.0, 0.0) > 0.99
+    # no raw-scan support, nothing to confirm; a clear match is sure
+    assert confidence(0.0) == 0.0 and confidence(-0.2, 50.0) == 0.0
+    assert confidence(0.95, 30.0, 0.0) > 0.99
 
 
 def test_a_verified_pair_carries_its_evidence_and_confidence(pair):
@@ -103,7 +111,31 @@ def test_a_verified_pair_carries_its_evidence_and_confidence(pair):
     assert v.pose is not None and v.graph_nodes > 0 and v.graph_edges > 0
     assert v.clique_size >= v.n_features > 0 and v.place_features == len(a.features)
     assert v.surprise == clique_surprise(v.n_features, v.graph_nodes, v.graph_edges)
-    assert v.confidence == confidence(v.score, v.surprise, v.rival_score)
+    assert v.conflict == conflict_fraction(a, b, v.pose)
+    assert v.confidence == confidence(v.score, v.surprise, v.rival_score, v.conflict)
     assert 0.0 < v.confidence < 1.0 and v.to_dict()["confidence"] == v.confidence
     r = verify_pair(a, b, min_score=1.01)
     assert r.verdict == REJECTED and r.confidence == 0.0
+
+
+def test_conflict_fraction_tells_a_twin_room_from_the_same_room():
+    """Two views of one room agree without conflicts; the same second view taken in a
+    twin room with a cupboard where the first view saw free floor puts the cupboard's
+    points in the first view's free space, and lowers the confidence of the same pose."""
+    room = np.array([[[0, 0], [6, 0]], [[6, 0], [6, 5]], [[6, 5], [0, 5]], [[0, 5], [0, 0]]])
+    box = np.array([[[3.0, 2.0], [3.6, 2.0]], [[3.6, 2.0], [3.6, 2.6]],
+                    [[3.6, 2.6], [3.0, 2.6]], [[3.0, 2.6], [3.0, 2.0]]])  # fmt: skip
+    same = sc.sim.World(room, circle_centres=[[1.5, 4.0]], circle_radii=[0.15])
+    twin = sc.sim.World(np.concatenate([room, box]), circle_centres=[[1.5, 4.0]],
+                        circle_radii=[0.15])  # fmt: skip
+    pa, pb = Pose2(1.0, 1.0, 0.6), Pose2(1.6, 0.8, 0.9)
+    kw = dict(n_beams=361, range_sigma=0.0)
+    a = prepare_scan(sc.sim.simulate_scan(same, pa, **kw))
+    b = prepare_scan(sc.sim.simulate_scan(same, pb, **kw))
+    c = prepare_scan(sc.sim.simulate_scan(twin, pb, **kw))
+    truth = pa.inverse() @ pb
+    same_room, twin_room = conflict_fraction(a, b, truth), conflict_fraction(a, c, truth)
+    assert same_room < 0.01 and twin_room > 0.03
+    # symmetric: the place's points in the query's free space count the same way
+    assert conflict_fraction(c, a, truth.inverse()) > 0.03
+    assert confidence(0.8, 10.0, 0.1, twin_room) < confidence(0.8, 10.0, 0.1, same_room)

@@ -109,13 +109,13 @@ def query(
     min_score: Annotated[
         float | None,
         typer.Option(
-            "--min-score", help="Accept only matches scoring at least this (default 0.5)."
+            "--min-score", help="Accept only matches scoring at least this (default 0.3)."
         ),
     ] = None,
     min_features: Annotated[
         int | None,
         typer.Option(
-            "--min-features", min=2, help="Accept only matches mapping this many features (5)."
+            "--min-features", min=2, help="Accept only matches mapping this many features (3)."
         ),
     ] = None,
     config: ConfigOpt = None,

@@ -79,6 +79,7 @@ from .verify import (
     VERDICT_RANK,
     Verification,
     alias_score,
+    below_confidence,
     verify_pair,
     verify_seeded,
 )
@@ -109,9 +110,14 @@ MIN_VOTES = 2
 SEEDED = 10
 #: a place's triangle pose is verified on the raw scans (:func:`.verify.verify_seeded`)
 #: only when at least this many of its triangles agree on it: the pose has no mapped
-#: features for the validation to weigh, and the agreeing triangles stand in for them,
-#: as many as a clique match must map (:data:`.verify.ACCEPT_MIN_FEATURES`)
-SEED_MIN_VOTES = ACCEPT_MIN_FEATURES
+#: features for the validation to weigh, and the agreeing triangles stand in for them
+#: (5, what a clique match had to map until session 9; kept when
+#: :data:`.verify.ACCEPT_MIN_FEATURES` became 3, since a triangle vote is weaker evidence
+#: than a mapped feature whose pose the validation checked)
+SEED_MIN_VOTES = 5
+#: hits are ranked by their confidence rounded to this many decimals, then by raw-scan
+#: score: near certainty the logistic's last digits rank by evidence of no use then
+CONFIDENCE_DIGITS = 4
 _TRIANGLE_FIELDS = ("features.points_xy", "features.points_label")
 
 
@@ -185,6 +191,9 @@ class PlaceHit:
     rival_score : float
         Raw-scan score of the best distinct pose of the same place
         (:attr:`.verify.Verification.rival_score`).
+    conflict : float
+        The larger fraction of either scan's points in the other's observed free space
+        at ``pose`` (:func:`.verify.conflict_fraction`; 0 without a pose).
     """
 
     place_id: int
@@ -202,6 +211,7 @@ class PlaceHit:
     confidence: float = 0.0
     surprise: float = 0.0
     rival_score: float = 0.0
+    conflict: float = 0.0
 
     def to_dict(self) -> dict:
         p = self.pose
@@ -220,6 +230,7 @@ class PlaceHit:
             "confidence": self.confidence,
             "surprise": self.surprise,
             "rival_score": self.rival_score,
+            "conflict": self.conflict,
         }
 
 
@@ -571,8 +582,8 @@ class PlaceDB:
         -------
         list of PlaceHit
             Accepted first, then ambiguous, then rejected; by confidence within each
-            (then raw-scan score). ``hit.pose`` maps the query's points into the place's
-            frame.
+            (to :data:`CONFIDENCE_DIGITS` decimals, then raw-scan score). ``hit.pose``
+            maps the query's points into the place's frame.
         """
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
@@ -598,6 +609,7 @@ class PlaceDB:
                         Pose2.from_array(poses[rank]),
                         self.config,
                         min_score=self.min_score,
+                        min_confidence=0.0,
                     )
                     if found[rank] is None or w.verdict != REJECTED:
                         found[rank] = (w, "triangles")
@@ -606,13 +618,9 @@ class PlaceDB:
             if found[rank] is None:
                 continue
             v, source = found[rank]
-            if v.verdict == ACCEPTED and v.confidence < self.min_confidence:
-                v = dataclasses.replace(
-                    v,
-                    verdict=AMBIGUOUS,
-                    reason=f"confidence {v.confidence:.3f} below min_confidence "
-                    f"{self.min_confidence:g}; {v.reason}",
-                )
+            # below the confidence only now: the second path above runs when the
+            # validation accepted no candidate, whatever their confidence
+            v = below_confidence(v, self.min_confidence)
             hits.append(
                 PlaceHit(
                     pid,
@@ -630,9 +638,19 @@ class PlaceDB:
                     v.confidence,
                     v.surprise,
                     v.rival_score,
+                    v.conflict,
                 )
             )
-        hits.sort(key=lambda h: (VERDICT_RANK[h.verdict], -h.confidence, -h.score, h.rank))
+        # confidences within 1e-4 of each other are a tie (two neighbouring places both
+        # all but certain), broken by the raw-scan score
+        hits.sort(
+            key=lambda h: (
+                VERDICT_RANK[h.verdict],
+                -round(h.confidence, CONFIDENCE_DIGITS),
+                -h.score,
+                h.rank,
+            )
+        )
         return hits[: int(k)]
 
     def _verify_clique(self, pid: int, p: PreparedScan) -> Verification:
@@ -645,6 +663,7 @@ class PlaceDB:
             self.verify_config,
             min_score=self.min_score,
             min_features=self.min_features,
+            min_confidence=0.0,
         )
         if v.verdict == ACCEPTED and self.aliases:
             alias, _ = alias_score(place, p, v.pose, self.config)

@@ -49,7 +49,13 @@ from ..match import prepare_scan
 from ..scan import Scan
 from .hashing import TriangleIndex, Triangles, feature_triangles
 from .signature import SIGNATURE_SIZE, scan_signature
-from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, verify_pair
+from .verify import (
+    ACCEPT_MIN_CONFIDENCE,
+    ACCEPT_MIN_FEATURES,
+    ACCEPT_MIN_SCORE,
+    ACCEPTED,
+    verify_pair,
+)
 
 __all__ = ["Loop", "LoopSearch", "find_loops", "fused_loop_candidates", "loop_candidates"]
 
@@ -149,7 +155,7 @@ def _install(token: str, scans, config_dict: dict, limits: tuple) -> dict:
         lambda: {
             "scans": list(scans),
             "config": config_from_dict(config_dict),
-            "limits": (float(limits[0]), int(limits[1])),
+            "limits": (float(limits[0]), int(limits[1]), float(limits[2])),
             "prepared": {},
         },
     )
@@ -170,7 +176,7 @@ def _prepared(state: dict, i: int):
     return p
 
 
-def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0)):
+def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0, 0.0)):
     """Signatures of the scans ``indices`` (``(n, SIGNATURE_SIZE)``) and their feature
     triangles (:func:`.hashing.feature_triangles`, as tuples of arrays)."""
     state = _state(token, scans, config_dict, limits)
@@ -183,12 +189,12 @@ def _signature_task(token, indices, scans=None, config_dict=None, limits=(0.0, 0
     return np.array(sigs).reshape(-1, SIGNATURE_SIZE), tris
 
 
-def _verify_task(token, pairs, scans=None, config_dict=None, limits=(0.0, 0)):
+def _verify_task(token, pairs, scans=None, config_dict=None, limits=(0.0, 0, 0.0)):
     """Verification of the pairs ``(i, j)``: tuples ``(verdict, x, y, theta, score,
     n_features)`` (pose None when rejected)."""
     state = _state(token, scans, config_dict, limits)
     out = []
-    cfg, (ms, mf) = state["config"], state["limits"]
+    cfg, (ms, mf, mc) = state["config"], state["limits"]
     for i, j in pairs:
         v = verify_pair(
             _prepared(state, int(j)),
@@ -196,6 +202,7 @@ def _verify_task(token, pairs, scans=None, config_dict=None, limits=(0.0, 0)):
             cfg,
             min_score=ms,
             min_features=mf,
+            min_confidence=mc,
         )
         p = None if v.pose is None else (v.pose.x, v.pose.y, v.pose.theta)
         out.append((v.verdict, p, v.score, v.n_features))
@@ -297,7 +304,7 @@ class _Runner:
 
     def __init__(self, scans, cfg, limits, workers, scheduler):
         self.token = new_token()
-        self.args = (config_to_dict(cfg), (float(limits[0]), int(limits[1])))
+        self.args = (config_to_dict(cfg), (float(limits[0]), int(limits[1]), float(limits[2])))
         self.scans = scans
         self.workers = workers
         self.pool = self.client = self.scans_future = None
@@ -380,6 +387,7 @@ def find_loops(
     scheduler=None,
     min_score: float = ACCEPT_MIN_SCORE,
     min_features: int = ACCEPT_MIN_FEATURES,
+    min_confidence: float = ACCEPT_MIN_CONFIDENCE,
     progress: Callable[[str, int, int], None] | None = None,
 ) -> LoopSearch:
     """The all-pairs revisit search of a log (module docstring).
@@ -397,8 +405,9 @@ def find_loops(
         Local worker processes (1: this process; 0: one per CPU).
     scheduler : str or distributed.Client, optional
         A Dask scheduler address (``tcp://host:8786``) or client: run there instead.
-    min_score, min_features : float, int
-        As for :func:`.verify.verify_pair`.
+    min_score, min_features, min_confidence : float, int, float
+        As for :func:`.verify.verify_pair` (a pair accepted below ``min_confidence`` is
+        ``ambiguous``).
     progress : callable, optional
         ``progress(stage, done, total)`` as work completes (``"signatures"``,
         ``"verify"``).
@@ -428,7 +437,7 @@ def find_loops(
     t0 = time.perf_counter()
     seconds = {}
     n = len(scans)
-    runner = _Runner(scans, cfg, (min_score, min_features), workers, scheduler)
+    runner = _Runner(scans, cfg, (min_score, min_features, min_confidence), workers, scheduler)
     try:
         nchunk = 1 if runner.backend == "serial" else 4 * runner.workers
 
