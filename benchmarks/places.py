@@ -178,6 +178,7 @@ def recognition(
     seeded=None,
     aliases=False,
     min_features=None,
+    escalate=None,
 ) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
@@ -194,7 +195,7 @@ def recognition(
     n = len(scans)
     # every answer accepted (validation and min_features), thresholded by confidence (and
     # by score) below (the default min_score and min_confidence are one point of that)
-    from scanclique.places.database import SEEDED
+    from scanclique.places.database import ESCALATE, SEEDED
 
     db = PlaceDB(
         tmp / f"{name}.db",
@@ -204,6 +205,7 @@ def recognition(
         seeded=SEEDED if seeded is None else seeded,
         aliases=aliases,
         min_features=ACCEPT_MIN_FEATURES if min_features is None else min_features,
+        escalate=ESCALATE if escalate is None else escalate,
     )
     t = time.perf_counter()
     add_ms = []
@@ -696,6 +698,13 @@ def main(argv=None) -> None:
         "(PlaceDB aliases=True)",
     )
     ap.add_argument(
+        "--escalate",
+        type=int,
+        default=None,
+        help="recognition: candidates verified beyond --candidates when none was accepted "
+        "with confidence 0.99 (PlaceDB escalate=; default ESCALATE)",
+    )
+    ap.add_argument(
         "--min-features",
         type=int,
         default=None,
@@ -743,6 +752,7 @@ def main(argv=None) -> None:
                     seeded=a.seeded,
                     aliases=a.aliases,
                     min_features=a.min_features,
+                    escalate=a.escalate,
                 )
                 for n in a.logs.split(",")
             ]

@@ -176,3 +176,30 @@ def test_a_hit_the_confidence_doubts_is_ambiguous_with_its_reason(tmp_path, worl
         else:
             assert b.verdict == a.verdict
     assert trusting[0].to_dict()["confidence"] == trusting[0].confidence
+
+
+def test_a_hard_query_escalates_to_more_candidates(tmp_path, worlds, monkeypatch):
+    """A query with no confidently accepted candidate among its first ``candidates`` has
+    the next ``escalate`` verified too; a query answered with confidence does not."""
+    calls = []
+    original = PlaceDB._verify_clique
+
+    def counting(self, pid, p):
+        calls.append(pid)
+        return original(self, pid, p)
+
+    monkeypatch.setattr(PlaceDB, "_verify_clique", counting)
+    with PlaceDB(tmp_path / "p.db", escalate=3) as db:
+        for traj in worlds[1:]:
+            for s in traj:
+                db.add(s)
+        own = db.add(worlds[0][3])
+        # the scan itself is in the database: its first candidate answers it surely
+        calls.clear()
+        hits = db.query(worlds[0][3], k=2)
+        assert hits[0].place_id == own and hits[0].confidence >= 0.99 and len(calls) == 2
+        # without it, only other offices: nothing sure, so 2 + 3 candidates verified
+        calls.clear()
+        hits = db.query(worlds[0][3], k=2, exclude=[own])
+        assert not any(h.verdict == ACCEPTED and h.confidence >= 0.99 for h in hits)
+        assert len(calls) == 5 and len(set(calls)) == 5 and len(hits) <= 2

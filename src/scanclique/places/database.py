@@ -24,7 +24,8 @@ A query is, in order:
    :class:`.index.SignatureIndex`: a similar view of the whole scan);
 3. each candidate verified (:func:`.verify.verify_pair`): the clique matcher against
    the stored place (without its raw-scan pose search, see ``search``), then validation
-   without odometry;
+   without odometry; when none is accepted with a confidence of at least
+   :data:`.verify.ACCEPT_MIN_CONFIDENCE`, the next ``escalate`` candidates too;
 4. the second path (``PlaceHit.source == "triangles"``), when the matcher accepted no
    candidate: the candidates it rejected, and up to ``seeded`` more places down the
    triangle ranking, whose triangles
@@ -32,11 +33,12 @@ A query is, in order:
    pose on the raw scans (:func:`.verify.verify_seeded`: ICP, score, conditioning,
    agreement with the triangles' pose, no quarter- or half-turn alias);
 5. each hit's confidence (:func:`.verify.confidence`: the probability that its pose is
-   right, from its raw-scan score, how unlikely its clique is between unrelated places
-   and how nearly a distinct pose explains the same scans); an accepted hit below
-   ``min_confidence`` becomes ``ambiguous``;
+   right, from its raw-scan score, how unlikely its clique is between unrelated places,
+   how nearly a distinct pose explains the same scans, and how much of either scan lies
+   in the other's observed free space); an accepted hit below ``min_confidence`` becomes
+   ``ambiguous``;
 6. the hits ranked: accepted first, then ambiguous, then rejected; by confidence within
-   each (then raw-scan score).
+   each (to :data:`CONFIDENCE_DIGITS` decimals, then raw-scan score).
 
 Places are stored in SQLite (:class:`.store.PlaceStore`); the signatures are loaded and
 the triangles computed from the stored point features when a database is opened (about
@@ -105,9 +107,20 @@ PREPARE_KEYS = ("clustering", "features", "refine.sample_points")
 #: equal triangle, two that agree on it are evidence
 MIN_VOTES = 2
 #: places beyond the verified candidates that a query checks by their triangle pose alone
-#: (:func:`.verify.verify_seeded`, an ICP from the pose bin the triangles agree on: a
-#: fraction of a clique match's cost), taken down the triangle ranking
-SEEDED = 10
+#: (:func:`.verify.verify_seeded`, an ICP from the pose bin the triangles agree on),
+#: taken down the triangle ranking, when the clique matcher accepted no candidate. 0 by
+#: default since session 9: with :data:`ESCALATE` more candidates verified by the
+#: matcher, these places gave no further right answer on the three shared logs (recall
+#: at 99 % precision 0.826 / 0.474 / 0.736 with 10 or with 0; ``benchmarks/places.py
+#: --seeded``) and cost most of the time of the queries that have no true place (the
+#: rejected candidates are still checked from their triangle pose)
+SEEDED = 0
+#: candidates of the fused prefilter verified by the clique matcher beyond a query's own
+#: ``candidates`` when none of those was accepted with a confidence of at least
+#: :data:`.verify.ACCEPT_MIN_CONFIDENCE`: the hard queries (a revisit from another
+#: heading, whose true place the prefilter ranks lower) get twice the verification, the
+#: easy ones (most) none more
+ESCALATE = 5
 #: a place's triangle pose is verified on the raw scans (:func:`.verify.verify_seeded`)
 #: only when at least this many of its triangles agree on it: the pose has no mapped
 #: features for the validation to weigh, and the agreeing triangles stand in for them
@@ -119,6 +132,7 @@ SEED_MIN_VOTES = 5
 #: score: near certainty the logistic's last digits rank by evidence of no use then
 CONFIDENCE_DIGITS = 4
 _TRIANGLE_FIELDS = ("features.points_xy", "features.points_label")
+_SURE = ACCEPT_MIN_CONFIDENCE
 
 
 def _triangles_of(arrays: dict):
@@ -292,6 +306,11 @@ class PlaceDB:
         recognition while costing most of the verification time of the candidates that
         are not the place (``benchmarks/places.py``). It does not change the stored
         features, so a database may be queried either way.
+    escalate : int
+        Prefilter candidates verified by the clique matcher beyond a query's
+        ``candidates`` when none of those was accepted with a confidence of at least
+        :data:`.verify.ACCEPT_MIN_CONFIDENCE` (:data:`ESCALATE`; 0: none), whatever
+        ``min_confidence`` is.
     seeded : int
         Places beyond the verified candidates checked by their triangle pose alone
         (:data:`SEEDED`; 0: none). That second path runs only when the matcher accepted
@@ -330,6 +349,7 @@ class PlaceDB:
         seeded: int = SEEDED,
         aliases: bool = False,
         min_confidence: float = ACCEPT_MIN_CONFIDENCE,
+        escalate: int = ESCALATE,
     ) -> None:
         given = None if config is None else config_to_dict(config)
         meta = {
@@ -348,6 +368,7 @@ class PlaceDB:
             raise
         self.search = bool(search)
         self.seeded = int(seeded)
+        self.escalate = max(0, int(escalate))
         self.aliases = bool(aliases)
         self.verify_config = dataclasses.replace(
             self.config, refine=dataclasses.replace(self.config.refine, search=self.search)
@@ -588,7 +609,7 @@ class PlaceDB:
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
         n = max(int(k), int(candidates or 0))
-        ids, dist, votes, poses = self._candidates(p, n, exclude, extra=self.seeded)
+        ids, dist, votes, poses = self._candidates(p, n + self.escalate, exclude, self.seeded)
         missing = [int(i) for i in ids if int(i) not in self._names]
         if missing:
             self._names.update(self.store.names(missing))
@@ -596,6 +617,11 @@ class PlaceDB:
         found: list[tuple[Verification, str] | None] = [None] * len(rows)
         for rank, (pid, _, _) in rows[:n]:
             found[rank] = (self._verify_clique(pid, p), "clique")
+        if not any(
+            f is not None and f[0].verdict == ACCEPTED and f[0].confidence >= _SURE for f in found
+        ):  # a hard query: the next candidates of the fused ranking too
+            for rank, (pid, _, _) in rows[n : n + self.escalate]:
+                found[rank] = (self._verify_clique(pid, p), "clique")
         if not any(f is not None and f[0].verdict == ACCEPTED for f in found):
             # the second path, for the revisits the clique matcher misses: the rejected
             # candidates and the places only the triangles propose, from their pose
