@@ -153,8 +153,10 @@ def query(
         "pose: the query scan's frame in the place's frame (maps the query's points into the "
         "place's); err: against the reference poses, when both scans have one; rank: in the "
         "prefilter; conf.: the probability that the pose is right (an accepted hit below "
-        "min_confidence 0.99 is ambiguous); a verdict marked (triangles): the triangle "
-        "prefilter's pose verified on the raw scans (the clique matcher accepted no candidate)",
+        "min_confidence 0.99 is ambiguous); the best of the candidates verified: --candidates, "
+        "and 5 more when none of them is accepted with confidence 0.99; a verdict marked "
+        "(triangles): the triangle prefilter's pose verified on the raw scans (the clique "
+        "matcher accepted no candidate)",
         soft_wrap=True,
     )
 

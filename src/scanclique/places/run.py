@@ -161,7 +161,7 @@ class QueryRun:
         n = {v: sum(h.verdict == v for h in self.hits) for v in (ACCEPTED, AMBIGUOUS, REJECTED)}
         return [
             ("places in the database", str(self.places), ""),
-            ("candidates verified", str(len(self.hits)), ""),
+            ("hits shown", str(len(self.hits)), ""),
             (
                 "accepted / ambiguous / rejected",
                 f"{n[ACCEPTED]} / {n[AMBIGUOUS]} / {n[REJECTED]}",
