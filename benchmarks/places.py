@@ -11,9 +11,10 @@ One command::
    scan of the log is a place (:class:`scanclique.places.PlaceDB`, built by ``add``); a
    query (every ``--query-every``-th scan; all with ``--full``) is asked against all
    places at least 50 scans away (``exclude``), ``--candidates`` prefilter candidates
-   verified (and ``--escalate`` more when none is accepted with confidence 0.99). Its answer is its best hit when that is ``accepted``; the answer is right
-   when the place's reference pose composed with the hit's pose is within 0.5 m and
-   0.2 rad of the query's reference pose. A query *has a true place* when some scan at
+   verified (and ``--escalate`` more when none is accepted with confidence 0.99). Its
+   answer is its best hit when that is ``accepted``; the answer is right when the
+   place's reference pose composed with the hit's pose is within 0.5 m and 0.2 rad of
+   the query's reference pose. A query *has a true place* when some scan at
    least 50 scans away is within 2 m with at least 50 % overlap under the reference
    (the revisit rule of :mod:`scanclique.pairsets`). Recall = right answers of queries
    with a true place / queries with a true place; precision = right answers / answers
