@@ -230,11 +230,12 @@ class LoopConfig:
         batches (their newer keyframe that recent) anchor the new ones; a new closure
         must be pairwise consistent with each of them (0: each batch on its own).
     corroborate_batches : int
-        The candidates' radius and their verification's prior widen to the front end's
-        own uncertainty (its edges' covariances summed along the chain) where it exceeds
-        the path's drift model above: after a step placed by the prediction, or along a
-        corridor, the estimate may be metres off (the heading widened to 40 degrees at
-        most: a corridor seen the other way is a look-alike). An appearance closure that
+        Without odometry, the candidates' radius and their verification's prior widen to
+        the front end's own uncertainty (its edges' covariances summed along the chain)
+        where it exceeds the path's drift model above: after a step placed by the
+        prediction, or along a corridor, the estimate may be metres off (the heading
+        widened to 40 degrees at most: a corridor seen the other way is a look-alike),
+        and so does PCM's chain. An appearance closure that
         moves the estimate beyond the drift model's 99 % gate must then be corroborated
         by another one from an earlier place at least ``separation`` keyframes away, in
         the same PCM set, within ``corroborate_batches`` batches; else its verdict is
@@ -295,8 +296,8 @@ class BackEndConfig:
 
     ``robust``: the M-estimator on loop-closure edges (``"cauchy"``, ``"huber"``,
     ``"none"``) with scale ``robust_scale`` (in units of the edge's sigma), the second line
-    of defence after PCM; a closure across a stretch where the front end was less sure
-    than the loops' drift model gets a scale that large
+    of defence after PCM; without odometry, a closure across a stretch where the front end
+    was less sure than the loops' drift model gets a scale that large
     (:meth:`scanclique.mapping.pipeline._Mapper.robust_scale`). ``max_iterations`` of
     Levenberg–Marquardt."""
 
