@@ -159,6 +159,10 @@ def test_scans_that_never_match_give_odometry_poses_and_reasons():
     r2 = map_scans(scans, use_odometry=False)
     assert r2.placed_by[1:] == ("constant_velocity",) * 5
     assert all(p is not None for p in r2.poses)
+    # ... whose heading nobody measured: the robot may have turned anyhow
+    guessed = [e for e in r2.edges if e.kind == "constant_velocity"]
+    assert len(guessed) == 5
+    assert all(e.covariance[2, 2] == pytest.approx(math.radians(60.0) ** 2) for e in guessed)
 
 
 def test_a_gap_in_the_log(office_drive):
@@ -204,3 +208,23 @@ def test_imprecise_closures_are_refused():
     assert any(c.verdict == "imprecise" and "max_sigma_radians" in c.reason for c in loops)
     with pytest.raises(ConfigError):
         LoopConfig(max_sigma_metres=0.0)
+
+
+@pytest.mark.parametrize("seed", [4, 9])
+def test_sharp_turns_without_odometry(seed):
+    # an office drive whose robot turns up to 65-75 degrees between two scans (0.25 m
+    # apart) before walls: the scans alone place every one (a sharp turn is chosen by the
+    # raw scans, a look-alike of the rectangular rooms by the motion), right to centimetres
+    rng = np.random.default_rng(seed)
+    world = office_world(rng)
+    scans = simulate_trajectory(rng, world, 150, step=0.25, n_beams=361)
+    turns = [
+        abs((a.reference.inverse() @ b.reference).theta)
+        for a, b in zip(scans[:-1], scans[1:], strict=True)
+    ]
+    assert max(turns) > math.radians(60.0)  # the drive does turn sharply
+    r = map_scans(scans, use_odometry=False)
+    assert "constant_velocity" not in r.placed_by
+    assert _aligned_errors(r, scans).max() < 0.05
+    t, rot = _relative_errors(r, scans)
+    assert t.max() < 0.05 and rot.max() < math.radians(1.0)

@@ -11,7 +11,7 @@ import pytest
 
 from scanclique.geometry import Pose2
 from scanclique.mapping.backend import optimize, tangent_covariance
-from scanclique.mapping.config import OccupancyConfig
+from scanclique.mapping.config import MapConfig, OccupancyConfig
 from scanclique.mapping.occupancy import occupancy_grid, probabilities
 from scanclique.mapping.pcm import consistency_graph, pcm_select
 from scanclique.scan import Scan
@@ -456,3 +456,231 @@ def test_icp_covariance_of_a_room_and_of_a_corridor():
     qa, qb = prepare_scan(ca), prepare_scan(cb)
     c = icp_covariance(qa.cloud, np.ascontiguousarray(qb.points), Pose2(0.5, 0.0, 0.0), 0.05)
     assert c is None or c[0, 0] > 10 * c[1, 1]
+
+
+# -- the front end without odometry (issue 12: sparse logs, sharp turns) ---------------
+def test_velocity_model_learns_per_scan_or_per_second():
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import VelocityModel
+
+    def drive(times, steps):
+        vm = VelocityModel(FrontEndConfig())
+        poses = [Pose2(0.0, 0.0, 0.0)]
+        for s in steps:
+            poses.append(poses[-1] @ Pose2(s, 0.0, 0.0))
+        for j in range(1, len(poses)):
+            prev2 = poses[j - 2] if j >= 2 else None
+            t = (times[j - 2] if j >= 2 else None, times[j - 1], times[j])
+            vm.observe(prev2, poses[j - 1], t, poses[j], poses[j - 1].inverse() @ poses[j], 1)
+        return vm, poses
+
+    # thinned by distance (1 m per scan), timestamps anything: per scan predicts
+    rng = np.random.default_rng(0)
+    times = np.cumsum(rng.uniform(0.05, 5.0, 12)).tolist()
+    vm, poses = drive(times, [1.0] * 11)
+    assert vm.errors[1] < vm.errors[0]
+    nxt = vm.predict(poses[-2], poses[-1], (times[-2], times[-1], times[-1] + 0.1))
+    assert nxt.distance_to(poses[-1] @ Pose2(1.0, 0.0, 0.0))[0] < 1e-9
+    # a steady 0.5 m/s at a varying rate: per second predicts
+    times = np.cumsum(rng.uniform(0.6, 1.5, 12)).tolist()
+    vm, poses = drive(times, [0.5 * dt for dt in np.diff(times)])
+    assert vm.errors[0] < 1e-9 < vm.errors[1]
+    # the step bound: none before 2 m of measured path, then 1.5 x q90 x span + 0.6 m
+    vm = VelocityModel(FrontEndConfig())
+    vm.steps = [0.25] * 7
+    assert vm.max_translation(2) is None
+    vm.steps.append(0.25)
+    assert vm.max_translation(2) == pytest.approx(1.5 * 0.25 * 2 + 0.6)
+
+
+def _cands(*poses_scores):
+    return [(Pose2(x, y, math.radians(t)), s) for (x, y, t), s in poses_scores]
+
+
+def test_choose_by_scans_weighs_the_raw_scans_against_the_motion():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import choose_by_scans
+
+    fe, mc = FrontEndConfig(), MatchConfig()
+    pred = Pose2(0.5, 0.0, 0.0)
+    cov = np.diag([0.3**2, 0.3**2, math.radians(12.0) ** 2])
+    # a sharp turn the raw scans clearly prefer beats the straight-on pose the motion expects
+    turn = _cands(((0.35, 0.2, 60.0), 0.70), ((0.5, 0.0, 0.0), 0.40))
+    pose, score, spread, _ = choose_by_scans(turn, pred, cov, fe, mc)
+    assert math.degrees(pose.theta) == pytest.approx(60.0) and score == 0.70
+    # a half-turn look-alike (a corridor seen the other way) scoring a little better loses
+    alias = _cands(((0.5, 0.0, 178.0), 0.66), ((0.5, 0.0, 2.0), 0.59))
+    pose, *_ = choose_by_scans(alias, pred, cov, fe, mc)
+    assert abs(math.degrees(pose.theta)) < 5.0
+    # ... unless no velocity is known: then the raw scans alone decide
+    pose, *_ = choose_by_scans(alias, pred, None, fe, mc)
+    assert math.degrees(pose.theta) == pytest.approx(178.0)
+    # a tie at distinct headings is no choice
+    tie = _cands(((0.5, 0.0, 45.0), 0.60), ((0.5, 0.0, -45.0), 0.60))
+    assert "distinct headings" in choose_by_scans(tie, pred, cov, fe, mc)
+    # translation aliases at one heading: the best, unsure along their spread
+    slid = _cands(((0.5, 0.0, 0.0), 0.70), ((1.3, 0.0, 0.0), 0.62))
+    pose, _, spread, _ = choose_by_scans(slid, pred, cov, fe, mc)
+    assert pose.x == 0.5 and spread[0, 0] == pytest.approx(0.8**2 / 4) and spread[1, 1] == 0
+    # along a corridor's axis (weak_at), positions that differ only along it are one pose
+    x = np.array([1.0, 0.0])
+    pose, *_, axis = choose_by_scans(slid, pred, cov, fe, mc, lambda p: x)
+    assert axis is x
+
+
+def test_soften_only_along_a_corridor_and_only_by_the_disagreement():
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import soften
+    from scanclique.match import prepare_scan
+    from scanclique.sim import room_world, simulate_scan
+
+    fe = FrontEndConfig()
+    cov = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    a, b = _corridor_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    # the step says 0.5 m along the corridor, the motion model 1.1 m: unsure by 0.6 m
+    c = soften(pa, pb, Pose2(0.5, 0.0, 0.0), cov, Pose2(1.1, 0.3, 0.2), fe)
+    assert c[0, 0] == pytest.approx(cov[0, 0] + 0.6**2, rel=0.02)  # along the corridor
+    assert c[1, 1] == pytest.approx(cov[1, 1], abs=2e-4) and c[2, 2] == cov[2, 2]
+    # where they agree, as sure as it was
+    c = soften(pa, pb, Pose2(0.5, 0.0, 0.0), cov, Pose2(0.5, 0.3, 0.2), fe)
+    assert c[0, 0] == pytest.approx(cov[0, 0], abs=1e-4)
+    # in a room the raw scans fix the pose: unchanged
+    rng = np.random.default_rng(2)
+    room = room_world(6.0, 5.0, rng=rng, pillars=0, clutter=0)
+    ra = prepare_scan(simulate_scan(room, Pose2(3.0, 2.5, 0.3), rng=rng))
+    rb = prepare_scan(simulate_scan(room, Pose2(3.3, 2.5, 0.3), rng=rng))
+    assert soften(ra, rb, Pose2(0.3, 0.0, 0.0), cov, Pose2(1.3, 0.0, 0.0), fe) is cov
+
+
+def _turn_pair(turn_deg=100.0, seed=4):
+    """Two scans of an office room 0.25 m apart, the second turned by ``turn_deg``."""
+    from scanclique.sim import office_world, simulate_scan
+
+    rng = np.random.default_rng(seed)
+    world = office_world(rng)
+    x0, y0, x1, y1 = world.bounds
+    for _ in range(200):  # a free pose with room to move
+        ta = Pose2(rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(-math.pi, math.pi))
+        tb = ta @ Pose2(0.0, 0.0, math.radians(turn_deg)) @ Pose2(0.25, 0.0, 0.0)
+        if world.is_free(np.array([[ta.x, ta.y], [tb.x, tb.y]]), 0.5).all():
+            break
+    a, b = simulate_scan(world, ta, rng=rng), simulate_scan(world, tb, rng=rng)
+    return a, b, ta.inverse() @ tb
+
+
+def test_associate_by_scans_follows_a_sharp_turn():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import associate_by_scans, scan_candidates
+    from scanclique.match import match_prepared, prepare_scan
+
+    fe, mc, floor = FrontEndConfig(), MatchConfig(), (0.01, math.radians(0.25))
+    a, b, truth = _turn_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    pred = Pose2(0.25, 0.0, 0.0)  # the motion model expects straight on
+    pred_cov = np.diag([0.22**2, 0.22**2, math.radians(10.0) ** 2])
+    # seeds turned round the prediction reach the turn even where the matcher has none
+    cands = scan_candidates(pa, pb, match_prepared(pa, pb, mc), pred, fe, mc)
+    assert any(p.distance_to(truth)[0] < 0.05 for p, _ in cands)
+    step = associate_by_scans(pa, pb, pred, pred_cov, mc, fe, floor, max_translation=1.35)
+    assert step.kind in ("match", "icp"), step.reason
+    t, r = step.pose.distance_to(truth)
+    assert t < 0.1 and r < math.radians(2.0)
+
+
+# -- loops that know where the front end was unsure ------------------------------------
+def test_candidates_reach_as_far_as_the_front_end_may_have_drifted():
+    from scanclique.mapping.config import LoopConfig
+    from scanclique.mapping.loops import candidates
+
+    lc = LoopConfig()
+    xy = np.array([[0.0, 0.0], [10.0, 10.0], [20.0, 10.0], [8.0, 0.0]])
+    cum = np.array([0.0, 10.0, 20.0, 40.0])
+    assert candidates(3, xy, cum, np.inf, lc) == []  # 8 m away: beyond the path's radius
+    front = np.array([3.0, 0.1, 0.1, 0.0])  # the front end was unsure since keyframe 0
+    assert candidates(3, xy, cum, np.inf, lc, front_sigma=front) == [0]
+
+
+def _line_mapper(n=40, jump_at=20, jump=5.0, big_cov=True, **loops):
+    """A mapper over ``n`` keyframes 1 m apart on a line whose chain (front end) jumps
+    ``jump`` m too far at keyframe ``jump_at``, an edge placed by the prediction (large
+    covariance when ``big_cov``); the truth has no jump."""
+    import dataclasses
+
+    from scanclique.mapping.pipeline import _Mapper
+
+    cfg = MapConfig()
+    lc = dataclasses.replace(cfg.loops, enabled=False, appearance=False, pcm_batch=1000, **loops)
+    cfg = dataclasses.replace(cfg, loops=lc)
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 11)
+    scans = [Scan(np.full(11, 5.0), angles, source=f"line:{k}") for k in range(n)]
+    m = _Mapper(scans, False, cfg)
+    tight = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    loose = np.diag([0.35**2, 0.35**2, math.radians(60.0) ** 2])
+    m.chain[0] = Pose2.identity()
+    m.add_keyframe(0, None, None, None)
+    for k in range(1, n):
+        step = Pose2(1.0 + (jump if k == jump_at else 0.0), 0.0, 0.0)
+        m.chain[k] = m.chain[k - 1] @ step
+        m.add_keyframe(k, None, step, loose if (k == jump_at and big_cov) else tight)
+    truth = [Pose2(float(k), 0.0, 0.0) for k in range(n)]
+    return m, truth
+
+
+def _closure(truth, i, j, source):
+    P = np.diag([0.02**2, 0.02**2, math.radians(0.3) ** 2])
+    return (i, j, truth[i].inverse() @ truth[j], P, source, 0.8, "")
+
+
+def test_front_std_and_the_robust_scale_of_a_closure():
+    m, truth = _line_mapper()
+    f_xy, f_th = m.front_std(10, 30)
+    assert f_th >= math.radians(60.0) and f_xy > 0.35  # the predicted step, and its lever
+    assert m.front_std(0, 15)[0] < 0.2 < 5 * m.front_std(0, 15)[0] < f_xy  # matched steps only
+    P = np.diag([0.02**2, 0.02**2, math.radians(0.3) ** 2])
+    # a closure across the unsure step may move the map as far as the front end allows
+    # beyond the loops' drift model; elsewhere the kernel keeps its scale
+    from scanclique.mapping.loops import drift_std
+
+    d_xy, d_th = drift_std(m.kf_path[30] - m.kf_path[10], m.lc)
+    e_xy, e_th = math.sqrt(f_xy**2 - d_xy**2), math.sqrt(f_th**2 - d_th**2)
+    expected = max(e_xy / 0.02, e_th / math.radians(0.3))
+    assert m.robust_scale(10, 30, P) == pytest.approx(expected) and expected > 100
+    assert m.robust_scale(2, 12, P) == m.cfg.back_end.robust_scale
+    # PCM's chain between two keyframes across it is as unsure
+    _, S = m.chain_rel(10, 30)
+    assert math.sqrt(S[2, 2]) >= math.radians(60.0)
+
+
+def test_a_lone_appearance_closure_across_a_jump_waits_for_a_second_one():
+    m, truth = _line_mapper(corroborate_batches=3)
+    m.pending = [_closure(truth, 2, 30, "appearance")]
+    m.flush()
+    assert m.closures == [] and len(m.deferred) == 1  # waiting
+    m.flush()
+    m.flush()  # third batch: still alone
+    assert [c.verdict for c in m.closures] == ["uncorroborated"] and not m.closures[0].accepted
+    # a second one from an earlier place far from the first: both accepted
+    m, truth = _line_mapper(corroborate_batches=3)
+    m.pending = [_closure(truth, 2, 30, "appearance")]
+    m.flush()
+    m.pending = [_closure(truth, 12, 31, "appearance")]
+    m.flush()
+    assert sorted(c.verdict for c in m.closures) == ["accepted", "accepted"]
+    # consecutive keyframes seeing one place are one witness
+    m, truth = _line_mapper(corroborate_batches=3)
+    m.pending = [_closure(truth, 2, 30, "appearance"), _closure(truth, 3, 31, "appearance")]
+    m.flush(final=True)
+    assert [c.verdict for c in m.closures] == ["uncorroborated"] * 2
+    # a closure by the estimate (proposed by position, not by looks) needs no second one,
+    # nor does a closure within the path's drift
+    m, truth = _line_mapper(corroborate_batches=3)
+    m.pending = [_closure(truth, 2, 30, "estimate")]
+    m.flush()
+    assert [c.verdict for c in m.closures] == ["accepted"]
+    m, truth = _line_mapper(jump=0.0, corroborate_batches=3)
+    m.pending = [_closure(truth, 2, 30, "appearance")]
+    m.flush()
+    assert [c.verdict for c in m.closures] == ["accepted"]

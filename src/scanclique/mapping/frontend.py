@@ -1,15 +1,24 @@
 """The front end: consecutive association of scans (issue 12, part 1).
 
-Each scan is matched by the library's matcher (paper §4–§6) against the current keyframe,
-and the match is validated (paper §7) against a prior: the wheel odometry when the log has
-it, else a constant-velocity prediction. When the match is rejected, ambiguous or has no
-pose, the scan is placed by the prior itself: the odometry increment with its noise model,
-or the constant-velocity prediction with an inflated covariance; the scan is flagged
-(:attr:`Step.kind`), never an exception.
+Each scan is matched by the library's matcher (paper §4–§6) against the current keyframe.
+
+* With wheel odometry (:func:`associate`, :func:`contest_by_odometry`,
+  :func:`icp_fallback`) the match is validated (paper §7) against the odometry; when it is
+  rejected, ambiguous or has no pose, ICP of the raw scans from the odometry, then the
+  odometry increment itself with its noise model.
+* Without odometry (the paper's setting: :func:`associate_by_scans`) the match is
+  validated on its own evidence, and where it fails or turns unexpectedly the raw scans
+  choose among ICP candidates (:func:`scan_candidates`, :func:`choose_by_scans`), a
+  learnt constant-velocity model (:class:`VelocityModel`) only weighing in where they
+  leave a choice; where even they cannot place the scan, the prediction does, with the
+  heading uncertainty the prediction has proved to have.
+
+A scan placed by a prior is flagged (:attr:`Step.kind`), never an exception.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -17,8 +26,8 @@ import numpy as np
 
 from ..config import MatchConfig
 from ..geometry import Pose2
-from ..match import PreparedScan, match_prepared, pose_score
-from ..refine import icp_point_to_line, weak_direction
+from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
+from ..refine import icp_covariance, icp_point_to_line, weak_direction
 from ..uncertainty import pose_difference
 from ..validation import (
     AMBIGUOUS,
@@ -33,6 +42,8 @@ from ..validation import (
 
 _VALIDATION = ValidationConfig()
 
+log = logging.getLogger(__name__)
+
 __all__ = [
     "MATCH",
     "ICP",
@@ -44,6 +55,12 @@ __all__ = [
     "along_corridor",
     "contest_by_odometry",
     "associate",
+    "VelocityModel",
+    "soften",
+    "scan_candidates",
+    "surprise",
+    "choose_by_scans",
+    "associate_by_scans",
 ]
 
 MATCH = "match"
@@ -268,7 +285,7 @@ def associate(
 
 
 def icp_from_seeds(
-    pk: PreparedScan, pj: PreparedScan, seeds, fe, config: MatchConfig
+    pk: PreparedScan, pj: PreparedScan, seeds, fe, config: MatchConfig, min_fitness=None
 ) -> list[tuple[Pose2, float]]:
     """Point-to-line ICP of all of scan ``j``'s points onto scan ``k``'s cloud from each
     of ``seeds`` (poses mapping ``j`` into ``k``): ``(pose, raw-scan score)`` of each run
@@ -284,7 +301,7 @@ def icp_from_seeds(
             max_correspondence=0.5,
             min_correspondence=fe.refine_min_correspondence,
         )
-        if icp.fitness >= fe.icp_min_fitness:
+        if icp.fitness >= (fe.icp_min_fitness if min_fitness is None else min_fitness):
             found.append((icp.pose, float(pose_score(pk, pj, icp.pose, config))))
     return found
 
@@ -302,58 +319,38 @@ def icp_fallback(
     priors: list[tuple[Pose2, np.ndarray]],
     fe,
     config: MatchConfig,
-    ungated: float | None = None,
 ) -> Step | None:
-    """When the feature match fails: point-to-line ICP of all of scan ``j``'s points onto
-    keyframe ``k``'s cloud from each seed (the priors, a rejected match's pose), the one
-    the raw scans agree with best. Accepted (kind ``"icp"``) when its raw-scan score
+    """With wheel odometry, when the feature match fails: point-to-line ICP of all of scan
+    ``j``'s points onto keyframe ``k``'s cloud from each seed (the priors, a rejected
+    match's pose). ICP poses the raw scans cannot tell apart (scores within
+    ``fe.icp_score_tie`` of the best, e.g. slid along a corridor) go to the one nearest the
+    odometry (the first prior). Accepted (kind ``"icp"``) when its raw-scan score
     (:func:`scanclique.match.pose_score`) is at least ``fe.icp_min_score``, ICP paired at
     least ``fe.icp_min_fitness`` of the points, and it lies within ``fe.icp_gate`` sigma
     (per coordinate) of at least one of the ``priors`` (wheel odometry and the
     constant-velocity prediction of the chain: two independent motion estimates, so that
     a wheel slip or a reversing robot whose odometry disagrees with the scans does not
-    break the chain), or scores at least ``ungated`` and lies within
-    ``fe.icp_ungated_max_turn`` / ``icp_ungated_max_shift`` of the first prior (without
-    odometry: a sharp turn no velocity model predicts, that the raw scans confirm, but no
-    half-turn: a corridor turned by 180 degrees matches as well); its covariance is ``2 x``
-    the floor plus a hundredth of the first prior's. With wheel odometry (``ungated`` None)
-    ICP poses the scans cannot tell apart (scores within ``fe.icp_score_tie``) go to the
-    one nearest the odometry, and in a corridor (:func:`weak_direction` below
-    ``fe.icp_min_constraint``) the component along it is the odometry's. None otherwise."""
+    break the chain); its covariance is ``2 x`` the floor plus a hundredth of the first
+    prior's, and in a corridor (:func:`weak_direction` below ``fe.icp_min_constraint``)
+    the component along it is the odometry's. None otherwise. (Without odometry the front
+    end is :func:`associate_by_scans`.)"""
     found = icp_from_seeds(pk, pj, seeds, fe, config)
     if not found or max(sc for _, sc in found) < fe.icp_min_score:
         return None
-    # poses the raw scans cannot tell apart (scores within ``icp_score_tie`` of the best,
-    # e.g. slid along a corridor): the wheel odometry (the first prior) decides; without
-    # it the best score does (a constant-velocity guess is no measurement: a robot that
-    # stops at a door moves nothing where it predicts a full step)
     top = max(sc for _, sc in found)
     p0, c0 = priors[0]
-    measured = ungated is None
     pose, score = min(
-        (f for f in found if f[1] >= top - fe.icp_score_tie) if measured else found,
-        key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0) if measured else -f[1],
+        (f for f in found if f[1] >= top - fe.icp_score_tie),
+        key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0),
     )
-    inside = any(
+    if not any(
         within_gate(pose, prior, np.sqrt(np.diag(prior_cov)), fe.icp_gate)
         for prior, prior_cov in priors
-    )
-    if not inside:
-        if ungated is None or score < ungated:
-            return None
-        # ungated (no odometry): still a plausible motion from the first prior; a corridor
-        # turned by 180 degrees explains the scans as well as the right pose does
-        d = priors[0][0].inverse() @ pose
-        if (
-            abs(d.theta) > fe.icp_ungated_max_turn
-            or math.hypot(d.x, d.y) > fe.icp_ungated_max_shift
-        ):
-            return None
+    ):
+        return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
-    weak = (
-        weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1) if measured else None
-    )
-    if measured and weak is not None and weak[1] < fe.icp_min_constraint:
+    weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
+    if weak is not None and weak[1] < fe.icp_min_constraint:
         # the scans do not fix the pose along ``e`` (a corridor): ICP slides along it as
         # far as its seed allows; take that component from the prior (the first one, the
         # motion model) and give the edge the prior's uncertainty along it
@@ -369,3 +366,249 @@ def prior_step(
     with the covariance of the noise model."""
     rel, cov = odometry_prior(a, b, noise)
     return Step(rel, cov, kind, verdict, score, reason)
+
+
+class VelocityModel:
+    """The motion model of the front end without odometry, learnt from the steps the scans
+    placed (state carried across scans).
+
+    * :meth:`predict`: the last motion repeated (:func:`constant_velocity`), per unit of
+      time (timestamps) or per scan, whichever has predicted the scan-placed poses better so
+      far: a log recorded at a steady rate moves as far per second, one thinned by distance
+      travelled (the corrected Intel log: 1 m between scans however long the robot stood
+      still, timestamps 0.01 to 14 s apart) as far per scan.
+    * :meth:`max_translation`: how far a scan may lie from a keyframe ``span`` scans back:
+      ``fe.jump_factor`` times the 90th percentile of the per-scan steps measured so far,
+      times ``span``, plus ``fe.jump_floor`` (a robot turns as sharply as it likes, but does
+      not jump); no bound before the scans have measured ``fe.jump_min_path`` m of path.
+    """
+
+    def __init__(self, fe) -> None:
+        self.fe = fe
+        self.steps: list[float] = []  # per-scan translation of scan-placed steps (m)
+        self.errors = [0.0, 0.0]  # summed translation errors: per second, per scan
+        self.turns: list[float] = []  # heading errors of the prediction used (rad)
+
+    def predict(self, prev2, prev, times=(None, None, None), by_time=None) -> Pose2:
+        """Predicted pose (world frame) of the next scan from the last two, ``prev2`` and
+        ``prev``; ``times`` the timestamps of those two and of the next scan."""
+        if by_time is None:
+            by_time = self.errors[0] <= self.errors[1]
+        return constant_velocity(prev2, prev, *(times if by_time else (None, None, None)))
+
+    def observe(self, prev2, prev, times, placed: Pose2, rel: Pose2, span: int) -> None:
+        """Record a scan the scans placed: at ``placed`` (world frame), ``rel`` from a
+        keyframe ``span`` scans back."""
+        self.steps.append(math.hypot(rel.x, rel.y) / span)
+        if prev2 is not None:
+            self.turns.append(self.predict(prev2, prev, times).distance_to(placed)[1])
+            for m, by_time in enumerate((True, False)):
+                self.errors[m] += self.predict(prev2, prev, times, by_time).distance_to(placed)[0]
+
+    def heading_sigma(self) -> float:
+        """Standard deviation of the heading of a scan placed by the prediction: the 95th
+        percentile of the prediction's heading errors on the scan-placed steps so far (as
+        unsure as it has proved: a smooth drive keeps it small, a robot that turns sharply
+        before walls makes it large), at most ``fe.guess_sigma_radians``, which it is
+        before ten steps have been measured."""
+        if len(self.turns) < 10:
+            return self.fe.guess_sigma_radians
+        return min(float(np.quantile(self.turns, 0.95)), self.fe.guess_sigma_radians)
+
+    def max_translation(self, span: int) -> float | None:
+        if sum(self.steps) < self.fe.jump_min_path:
+            return None
+        q = float(np.quantile(self.steps, 0.9))
+        return self.fe.jump_factor * q * span + self.fe.jump_floor
+
+
+def soften(
+    pk: PreparedScan, pj: PreparedScan, pose: Pose2, cov: np.ndarray, prior: Pose2, fe
+) -> np.ndarray:
+    """``cov`` of a step ``pose`` (maps scan ``j`` into ``k``) made as unsure, along the
+    direction the raw scans fix least, as ``pose`` and the motion model's ``prior``
+    disagree along it, when the raw scans fix that direction loosely
+    (:func:`weak_direction` below ``fe.soft_constraint``: a corridor, whose doors repeat
+    and whose raw-scan score favours the pose of most overlap, standing still). Without
+    odometry nothing else tells where along a corridor the robot went; an edge as sure as
+    its features or its ICP would keep the loops from putting it right. Where the two
+    agree (a dense log, a steady walk) the edge is left as it is."""
+    weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
+    if weak is None or weak[1] >= fe.soft_constraint:
+        return cov
+    e = weak[0]
+    d = float(e @ [pose.x - prior.x, pose.y - prior.y])
+    cov = cov.copy()
+    cov[:2, :2] += d * d * np.outer(e, e)
+    return cov
+
+
+def scan_candidates(
+    pk: PreparedScan, pj: PreparedScan, m, pred: Pose2, fe, config: MatchConfig
+) -> list[tuple[Pose2, float]]:
+    """Poses of scan ``j`` in keyframe ``k`` that the raw scans may support, with their
+    raw-scan scores (:func:`scanclique.match.pose_score`): point-to-line ICP from each of
+    the first ``fe.max_seeds`` distinct hypotheses of the match ``m``, from the prediction
+    ``pred``, from standing still and from the prediction turned by each multiple of
+    ``360 / fe.turn_seeds`` degrees (a sharp turn no velocity predicts, which may leave the
+    matcher without a right hypothesis), kept when ICP paired at least
+    ``fe.scan_min_fitness`` of the points; and the hypotheses as they are (ICP may lose a
+    sharp turn's small overlap)."""
+    hyps: list[Pose2] = []
+    for h in m.hypotheses:
+        if len(hyps) >= fe.max_seeds:
+            break
+        if all(distinct_poses(h.pose, s, config) for s in hyps):
+            hyps.append(h.pose)
+    turns = [
+        pred @ Pose2(0.0, 0.0, 2 * math.pi * i / fe.turn_seeds) for i in range(1, fe.turn_seeds)
+    ]
+    found = icp_from_seeds(pk, pj, [*hyps, pred, Pose2.identity(), *turns], fe, config,
+                           fe.scan_min_fitness)  # fmt: skip
+    return found + [(h, float(pose_score(pk, pj, h, config))) for h in hyps]
+
+
+def surprise(pose: Pose2, pred: Pose2, pred_cov: np.ndarray, fe) -> float:
+    """The raw-scan score a pose must pay for departing from the prediction ``pred``:
+    ``fe.shift_cost`` per standard deviation of translation and ``fe.turn_cost`` per
+    standard deviation of heading (``pred_cov``). A robot's heading is much less
+    predictable than its translation (it turns in place, or sharply before a wall), so a
+    sigma of unexpected turn costs less than a sigma of unexpected shift."""
+    e = pose_difference(pose, pred)
+    return fe.shift_cost * math.hypot(e[0], e[1]) / math.sqrt(pred_cov[0, 0]) + (
+        fe.turn_cost * abs(e[2]) / math.sqrt(pred_cov[2, 2])
+    )
+
+
+def _same_heading(p: Pose2, q: Pose2, config: MatchConfig) -> bool:
+    return not distinct_poses(Pose2(0.0, 0.0, p.theta), Pose2(0.0, 0.0, q.theta), config)
+
+
+def choose_by_scans(
+    candidates: list[tuple[Pose2, float]],
+    pred: Pose2,
+    pred_cov: np.ndarray | None,
+    fe,
+    config: MatchConfig,
+    weak_at=None,
+) -> tuple[Pose2, float, np.ndarray, np.ndarray | None] | str:
+    """The candidate (pose, raw-scan score) the scans and the motion agree on best: the
+    highest raw-scan score less its :func:`surprise` (the score alone when ``pred_cov`` is
+    None: no velocity known yet). Returns ``(pose, score, spread)``, ``spread`` the
+    ``(2, 2)`` covariance the other candidates at the same heading add (a quarter of
+    their squared offsets: the translation aliases of a small overlap, or of a corridor
+    whose raw scans favour the pose of most overlap), or the reason in words when distinct
+    headings come within ``fe.icp_score_tie`` of the best (the scans and the motion cannot
+    tell a turn from a look-alike). ``weak_at(pose)``, when given, returns the unit vector
+    along which the raw scans leave ``pose`` free (a corridor's axis, which the caller
+    takes from the prediction) or None: poses that differ only along it are one; it is
+    returned last."""
+    if not candidates:
+        return "no candidate"
+
+    def value(f):
+        return f[1] if pred_cov is None else f[1] - surprise(f[0], pred, pred_cov, fe)
+
+    ranked = sorted(((p, sc, value((p, sc))) for p, sc in candidates), key=lambda f: -f[2])
+    pose, score, best = ranked[0]
+    weak = None if weak_at is None else weak_at(pose)
+
+    def same(p: Pose2, q: Pose2) -> bool:
+        if weak is None:
+            return not distinct_poses(p, q, config)
+        across = abs(float(np.array([-weak[1], weak[0]]) @ [p.x - q.x, p.y - q.y]))
+        return across <= config.refine.distinct_metres and _same_heading(p, q, config)
+
+    tie: list[Pose2] = []  # one per distinct pose, best first
+    for p, _, va in ranked:
+        if va >= best - fe.icp_score_tie and all(not same(p, q) for q in tie):
+            tie.append(p)
+    if any(not _same_heading(p, pose, config) for p in tie):
+        return f"{len(tie)} distinct poses explain the raw scans alike, at distinct headings"
+    spread = np.zeros((2, 2))
+    for p, _, _ in ranked[1:]:
+        if _same_heading(p, pose, config):
+            d = np.array([p.x - pose.x, p.y - pose.y])
+            spread += np.outer(d, d) / 4.0
+    return pose, score, spread, weak
+
+
+def associate_by_scans(
+    pk: PreparedScan,
+    pj: PreparedScan,
+    pred: Pose2,
+    pred_cov: np.ndarray | None,
+    config: MatchConfig,
+    fe,
+    sigma_floor: tuple[float, float],
+    max_translation: float | None = None,
+) -> Step:
+    """Without odometry (the paper's setting): place scan ``j`` relative to keyframe ``k``
+    by the scans' own evidence, the constant-velocity prediction ``pred`` (maps ``j`` into
+    ``k``, covariance ``pred_cov``; None when no velocity is known yet) only weighing in
+    where the scans leave a choice.
+
+    1. The feature match, validated on its own (§7: enough features fixing the pose, no
+       rival), is taken when its heading lies within the prediction's 99 % gate (or no
+       velocity is known) and its translation within ``max_translation`` m
+       (:meth:`VelocityModel.max_translation`); its covariance :func:`soften`-ed.
+    2. Otherwise (rejected, ambiguous, imprecise, or a turn the prediction did not expect):
+       the :func:`scan_candidates` within ``max_translation`` scoring at least
+       ``fe.scan_min_score`` compete (:func:`choose_by_scans`); the winner's covariance is
+       the alignment's (:func:`scanclique.refine.icp_covariance`, floored at twice the
+       front end's floor) plus the spread of its translation aliases, :func:`soften`-ed.
+       A tie at distinct headings is refused (``"ambiguous"``).
+    3. Where the raw scans leave the winner free along one direction (a corridor:
+       :func:`weak_direction` below ``fe.icp_min_constraint``), the component along it is
+       the prediction's, with its variance.
+
+    Returns a Step of kind ``"match"`` (1) or ``"icp"`` (2), or ``"rejected"`` with the
+    reason (the caller places the scan by the prediction).
+    """
+    m = match_prepared(pk, pj, config)
+    known = pred_cov is not None
+    pts = np.ascontiguousarray(pj.points)
+
+    def plausible(p: Pose2) -> bool:
+        return max_translation is None or math.hypot(p.x, p.y) <= max_translation
+
+    def softened(pose: Pose2, cov: np.ndarray) -> np.ndarray:
+        return soften(pk, pj, pose, cov, pred, fe) if known else cov
+
+    def expected_turn(p: Pose2) -> bool:
+        return not known or abs(pose_difference(p, pred)[2]) <= math.sqrt(GATE_99 * pred_cov[2, 2])
+
+    v = validate_match(m)
+    if v.accepted and v.pose is not None and plausible(v.pose) and expected_turn(v.pose):
+        cov = floored(v.covariance if v.covariance is not None else m.covariance, *sigma_floor)
+        pose = refine_pose(pk, pj, v.pose, fe)
+        return Step(pose, softened(pose, cov), MATCH, v.verdict, float(m.score))
+    why = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
+    found = [
+        f for f in scan_candidates(pk, pj, m, pred, fe, config)
+        if plausible(f[0]) and f[1] >= fe.scan_min_score
+    ]  # fmt: skip
+    if not found:
+        return Step(pred, np.eye(3), "rejected", v.verdict, float(m.score),
+                    f"{why}; no pose within reach scores at least {fe.scan_min_score:g} "
+                    "on the raw scans")  # fmt: skip
+
+    def axis_at(pose: Pose2) -> np.ndarray | None:
+        weak = weak_direction(pk.cloud, pts, pose, 0.1) if known else None
+        return weak[0] if weak is not None and weak[1] < fe.icp_min_constraint else None
+
+    chosen = choose_by_scans(found, pred, pred_cov, fe, config, axis_at)
+    if isinstance(chosen, str):
+        return Step(pred, np.eye(3), "rejected", "ambiguous", float(m.score), f"{why}; {chosen}")
+    pose, score, spread, axis = chosen
+    cov = icp_covariance(pk.cloud, pts, pose, fe.refine_min_correspondence)
+    if cov is None:
+        cov = np.diag([fe.icp_gate * sigma_floor[0]] * 2 + [fe.icp_gate * sigma_floor[1]]) ** 2
+    cov = floored(cov, 2 * sigma_floor[0], 2 * sigma_floor[1])
+    cov[:2, :2] += spread
+    if axis is not None:
+        pose, cov = _prior_along(pose, cov, axis, pred, pred_cov)
+        score = float(pose_score(pk, pj, pose, config))
+    else:
+        cov = softened(pose, cov)
+    return Step(pose, cov, ICP, "scans", score, f"{v.verdict}: {why}; placed by the raw scans")

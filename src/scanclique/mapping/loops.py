@@ -101,6 +101,7 @@ def candidates(
     since_closure: float,
     cfg: LoopConfig,
     exclude: set[int] | frozenset[int] = frozenset(),
+    front_sigma: np.ndarray | None = None,
 ) -> list[int]:
     """Loop candidates of keyframe ``j`` by the estimate (keyframe indices, nearest first).
 
@@ -121,6 +122,8 @@ def candidates(
         return []
     drift = np.minimum(cum_path[j] - cum_path[far], since_closure)
     radius = np.minimum(cfg.radius + cfg.growth * drift, cfg.max_radius)
+    if front_sigma is not None:
+        radius = np.maximum(radius, 3.0 * front_sigma[far])
     d = np.hypot(*(xy[far] - xy[j]).T)
     inside = far[d <= radius]
     order = inside[np.argsort(d[d <= radius], kind="stable")]
