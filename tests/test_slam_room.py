@@ -13,7 +13,6 @@ from scipy.stats import chi2
 
 from scanclique import slam
 from scanclique.slam import association as A
-from scanclique.slam import ekf as E
 from scanclique.slam.metrics import nees, score_against_truth
 from scanclique.slam.models import observe
 from scanclique.slam.sim import room_config, simulate_room
@@ -188,6 +187,38 @@ def test_correspondence_graph_misses_one_true_edge():
     oi, lj, adj = A.correspondence_graph(z, Rk, d2, pred, slam.AssociationConfig())
     true = [int(np.flatnonzero((oi == i) & (lj == i))[0]) for i in range(3)]
     assert adj[true[0], true[1]] and adj[true[0], true[2]] and not adj[true[1], true[2]]
+
+
+def test_non_conflicting_cliques_are_not_ambiguous():
+    """Two maximum cliques {0, 1} and {0, 2}, nearly as likely, that pair no observation
+    or landmark differently are one hypothesis with a missing edge, not rivals: under
+    ``ambiguity="conflict"`` the step is not ambiguous and takes the likelier clique;
+    under ``"distinct"`` it is ambiguous and keeps only the shared pair."""
+    z, R, lm, cov, pose, pose_cov = _three_pairs()
+    old = slam.AssociationConfig(ambiguity="distinct")
+    a = slam.associate(z, R, lm, cov, pose, pose_cov, method="clique", config=old)
+    assert a.ambiguous and a.landmarks.tolist() == [0, slam.REJECTED, slam.REJECTED]
+    new = slam.AssociationConfig(ambiguity="conflict")
+    a = slam.associate(z, R, lm, cov, pose, pose_cov, method="clique", config=new)
+    assert not a.ambiguous and a.n_pairs == 2 and a.landmarks[0] == 0
+    # the hybrid's JCBB over the union of the cliques' pairs takes all three either way
+    for cfg in (old, new):
+        a = slam.associate(z, R, lm, cov, pose, pose_cov, method="clique-jcbb", config=cfg)
+        assert a.landmarks.tolist() == [0, 1, 2]
+
+
+def test_conflicting_cliques_stay_ambiguous():
+    """Two observations, one landmark each side of them at the same distance: the two
+    ways of pairing one observation conflict, and the step stays ambiguous."""
+    lm = np.array([[4.0, 0.0]])
+    z = np.array([[4.0, 0.02], [4.0, -0.02]])
+    R = np.diag([0.1, math.radians(2.0)]) ** 2
+    cfg = slam.AssociationConfig(ambiguity="conflict")
+    a = slam.associate(
+        z, R, lm, np.eye(2)[None] * 0.01, np.zeros(3), np.eye(3) * 1e-4, "clique", config=cfg
+    )
+    assert a.ambiguous and a.n_pairs == 0
+    assert a.landmarks.tolist() == [slam.REJECTED, slam.REJECTED]
 
 
 @pytest.mark.parametrize("method", slam.METHODS)

@@ -24,14 +24,15 @@ Three methods behind one interface (:func:`associate`, and
     pair with the worst individual distance until it passes). Candidate pairs are gated
     individually with a much looser bound, so that the graph finds the clique under pose
     error, and on the tree diameter (node attribute, :class:`AssociationConfig`). A
-    distinct maximum clique that also passes the joint gate, and whose joint distance is
-    nearly as small (a likelihood ratio under 10), makes the step *ambiguous*: only the
-    pairs all such cliques agree on are kept.
+    rival maximum clique (one that pairs an observation or a landmark differently) that
+    also passes the joint gate, and whose joint distance is nearly as small (a
+    likelihood ratio under 10), makes the step *ambiguous*: only the pairs all such
+    cliques agree on are kept.
 ``"clique-jcbb"``
     Hybrid: the maximum cliques propose, joint compatibility verifies: JCBB restricted to
     the pairs of the maximum cliques (the largest jointly compatible set of geometrically
-    consistent pairs). Several distinct maximum cliques mark the step ambiguous; the
-    observations they disagree on start no landmark.
+    consistent pairs). Rival maximum cliques mark the step ambiguous; the observations
+    they disagree on start no landmark.
 
 Observations left unpaired become a new landmark when they are far from every landmark
 (beyond the chi-square bound at ``new_probability``), else they are rejected.
@@ -127,6 +128,21 @@ class AssociationConfig:
         degrees of freedom at this probability (0.9: a likelihood ratio of 10); an
         ambiguous scan keeps only the pairs the hypotheses share, otherwise the likelier
         hypothesis is taken.
+    ambiguity : {"conflict", "distinct"}
+        Which hypotheses of the clique methods are rivals (an ambiguous step needs a
+        rival as likely as the best): ``"conflict"``, those that pair an observation or a
+        landmark differently from the best (their union is not one-to-one);
+        ``"distinct"`` (before session 9), any other maximum clique. Two cliques that
+        differ only by pairs the other leaves out, e.g. {a, b, c} and {a, b, d} when the
+        2-sigma edge test missed the true edge c-d (one true edge in twenty), are one
+        hypothesis, not rivals: with ``"distinct"`` the step kept only {a, b} and started
+        no landmark from c or d. Measured with ``"conflict"``: ambiguous scans on
+        Victoria Park (clique) 3 -> 0, 259 -> 208, 759 -> 499 at 0, 5, 10 clutter
+        detections per scan (clique-jcbb 77 -> 44 without clutter), GPS error 3.46 /
+        1.57 m unchanged without clutter, 3.53 / 1.62 m (was 3.51 / 1.61) at 5 and
+        3.04 / 2.23 m (3.13 / 2.31) at 10 (start / SE(2)); on 4 simulated rooms
+        (60 deg, 5 m, no turns on the spot) 29 -> 0 ambiguous steps per run at the same
+        ANEES (3.67, 3.64).
     clique_individual_gate : bool
         The clique method's verification drops the clique's pairs outside the individual
         gate at ``gate_probability`` (the one NN and JCBB use) before the joint test: the
@@ -150,6 +166,7 @@ class AssociationConfig:
     attribute_gate: float = 2.0
     ambiguity_probability: float = 0.9
     clique_individual_gate: bool = True
+    ambiguity: str = "conflict"
     jcbb_node_limit: int = 200_000
     clique_limit: int = 4
     node_limit: int = 1_000_000
@@ -459,11 +476,12 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
         blocked = ()
         amb = False
         if len(res.cliques) > 1:
-            sets = [set(zip(oi[cl].tolist(), lj[cl].tolist(), strict=False)) for cl in res.cliques]
-            if any(x != sets[0] for x in sets[1:]):
+            sets = [_pair_set(oi[cl], lj[cl]) for cl in res.cliques]
+            rivals = [x for x in sets[1:] if _rivals(sets[0], x, cfg)]
+            if rivals:
                 amb = True
-                common = set.intersection(*sets)
-                blocked = tuple({i for i, _ in set.union(*sets) - common})
+                common = set.intersection(sets[0], *rivals)
+                blocked = tuple({i for i, _ in set.union(sets[0], *rivals) - common})
         return out, C, int(res.omega), amb, blocked
     passing = []
     single = chi2_bound(2, cfg.gate_probability) if cfg.clique_individual_gate else math.inf
@@ -485,16 +503,34 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
     margin = chi2_bound(2, cfg.ambiguity_probability)
     best = [p for p in best if p[1] - best[0][1] <= margin]  # as likely as the best
     if len(best) > 1 and size > 0:
-        sets = [set(zip(oi[p[2]].tolist(), lj[p[2]].tolist(), strict=False)) for p in best]
-        if any(x != sets[0] for x in sets[1:]):
+        sets = [_pair_set(oi[p[2]], lj[p[2]]) for p in best]
+        rivals = [x for x in sets[1:] if _rivals(sets[0], x, cfg)]
+        if rivals:
             # ambiguous: keep only the pairs every equally good hypothesis shares
-            common = set.intersection(*sets)
-            blocked = {i for i, _ in set.union(*sets) - common}
+            common = set.intersection(sets[0], *rivals)
+            blocked = {i for i, _ in set.union(sets[0], *rivals) - common}
             for i, j in sorted(common):
                 out[i] = j
             return out, C, int(res.omega), True, tuple(blocked)
     out[oi[sel]] = lj[sel]
     return out, C, int(res.omega), False, ()
+
+
+def _pair_set(o, l) -> set:
+    return set(zip(np.asarray(o).tolist(), np.asarray(l).tolist(), strict=True))
+
+
+def _rivals(h1: set, h2: set, cfg) -> bool:
+    """Whether two distinct hypotheses (sets of (observation, landmark)) are rivals:
+    any two, under ``ambiguity="distinct"``; only when they pair an observation or a
+    landmark differently (their union is not one-to-one), under ``"conflict"``."""
+    if h1 == h2:
+        return False
+    if cfg.ambiguity == "distinct":
+        return True
+    o1 = dict(h1)
+    l1 = {j: i for i, j in h1}
+    return any(o1.get(i, j) != j or l1.get(j, i) != i for i, j in h2)
 
 
 def associate_predicted(
