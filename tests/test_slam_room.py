@@ -13,6 +13,7 @@ from scipy.stats import chi2
 
 from scanclique import slam
 from scanclique.slam import association as A
+from scanclique.slam import ekf as E
 from scanclique.slam.metrics import nees, score_against_truth
 from scanclique.slam.models import observe
 from scanclique.slam.sim import room_config, simulate_room
@@ -237,6 +238,61 @@ def test_one_or_no_landmark_in_view(method):
     assert a.landmarks.tolist() == [0, slam.NEW]
 
 
+def _dense_schmidt(x, P, z, glob, own, R):
+    """Reference: the batch gain with the columns of ``own`` pairs zeroed outside their
+    landmark's rows, and the Joseph form (I - KH) P (I - KH)^T + K R K^T."""
+    d = len(x)
+    m = len(glob)
+    H = np.zeros((2 * m, d))
+    lm = np.array([x[3 + 2 * g : 5 + 2 * g] for g in glob])
+    zhat, Hx, Hm = observe(x[:3], lm)
+    for q, g in enumerate(glob):
+        H[2 * q : 2 * q + 2, :3] = Hx[q]
+        H[2 * q : 2 * q + 2, 3 + 2 * g : 5 + 2 * g] = Hm[q]
+    Rb = np.kron(np.eye(m), R)
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + Rb)
+    for q in np.flatnonzero(own):
+        keep = K[3 + 2 * glob[q] : 5 + 2 * glob[q], 2 * q : 2 * q + 2].copy()
+        K[:, 2 * q : 2 * q + 2] = 0.0
+        K[3 + 2 * glob[q] : 5 + 2 * glob[q], 2 * q : 2 * q + 2] = keep
+    nu = z - zhat
+    nu[:, 1] = slam.wrap(nu[:, 1])
+    xn = x + K @ nu.reshape(-1)
+    I_KH = np.eye(d) - K @ H
+    return xn, I_KH @ P @ I_KH.T + K @ Rb @ K.T
+
+
+def test_tentative_pairs_move_only_their_landmark():
+    """``tentative_update="landmark"``: the pair of a tentative landmark updates that
+    landmark alone (a Schmidt update, exact in Joseph form); the vehicle and the other
+    landmarks take only the permanent landmarks' pairs."""
+    rng = np.random.default_rng(2)
+    f = E._Filter(np.array([0.5, -0.3, 0.2]), np.diag([0.2, 0.3, 0.02]), cap=4)
+    R = np.diag([0.15, math.radians(3.0)]) ** 2
+    for _ in range(3):
+        z = np.array([[rng.uniform(1, 5), rng.uniform(-0.5, 0.5)]])
+        m, Gx, Gz = f.inverse(z, 0.0, 0.0)
+        f.add(m[0], Gx[0], Gz[0], R, 0.0)
+    d = f.dim
+    x0, P0 = f.x[:d].copy(), f.P[:d, :d].copy()
+    glob = np.array([0, 2])
+    own = np.array([False, True])
+    lm = np.array([x0[3 + 2 * g : 5 + 2 * g] for g in glob])
+    z = observe(x0[:3], lm)[0] + rng.normal(0, [0.15, 0.05], (2, 2))
+    xr, Pr = _dense_schmidt(x0, P0, z, glob, own, R)
+    E._update(f, z, glob, R, 0.0, 0.0, 1, own)
+    np.testing.assert_allclose(f.x[:d], xr, atol=1e-10)
+    np.testing.assert_allclose(f.P[:d, :d], Pr, atol=1e-10)
+    # only the tentative pair: the vehicle and landmark 1 do not move
+    f2 = E._Filter(np.zeros(3), np.eye(3), cap=4)
+    f2.x, f2.P, f2.n = np.r_[x0, np.zeros(len(f.x) - d)], np.zeros_like(f.P), 3
+    f2.P[:d, :d] = P0
+    E._update(f2, z[1:], glob[1:], R, 0.0, 0.0, 1, own[1:])
+    np.testing.assert_allclose(f2.x[:7], x0[:7], rtol=0, atol=1e-12)
+    assert np.abs(f2.x[7:9] - x0[7:9]).max() > 1e-4
+    assert np.all(np.linalg.eigvalsh(f2.P[:d, :d]) > 0)
+
+
 def test_for_sensor_gives_the_sensor_in_one_place():
     cfg = slam.SlamConfig.for_sensor(
         0.2, math.radians(2.0), 8.0, math.radians(90.0), sigma_xy_rate=0.03
@@ -271,3 +327,32 @@ def test_for_sensor_drops_the_tree_diameter_gate():
     cfg = slam.SlamConfig.for_sensor(0.1, 0.03, 5.0)
     a = slam.associate(*args, np.zeros(3), np.eye(3) * 1e-4, config=cfg.association, **kw)
     assert a.landmarks.tolist() == [0, 1, 2, 3]
+
+
+def test_tentative_landmark_does_not_move_the_vehicle():
+    """With ``tentative_update="landmark"`` a detection that starts a landmark and its
+    next sightings (a tentative landmark throughout) leave the vehicle's trajectory as
+    it is without them; with ``"full"`` they move it."""
+    rng = np.random.default_rng(4)
+    L = np.array([[3.0, 1.0], [4.0, -1.0], [3.5, 0.2]])
+    spurious = np.array([2.5, -0.3])
+    with_c, without_c = [], []
+    x = np.zeros(3)
+    for k in range(15):
+        t = 0.2 * k
+        u = np.array([0.1, 0.05])
+        z = observe(x, L)[0] + rng.normal(0, [0.05, 0.02], (3, 2))
+        without_c.append(slam.Step(t, u, z))
+        if 6 <= k < 10:  # four sightings of a landmark that is not there
+            zc = observe(x, spurious[None])[0] + rng.normal(0, [0.05, 0.02], (1, 2))
+            z = np.vstack([z, zc])
+        with_c.append(slam.Step(t, u, z))
+        x, _, _ = slam.Unicycle().predict(x, u, 0.2)
+    moved = {}
+    for mode in ("landmark", "full"):
+        cfg = room_config(tentative_update=mode)
+        a = slam.ekf_slam(with_c, slam.Unicycle(), association="jcbb", config=cfg)
+        b = slam.ekf_slam(without_c, slam.Unicycle(), association="jcbb", config=cfg)
+        assert [int(np.sum(x >= 0)) for x in a.associations[7:10]] == [4, 4, 4]
+        moved[mode] = np.abs(a.poses - b.poses).max()
+    assert moved["landmark"] < 1e-9 < 1e-4 < moved["full"]
