@@ -106,7 +106,7 @@ def test_room_with_clutter():
     at most one clutter landmark reaches the final map, under 10 % of the pairs are
     wrong (most of them clutter paired with a tentative clutter landmark), the NEES stays
     inside the band nine times in ten; the clique pairs fewer wrongly than JCBB (as on
-    each of 6 seeds: 4.3-6.1 % against 6.1-8.4 %)."""
+    each of 6 seeds: 4.4-6.1 % against 6.1-8.4 %)."""
     run = simulate_room(1, duration=90.0, config=CFG, clutter=0.5)
     wrong = {}
     for method in ("jcbb", "clique"):

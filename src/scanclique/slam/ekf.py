@@ -144,18 +144,20 @@ class SlamConfig:
         ``"landmark"``, that landmark alone (a Schmidt update: the gain's other rows set
         to zero, the covariance exact in Joseph form), after the permanent landmarks'
         pairs have updated the state: a spurious detection that started a landmark does
-        not move the vehicle. Measured against ``"full"``: on Victoria Park, without
-        clutter 3.35 / 1.59, 3.36 / 1.59, 3.43 / 1.57 m (nn, jcbb, clique; start /
-        SE(2)) against 3.38 / 1.58, 3.38 / 1.58, 3.46 / 1.57; with 5 clutter detections
-        per scan 3.08 / 1.57, 3.05 / 1.57, 3.38 / 1.49 m against 11.57 / 8.58, 3.56 /
-        2.24, 3.53 / 1.62; the clique's SE(2) error over 3 clutter seeds at 5 and 10
-        per scan 1.49-1.70 m against 1.61-7.20 m. On the simulated rooms with one
-        spurious detection per frame it keeps every method consistent (the table of
-        ``benchmarks/slam.py``). But on the simulated parks (150 trees, 25 m) nn, jcbb
-        and clique-jcbb close the loop wrongly on one park of five (ANEES 108, 74, 36
-        against 4.0, 4.0, 3.7), and the clique's start-aligned error on Victoria Park at
-        5 clutter detections is no longer below JCBB's. Hence ``"full"`` by default;
-        ``"landmark"`` for a sensor with frequent false detections.
+        not move the vehicle. Measured against ``"full"`` (the clique with
+        ``AssociationConfig(ambiguity="conflict")``): on Victoria Park, without clutter
+        3.35 / 1.59, 3.36 / 1.59, 3.43 / 1.57 m (nn, jcbb, clique; start / SE(2))
+        against 3.38 / 1.58, 3.38 / 1.58, 3.46 / 1.57; with 5 clutter detections per
+        scan 3.08 / 1.57, 3.05 / 1.57, 3.38 / 1.49 m against 11.57 / 8.58, 3.56 / 2.24,
+        3.53 / 1.62; the clique's SE(2) error over 3 clutter seeds at 5 and 10 per scan
+        1.49-1.70 m against 1.61-7.20 m. On 5 simulated rooms with one spurious
+        detection per frame ANEES 5.48, 5.02, 4.19 (nn, jcbb, clique; 66, 70, 84 % of
+        the frames in the band) against 6.83, 6.06, 5.96 (41, 55, 54 %). But on the 5
+        simulated parks (150 trees, 25 m) nn, jcbb and clique-jcbb close the loop
+        wrongly on one park (ANEES 109, 74, 57 against 4.0, 4.0, 3.7; the clique 3.05
+        against 2.99), and the clique's start-aligned error on Victoria Park at 5 clutter
+        detections is no longer below JCBB's. Hence ``"full"`` by default; ``"landmark"``
+        is worth trying for a sensor with frequent false detections.
     association : AssociationConfig
     """
 
