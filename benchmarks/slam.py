@@ -5,10 +5,16 @@ of the laser's position at every fix (RMS and max; aligned by the start of the r
 the best SE(2) alignment), landmarks in the final map, landmarks in pairs closer than 1 m
 (duplicates), median and 95th-percentile association time per step (CPU), whole-run time
 (CPU and wall). A figure of the three maps over the GPS track. Then the filter's NEES of
-the vehicle pose on simulated tree parks (known truth, the same noise as the filter's).
+the vehicle pose on simulated tree parks (known truth, the same noise as the filter's), and
+on simulated rooms (``scanclique.slam.sim.simulate_room``: a wheeled robot with odometry
+at 67 Hz, 15 landmarks without attributes in a 15 x 8 m room, a 5 m sensor with a 60 deg
+field of view, frames asynchronous to the odometry; also with a 180 deg field of view and
+with clutter): pose RMSE, ANEES and its 95 % band, landmarks against the truth, and the
+share of wrong associations.
 
-    python benchmarks/slam.py                 # full: clutter 0, 5, 10; 5 simulated parks
+    python benchmarks/slam.py                 # full: clutter 0, 5, 10; 5 simulated parks; rooms
     python benchmarks/slam.py --clutter 0 --sims 2 --jobs 2
+    python benchmarks/slam.py --sections room --out /tmp/slam-room   # the rooms only
 
 Each filter run is followed by the optional smoothing pass (scanclique.slam.smooth: a GTSAM
 pose graph with the filter's associations), reported on its own rows ("nn + smoothing", ...;
@@ -23,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -127,40 +134,67 @@ def _vp_worker(args):
     ] + extra
 
 
+def _truth_record(run, r, steps_mask):
+    """NEES at the steps ``steps_mask``, pose RMSE and the associations against the truth."""
+    from scanclique.slam import wrap
+    from scanclique.slam.metrics import nees, score_against_truth
+
+    e = r.poses - run.poses
+    e[:, 2] = wrap(e[:, 2])
+    n = nees(e, r.pose_covariances)
+    sc = score_against_truth(r.landmark_ids, r.associations, run.truth)
+    return {
+        "nees_obs_steps": n[np.flatnonzero(steps_mask)].tolist(),
+        "pos_rmse": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1)))),
+        "landmarks": len(r.landmarks),
+        "trees": len(run.landmarks),
+        "pair_consistency": 1.0 - sc.wrong_rate,
+        "seen": sc.seen,
+        "distinct": sc.distinct,
+        "spurious": sc.spurious,
+        "duplicates": sc.duplicates,
+        "wrong_rate": sc.wrong_rate,
+        "ambiguous": int(r.ambiguous.sum()),
+    }
+
+
 def _nees_worker(args):
     method, seed = args
-    from scanclique.slam import Ackermann, SlamConfig, ekf_slam, wrap
-    from scanclique.slam.metrics import nees
+    from scanclique.slam import Ackermann, SlamConfig, ekf_slam
     from scanclique.slam.sim import simulate_park
 
     cfg = SlamConfig()
     run = simulate_park(seed, config=cfg, max_range=cfg.max_range or 20.0)
     r = ekf_slam(run.steps, Ackermann(), association=method, config=cfg)
-    e = r.poses - run.poses
-    e[:, 2] = wrap(e[:, 2])
-    n = nees(e, r.pose_covariances)
-    # association accuracy against the truth: each landmark's majority tree
-    obs_ids = [a for a in r.associations]
-    pairs_ok = pairs_all = 0
-    votes: dict[int, dict[int, int]] = {}
-    for a, tr in zip(obs_ids, run.truth, strict=True):
-        for lid, tree in zip(a.tolist(), tr.tolist(), strict=True):
-            if lid >= 0:
-                votes.setdefault(lid, {}).setdefault(tree, 0)
-                votes[lid][tree] += 1
-    for v in votes.values():
-        pairs_all += sum(v.values())
-        pairs_ok += max(v.values())
-    idx = np.flatnonzero(np.array([s.n_observations > 0 for s in run.steps]))
-    return {
-        "method": method,
-        "seed": seed,
-        "nees_obs_steps": n[idx].tolist(),
-        "pos_rmse": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1)))),
-        "landmarks": len(r.landmarks),
-        "trees": len(run.trees),
-        "pair_consistency": pairs_ok / max(pairs_all, 1),
-    }
+    mask = np.array([s.n_observations > 0 for s in run.steps])
+    return {"method": method, "seed": seed, **_truth_record(run, r, mask)}
+
+
+#: The simulated rooms: (changes of ``room_config``, keyword arguments of ``simulate_room``).
+ROOM_SETTINGS = {
+    "narrow": ({}, {}),
+    "wide": ({"sensor_fov": math.pi}, {}),
+    "narrow, clutter 0.5": ({}, {"clutter": 0.5}),
+    "narrow, clutter 1": ({}, {"clutter": 1.0}),
+    "narrow, clutter 1, tentative_update=landmark": (
+        {"tentative_update": "landmark"},
+        {"clutter": 1.0},
+    ),
+}
+
+
+def _room_worker(args):
+    setting, method, seed = args
+    from scanclique.slam import Unicycle, ekf_slam
+    from scanclique.slam.sim import room_config, simulate_room
+
+    cfg_kw, sim_kw = ROOM_SETTINGS[setting]
+    cfg = room_config(**cfg_kw)
+    run = simulate_room(seed, config=cfg, **sim_kw)
+    r = ekf_slam(run.steps, Unicycle(), association=method, config=cfg, initial_pose=run.poses[0])
+    # NEES at every frame (the steps without a control): the same count in every run
+    mask = np.array([s.control is None for s in run.steps])
+    return {"setting": setting, "method": method, "seed": seed, **_truth_record(run, r, mask)}
 
 
 def _nees_summary(records, M):
@@ -178,6 +212,10 @@ def _nees_summary(records, M):
         "pos_rmse": float(np.mean([r["pos_rmse"] for r in records])),
         "pair_consistency": float(np.mean([r["pair_consistency"] for r in records])),
         "landmarks": float(np.mean([r["landmarks"] for r in records])),
+        **{
+            k: float(np.mean([r[k] for r in records]))
+            for k in ("seen", "distinct", "spurious", "duplicates", "wrong_rate", "ambiguous")
+        },
     }
 
 
@@ -207,16 +245,27 @@ def main(argv=None):
     ap.add_argument("--sims", type=int, default=5, help="simulated parks for the NEES")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--no-smooth", action="store_true", help="leave out the smoothing rows")
+    ap.add_argument(
+        "--sections",
+        default="vp,park,room",
+        help="parts to run: vp (Victoria Park), park (simulated parks), room (simulated rooms)",
+    )
+    ap.add_argument("--room-seeds", type=int, default=5, help="simulated rooms per setting")
     ap.add_argument("--out", default=str(RESULTS / f"slam-{TAG}"))
     args = ap.parse_args(argv)
-    clutters = [int(c) for c in args.clutter.split(",") if c != ""]
+    sections = set(args.sections.split(","))
+    clutters = [int(c) for c in args.clutter.split(",") if c != ""] if "vp" in sections else []
     methods = [m for m in args.methods.split(",") if m]
     t0 = time.perf_counter()
     tasks = [(m, c, 0, not args.no_smooth) for c in clutters for m in methods]
-    nees_tasks = [(m, s) for m in methods for s in range(args.sims)]
+    nees_tasks = [(m, s) for m in methods for s in range(args.sims)] if "park" in sections else []
+    room_tasks = [
+        (st, m, s) for st in ROOM_SETTINGS for m in methods for s in range(args.room_seeds)
+    ] * ("room" in sections)
     with ProcessPoolExecutor(args.jobs) as ex:
         vp = [row for rows in ex.map(_vp_worker, tasks) for row in rows]
         sims = list(ex.map(_nees_worker, nees_tasks)) if nees_tasks else []
+        rooms = list(ex.map(_room_worker, room_tasks)) if room_tasks else []
     lines = []
     head = "| clutter | method | " + " | ".join(c[1] for c in COLUMNS) + " |"
     lines += [head, "|" + "---|" * (len(COLUMNS) + 2)]
@@ -271,6 +320,25 @@ def main(argv=None):
             f"{100 * s['fraction_inside']:.1f} % | {s['pos_rmse']:.2f} | "
             f"{100 * s['pair_consistency']:.2f} % | {s['landmarks']:.0f} |"
         )
+    room = {}
+    for st in ROOM_SETTINGS:
+        for m in methods:
+            recs = [s for s in rooms if s["setting"] == st and s["method"] == m]
+            if recs:
+                room[f"{st} | {m}"] = _nees_summary(recs, len(recs))
+    room_lines = [
+        "| setting | method | runs | pose RMSE [m] | ANEES | 95 % band | steps inside "
+        "| landmarks / seen | duplicates | spurious | wrong associations | ambiguous steps |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for key, s in room.items():
+        st, m = key.split(" | ")
+        room_lines.append(
+            f"| {st} | {m} | {s['runs']} | {s['pos_rmse']:.3f} | {s['anees']:.2f} | "
+            f"[{s['band'][0]:.2f}, {s['band'][1]:.2f}] | {100 * s['fraction_inside']:.1f} % | "
+            f"{s['landmarks']:.1f} / {s['seen']:.1f} | {s['duplicates']:.1f} | "
+            f"{s['spurious']:.1f} | {100 * s['wrong_rate']:.2f} % | {s['ambiguous']:.0f} |"
+        )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     # the figure: the maps at the lowest clutter level
@@ -278,7 +346,7 @@ def main(argv=None):
         from scanclique.slam import read_gps
         from scanclique.slam.outputs import plot_maps
 
-        c0 = min(clutters)
+        c0 = min(clutters, default=None)
         runs, errors = [], []
         for r in vp:
             if r["clutter"] == c0 and "_plot" in r:
@@ -313,6 +381,8 @@ def main(argv=None):
         "victoria_park": vp,
         "nees": nees,
         "nees_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in sims],
+        "room": room,
+        "room_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in rooms],
     }
     out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
     md = [
@@ -330,6 +400,10 @@ def main(argv=None):
         "",
         *nees_lines,
         "",
+        "## Simulated rooms (simulate_room: unicycle robot, point landmarks without attributes)",
+        "",
+        *room_lines,
+        "",
     ]
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     print("\n".join(lines))
@@ -339,6 +413,8 @@ def main(argv=None):
     print("\n".join(diag_lines))
     print()
     print("\n".join(nees_lines))
+    print()
+    print("\n".join(room_lines))
     print(f"\nwrote {out.with_suffix('.json')}, .md, .png in {time.perf_counter() - t0:.0f} s")
 
 

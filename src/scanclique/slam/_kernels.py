@@ -197,7 +197,7 @@ def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, qadd, poses, covs
     params (sigma_v, sigma_v_rel, sigma_omega). Updates ``x`` (3,), ``Pvv`` (3, 3) and the
     accumulated Jacobian ``Fcum`` (3, 3) in place; writes the pose and covariance after
     step ``q`` to ``poses[out0 + q]``, ``covs[out0 + q]``. ``qadd`` (3,): additive process
-    noise per second while moving."""
+    noise per second while moving (see :meth:`scanclique.slam.models.MotionModel.moving`)."""
     F = np.eye(3)
     G = np.zeros((3, 2))
     Q = np.zeros((2, 2))
@@ -247,7 +247,7 @@ def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, qadd, poses, covs
             a = x[2] + dt * w
             x[2] = (a + np.pi) % (2.0 * np.pi) - np.pi
             Pn = F @ Pvv @ F.T + G @ Q @ G.T
-            if abs(v0) > 1e-6:
+            if abs(v0) > 1e-6 or (kind == 1 and abs(u1) > 1e-6):
                 for r in range(3):
                     Pn[r, r] += qadd[r] * dt
             Pvv[:, :] = Pn

@@ -31,6 +31,8 @@ __all__ = [
     "duplicate_pairs",
     "sensor_positions",
     "nees",
+    "TruthScore",
+    "score_against_truth",
 ]
 
 
@@ -186,3 +188,89 @@ def nees(errors, covariances) -> np.ndarray:
     e = np.asarray(errors, float)
     P = np.asarray(covariances, float)
     return np.einsum("ni,ni->n", e, np.linalg.solve(P, e[..., None])[..., 0])
+
+
+@dataclass(frozen=True, slots=True)
+class TruthScore:
+    """A run's associations and map against a simulator's truth (:func:`score_against_truth`).
+
+    Each landmark of the run is identified with the true landmark that most of its paired
+    observations see (clutter, -1, if most are clutter).
+
+    Attributes
+    ----------
+    pairs : int
+        Observations paired with a landmark, over the run.
+    wrong : int
+        Pairs whose observation is clutter or of another true landmark than its
+        landmark's identity.
+    landmarks : int
+        Landmarks in the final map.
+    distinct : int
+        Distinct true landmarks among the final map's identities.
+    spurious : int
+        Final landmarks identified with clutter (or never paired).
+    seen : int
+        True landmarks observed at least once.
+    """
+
+    pairs: int
+    wrong: int
+    landmarks: int
+    distinct: int
+    spurious: int
+    seen: int
+
+    @property
+    def wrong_rate(self) -> float:
+        """``wrong / pairs`` (0 without pairs)."""
+        return self.wrong / self.pairs if self.pairs else 0.0
+
+    @property
+    def duplicates(self) -> int:
+        """Final landmarks beyond the first of each true landmark."""
+        return self.landmarks - self.spurious - self.distinct
+
+
+def score_against_truth(landmark_ids, associations, truth) -> TruthScore:
+    """Score a run's associations against the truth of a simulated log.
+
+    Parameters
+    ----------
+    landmark_ids : (n,) int array
+        The final map's landmark ids (:attr:`SlamResult.landmark_ids`).
+    associations : sequence of (k,) int arrays
+        Per observation step, the landmark id of each observation or a negative code
+        (:attr:`SlamResult.associations`).
+    truth : sequence of (k,) int arrays
+        Per observation step, the true landmark of each observation, -1 for clutter
+        (:attr:`scanclique.slam.sim.SimRun.truth`).
+
+    Examples
+    --------
+    >>> a = [np.array([-1, -1]), np.array([7, 8]), np.array([7, 8]), np.array([7, 8])]
+    >>> t = [np.array([0, 1]), np.array([0, 1]), np.array([0, 1]), np.array([-1, 1])]
+    >>> s = score_against_truth([7, 8], a, t)
+    >>> s.pairs, s.wrong, s.distinct, s.spurious
+    (6, 1, 2, 0)
+    """
+    votes: dict[int, dict[int, int]] = {}
+    for a, tr in zip(associations, truth, strict=True):
+        for lid, t in zip(np.asarray(a).tolist(), np.asarray(tr).tolist(), strict=True):
+            if lid >= 0:
+                v = votes.setdefault(lid, {})
+                v[t] = v.get(t, 0) + 1
+    # a landmark's identity: the true landmark its pairs see most (ties: the lowest index)
+    ident = {lid: max(sorted(v), key=lambda t: v[t]) for lid, v in votes.items()}
+    pairs = sum(sum(v.values()) for v in votes.values())
+    right = sum(v[ident[lid]] for lid, v in votes.items() if ident[lid] >= 0)
+    final = [ident.get(int(lid), -1) for lid in np.asarray(landmark_ids).tolist()]
+    seen = {t for tr in truth for t in np.asarray(tr).tolist() if t >= 0}
+    return TruthScore(
+        pairs=pairs,
+        wrong=pairs - right,
+        landmarks=len(final),
+        distinct=len({t for t in final if t >= 0}),
+        spurious=sum(t < 0 for t in final),
+        seen=len(seen),
+    )

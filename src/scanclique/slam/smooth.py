@@ -89,7 +89,7 @@ def _odometry(model, held, dts, a, b, qadd):
             u = held[k]
             x, F, G = model.predict(x, u, dts[k])
             P = F @ P @ F.T + G @ model.control_covariance(u) @ G.T
-            if abs(u[0]) > 1e-6:
+            if model.moving(u):
                 P[np.diag_indices(3)] += qadd * dts[k]
     return x, P
 
