@@ -20,8 +20,8 @@ Each filter run is followed by the optional smoothing pass (scanclique.slam.smoo
 pose graph with the filter's associations), reported on its own rows ("nn + smoothing", ...;
 run times include the filter's); ``--no-smooth`` leaves them out.
 
-Writes benchmarks/results/slam-2026-12-02-s8.json, .md and .png (the maps, and below them each
-clutter-0 run's error at every GPS fix with the GPS's own jumps marked; the -s7, -s6 files are
+Writes benchmarks/results/slam-2026-12-02-s9.json, .md and .png (the maps, and below them each
+clutter-0 run's error at every GPS fix with the GPS's own jumps marked; the -s8, -s7, -s6 files are
 earlier sessions' runs, the files without a suffix the first).
 """
 
@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, git_state, machine  # noqa: E402
 
 DATE = "2026-12-02"
-TAG = "2026-12-02-s8"
+TAG = "2026-12-02-s9"
 METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
