@@ -684,3 +684,42 @@ def test_a_lone_appearance_closure_across_a_jump_waits_for_a_second_one():
     m.pending = [_closure(truth, 2, 30, "appearance")]
     m.flush()
     assert [c.verdict for c in m.closures] == ["accepted"]
+
+
+@pytest.mark.realdata
+def test_a_match_slid_along_a_corridor_yields_to_the_odometry(log_path):
+    # corrected Intel, scans 893 -> 894 (a corridor, 1.04 m driven, wheel odometry within
+    # 0.01 m of the reference): the feature match slides 0.61 m back along the corridor,
+    # inside the odometry's generous gate, and the raw scans score it above the pose ICP
+    # finds from the odometry (a corridor's score favours the pose of most overlap); the
+    # odometry's evidence against the slide (its surprise) settles it. Then 894 -> 895,
+    # whose match is rejected: the ICP fallback follows the odometry, not standstill.
+    from scanclique.datasets import load_log
+    from scanclique.mapping.frontend import associate, contest_by_odometry, icp_fallback
+    from scanclique.match import prepare_scan
+    from scanclique.validation import odometry_prior
+
+    log_path("intel")
+    scans = load_log("intel")
+    cfg = MapConfig()
+    fe, match = cfg.front_end, cfg.match
+
+    def pair(k, j):
+        pk, pj = prepare_scan(scans[k]), prepare_scan(scans[j])
+        a, b = scans[k].odometry, scans[j].odometry
+        rel, cov = odometry_prior(a, b, fe.odometry_noise)
+        ref = scans[k].reference.inverse() @ scans[j].reference
+        return pk, pj, a, b, rel, cov, ref
+
+    pk, pj, a, b, rel, cov, ref = pair(893, 894)
+    step = associate(pk, pj, a, b, fe.odometry_noise, match, front_end=fe)
+    assert step.kind == "match" and step.pose.distance_to(ref)[0] > 0.4  # slid
+    assert contest_by_odometry(pk, pj, step, rel, fe, match).pose == step.pose  # scans alone
+    won = contest_by_odometry(pk, pj, step, rel, fe, match, cov)
+    assert won.kind == "icp" and won.pose.distance_to(ref)[0] < 0.1
+
+    pk, pj, a, b, rel, cov, ref = pair(894, 895)
+    step = associate(pk, pj, a, b, fe.odometry_noise, match, front_end=fe)
+    assert step.kind == "rejected" and step.pose.distance_to(ref)[0] > 0.5  # near standstill
+    alt = icp_fallback(pk, pj, [rel, step.pose], [(rel, cov)], fe, match)
+    assert alt is not None and alt.pose.distance_to(ref)[0] < 0.1

@@ -193,14 +193,24 @@ def _prior_along(pose: Pose2, cov: np.ndarray, e: np.ndarray, prior: Pose2, prio
 
 
 def contest_by_odometry(
-    pk: PreparedScan, pj: PreparedScan, step: Step, odometry: Pose2, fe, config: MatchConfig
+    pk: PreparedScan,
+    pj: PreparedScan,
+    step: Step,
+    odometry: Pose2,
+    fe,
+    config: MatchConfig,
+    odometry_cov: np.ndarray | None = None,
 ) -> Step:
     """A consecutive match the wheel odometry disagrees with: when the match's position
     lies outside the refinement's basin around the odometry increment ``odometry``
     (farther than ``fe.refine_max_shift`` m), point-to-line ICP of the raw scans from the
     odometry; when it converges outside the match's own 99 % ellipse (its covariance) and
     nearer the odometry, it is a second hypothesis. The raw scans decide between the
-    two (:func:`scanclique.match.pose_score`); when they cannot (scores within
+    two (:func:`scanclique.match.pose_score`), each score less its :func:`surprise`
+    against the odometry when ``odometry_cov`` (the odometry increment's covariance) is
+    given: the raw-scan score of a corridor favours the pose of most overlap (standing
+    still), so a match slid along it must outscore the odometry's pose by more than the
+    odometry's own evidence against it. When they cannot decide (within
     ``fe.icp_score_tie``, e.g. slid along a corridor whose doors repeat), the one nearer
     the odometry is taken, as in :func:`icp_fallback`. ``step`` unchanged otherwise."""
     if fe is None or not fe.icp_fallback or step.kind != MATCH:
@@ -221,7 +231,11 @@ def contest_by_odometry(
         return step
     s_match = pose_score(pk, pj, step.pose, config)
     s_icp = pose_score(pk, pj, icp.pose, config)
-    if s_icp < s_match - fe.icp_score_tie:
+    v_match, v_icp = s_match, s_icp
+    if odometry_cov is not None:
+        v_match -= surprise(step.pose, odometry, odometry_cov, fe)
+        v_icp -= surprise(icp.pose, odometry, odometry_cov, fe)
+    if v_icp < v_match - fe.icp_score_tie:
         return step
     cov = step.covariance.copy()
     d = np.array([icp.pose.x - step.pose.x, icp.pose.y - step.pose.y])
@@ -322,9 +336,10 @@ def icp_fallback(
 ) -> Step | None:
     """With wheel odometry, when the feature match fails: point-to-line ICP of all of scan
     ``j``'s points onto keyframe ``k``'s cloud from each seed (the priors, a rejected
-    match's pose). ICP poses the raw scans cannot tell apart (scores within
-    ``fe.icp_score_tie`` of the best, e.g. slid along a corridor) go to the one nearest the
-    odometry (the first prior). Accepted (kind ``"icp"``) when its raw-scan score
+    match's pose). Each ICP pose is valued by its raw-scan score less its
+    :func:`surprise` against the odometry (the first prior); poses valued alike (within
+    ``fe.icp_score_tie`` of the best, e.g. slid along a corridor) go to the one nearest
+    the odometry. Accepted (kind ``"icp"``) when its raw-scan score
     (:func:`scanclique.match.pose_score`) is at least ``fe.icp_min_score``, ICP paired at
     least ``fe.icp_min_fitness`` of the points, and it lies within ``fe.icp_gate`` sigma
     (per coordinate) of at least one of the ``priors`` (wheel odometry and the
@@ -337,10 +352,13 @@ def icp_fallback(
     found = icp_from_seeds(pk, pj, seeds, fe, config)
     if not found or max(sc for _, sc in found) < fe.icp_min_score:
         return None
-    top = max(sc for _, sc in found)
     p0, c0 = priors[0]
+    # each pose's raw-scan score less its surprise against the odometry (a corridor's
+    # score favours the pose of most overlap: standing still)
+    value = [sc - surprise(p, p0, c0, fe) for p, sc in found]
+    top = max(value)
     pose, score = min(
-        (f for f in found if f[1] >= top - fe.icp_score_tie),
+        (f for f, v in zip(found, value, strict=True) if v >= top - fe.icp_score_tie),
         key=lambda f: mahalanobis_sq(f[0], np.zeros((3, 3)), p0, c0),
     )
     if not any(

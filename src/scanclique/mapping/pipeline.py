@@ -537,9 +537,8 @@ class _Mapper:
                     sigma_floor=self.floor, front_end=fe, weak_prior=kind == CONSTANT_VELOCITY,
                 )  # fmt: skip
             if step.kind == MATCH and kind == ODOMETRY:
-                step = contest_by_odometry(
-                    pk, pj, step, prior_a.inverse() @ prior_b, fe, self.cfg.match
-                )
+                odo_rel, odo_cov = odometry_prior(prior_a, prior_b, noise, path=path)
+                step = contest_by_odometry(pk, pj, step, odo_rel, fe, self.cfg.match, odo_cov)
                 if step.kind == ICP:
                     self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
             if step.kind != MATCH and fe.icp_fallback and kind == ODOMETRY:
