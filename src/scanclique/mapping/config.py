@@ -117,7 +117,12 @@ class FrontEndConfig:
         standard deviation of translation and ``turn_cost`` per standard deviation of
         heading by which it departs from the prediction (``velocity_noise``): a robot's
         heading is much less predictable than its translation. Ties (within
-        ``icp_score_tie``) at distinct headings are refused.
+        ``icp_score_tie``) at distinct headings are refused. With wheel odometry the
+        same currency, against the odometry increment (``odometry_noise``), decides
+        between a feature match and ICP from the odometry
+        (:func:`~scanclique.mapping.frontend.contest_by_odometry`) and among the ICP
+        fallback's poses: corrected Intel with odometry 0.1027 m -> 0.0377 m (a match
+        slid along a corridor, an ICP pose near standstill), the raw logs unchanged.
         ``shift_cost`` 0.08: 0.0667 m, 9 of 12, 0.81 m; 0.16: 0.0621 m, 0.85 m.
         ``turn_cost`` 0.01: 0.0644 m (0.94 degrees: a 90-degree look-alike at one place
         wins); 0.025: 0.0634 / 0.0773 m.
