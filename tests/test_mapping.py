@@ -210,6 +210,23 @@ def test_imprecise_closures_are_refused():
         LoopConfig(max_sigma_metres=0.0)
 
 
+@pytest.mark.parametrize("seed", [6, 10])
+def test_sharp_turns_with_odometry(seed):
+    # the same kind of drive with wheel odometry: at a 90-140 degree turn between two
+    # scans the feature match is refused (a look-alike far from the odometry, or too few
+    # features) and the raw scans overlap too little for the ICP fallback's usual bounds;
+    # the odometry alone then placed the scan with its 7-14 degree heading error, which
+    # the loops did not repair (4.1 m and 0.39 m off). ICP from the motion priors with the
+    # bounds of a sharp turn fixes the heading, the odometry's uncertainty the translation
+    rng = np.random.default_rng(seed)
+    world = office_world(rng)
+    scans = simulate_trajectory(rng, world, 150, step=0.25, n_beams=361)
+    r = map_scans(scans, use_odometry=True)
+    assert _aligned_errors(r, scans).max() < 0.25
+    _, rot = _relative_errors(r, scans)
+    assert rot.max() < math.radians(1.0)
+
+
 @pytest.mark.parametrize("seed", [4, 9])
 def test_sharp_turns_without_odometry(seed):
     # an office drive whose robot turns up to 65-75 degrees between two scans (0.25 m

@@ -347,11 +347,25 @@ def icp_fallback(
     a wheel slip or a reversing robot whose odometry disagrees with the scans does not
     break the chain); its covariance is ``2 x`` the floor plus a hundredth of the first
     prior's, and in a corridor (:func:`weak_direction` below ``fe.icp_min_constraint``)
-    the component along it is the odometry's. None otherwise. (Without odometry the front
-    end is :func:`associate_by_scans`.)"""
+    the component along it is the odometry's. Where the odometry turned at least
+    ``fe.sharp_turn`` and no pose meets those bounds, ICP from the two priors is held to
+    ``fe.scan_min_fitness`` and ``fe.scan_min_score`` instead (little overlap), and the
+    pose's translation keeps the odometry's covariance. None otherwise. (Without odometry
+    the front end is :func:`associate_by_scans`.)"""
     found = icp_from_seeds(pk, pj, seeds, fe, config)
+    small_overlap = False
     if not found or max(sc for _, sc in found) < fe.icp_min_score:
-        return None
+        if abs(priors[0][0].theta) < fe.sharp_turn:
+            return None
+        # a sharp turn: the scans overlap little; the bounds of the front end without
+        # odometry, from the two motion priors
+        found = [
+            f for f in icp_from_seeds(pk, pj, seeds[:2], fe, config, fe.scan_min_fitness)
+            if f[1] >= fe.scan_min_score
+        ]  # fmt: skip
+        if not found:
+            return None
+        small_overlap = True
     p0, c0 = priors[0]
     # each pose's raw-scan score less its surprise against the odometry (a corridor's
     # score favours the pose of most overlap: standing still)
@@ -367,6 +381,8 @@ def icp_fallback(
     ):
         return None
     cov = floored(priors[0][1] * 0.01, 2 * fe.sigma_floor_metres, 2 * fe.sigma_floor_radians)
+    if small_overlap:
+        cov[:2, :2] = priors[0][1][:2, :2]
     weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
     if weak is not None and weak[1] < fe.icp_min_constraint:
         # the scans do not fix the pose along ``e`` (a corridor): ICP slides along it as
