@@ -358,9 +358,10 @@ def icp_fallback(
         if abs(priors[0][0].theta) < fe.sharp_turn:
             return None
         # a sharp turn: the scans overlap little; the bounds of the front end without
-        # odometry, from the two motion priors
+        # odometry, from the motion priors
         found = [
-            f for f in icp_from_seeds(pk, pj, seeds[:2], fe, config, fe.scan_min_fitness)
+            f for f in icp_from_seeds(pk, pj, [p for p, _ in priors], fe, config,
+                                      fe.scan_min_fitness)
             if f[1] >= fe.scan_min_score
         ]  # fmt: skip
         if not found:
