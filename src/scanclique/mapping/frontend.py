@@ -18,7 +18,6 @@ A scan placed by a prior is flagged (:attr:`Step.kind`), never an exception.
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 
@@ -41,8 +40,6 @@ from ..validation import (
 )
 
 _VALIDATION = ValidationConfig()
-
-log = logging.getLogger(__name__)
 
 __all__ = [
     "MATCH",

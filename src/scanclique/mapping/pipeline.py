@@ -146,6 +146,13 @@ class MapResult:
         }
 
 
+def _chain_sigma_xy(var_xy, var_theta, path):
+    """Translation sigma (m) of a stretch of the front end's chain from its summed
+    translation and heading variances and its path length (m), scalars or arrays: a
+    heading error acts on a third of the path's square as its lever arm."""
+    return np.sqrt(np.maximum(var_xy + var_theta * path * path / 3.0, 0.0))
+
+
 def _tally(items) -> dict:
     out: dict[str, int] = {}
     for x in items:
@@ -361,9 +368,7 @@ class _Mapper:
         lo = np.arange(b + 1)
         if self.last_closure_kf is not None:
             lo = np.maximum(lo, min(self.last_closure_kf, b))
-        D = path[b] - path[lo]
-        v = var[b, 0] - var[lo, 0] + (var[b, 1] - var[lo, 1]) * D * D / 3.0
-        return np.sqrt(np.maximum(v, 0.0))
+        return _chain_sigma_xy(var[b, 0] - var[lo, 0], var[b, 1] - var[lo, 1], path[b] - path[lo])
 
     def front_std(self, a: int, b: int, since_closure: bool = True) -> tuple[float, float]:
         """``(sigma_xy m, sigma_theta rad)`` of the front end's relative pose of keyframes
@@ -374,10 +379,11 @@ class _Mapper:
         lo, hi = min(a, b), max(a, b)
         if since_closure and self.last_closure_kf is not None and lo < self.last_closure_kf <= hi:
             lo = self.last_closure_kf
-        vxy = self.kf_var[hi][0] - self.kf_var[lo][0]
         vth = self.kf_var[hi][1] - self.kf_var[lo][1]
-        D = self.kf_path[hi] - self.kf_path[lo]
-        return math.sqrt(max(vxy + vth * D * D / 3.0, 0.0)), math.sqrt(max(vth, 0.0))
+        s_xy = _chain_sigma_xy(
+            self.kf_var[hi][0] - self.kf_var[lo][0], vth, self.kf_path[hi] - self.kf_path[lo]
+        )
+        return float(s_xy), math.sqrt(max(vth, 0.0))
 
     def chain_rel(self, a: int, b: int) -> tuple[Pose2, np.ndarray]:
         """Front-end relative pose of keyframe ``b`` in keyframe ``a`` and a covariance
@@ -536,13 +542,14 @@ class _Mapper:
                     pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
                     sigma_floor=self.floor, front_end=fe, weak_prior=kind == CONSTANT_VELOCITY,
                 )  # fmt: skip
-            if step.kind == MATCH and kind == ODOMETRY:
-                odo_rel, odo_cov = odometry_prior(prior_a, prior_b, noise, path=path)
-                step = contest_by_odometry(pk, pj, step, odo_rel, fe, self.cfg.match, odo_cov)
+            # the odometry increment and its covariance (the first prior of the fallback)
+            odo = odometry_prior(prior_a, prior_b, noise, path=path) if kind == ODOMETRY else None
+            if step.kind == MATCH and odo is not None:
+                step = contest_by_odometry(pk, pj, step, odo[0], fe, self.cfg.match, odo[1])
                 if step.kind == ICP:
                     self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
-            if step.kind != MATCH and fe.icp_fallback and kind == ODOMETRY:
-                priors = [odometry_prior(prior_a, prior_b, noise, path=path)]
+            if step.kind != MATCH and fe.icp_fallback and odo is not None:
+                priors = [odo]
                 # the chain's own constant-velocity prediction too
                 pred = constant_velocity(world_prev2, world_prev, *times)
                 priors.append(odometry_prior(chain_k, pred, fe.velocity_noise))

@@ -476,12 +476,9 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
         blocked = ()
         amb = False
         if len(res.cliques) > 1:
-            sets = [_pair_set(oi[cl], lj[cl]) for cl in res.cliques]
-            rivals = [x for x in sets[1:] if _rivals(sets[0], x, cfg)]
-            if rivals:
-                amb = True
-                common = set.intersection(sets[0], *rivals)
-                blocked = tuple({i for i, _ in set.union(sets[0], *rivals) - common})
+            shared = _shared_pairs([_pair_set(oi[cl], lj[cl]) for cl in res.cliques], cfg)
+            if shared is not None:
+                amb, blocked = True, shared[1]
         return out, C, int(res.omega), amb, blocked
     passing = []
     single = chi2_bound(2, cfg.gate_probability) if cfg.clique_individual_gate else math.inf
@@ -503,21 +500,30 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
     margin = chi2_bound(2, cfg.ambiguity_probability)
     best = [p for p in best if p[1] - best[0][1] <= margin]  # as likely as the best
     if len(best) > 1 and size > 0:
-        sets = [_pair_set(oi[p[2]], lj[p[2]]) for p in best]
-        rivals = [x for x in sets[1:] if _rivals(sets[0], x, cfg)]
-        if rivals:
+        shared = _shared_pairs([_pair_set(oi[p[2]], lj[p[2]]) for p in best], cfg)
+        if shared is not None:
             # ambiguous: keep only the pairs every equally good hypothesis shares
-            common = set.intersection(sets[0], *rivals)
-            blocked = {i for i, _ in set.union(sets[0], *rivals) - common}
+            common, blocked = shared
             for i, j in sorted(common):
                 out[i] = j
-            return out, C, int(res.omega), True, tuple(blocked)
+            return out, C, int(res.omega), True, blocked
     out[oi[sel]] = lj[sel]
     return out, C, int(res.omega), False, ()
 
 
 def _pair_set(o, l) -> set:
     return set(zip(np.asarray(o).tolist(), np.asarray(l).tolist(), strict=True))
+
+
+def _shared_pairs(sets: list[set], cfg) -> tuple[set, tuple] | None:
+    """For hypotheses ``sets`` (the best first): None when no other is its rival
+    (:func:`_rivals`); else the pairs the best and its rivals share and the observations
+    paired in one of them but not in all (an ambiguous step: those start no landmark)."""
+    rivals = [x for x in sets[1:] if _rivals(sets[0], x, cfg)]
+    if not rivals:
+        return None
+    common = set.intersection(sets[0], *rivals)
+    return common, tuple({i for i, _ in set.union(sets[0], *rivals) - common})
 
 
 def _rivals(h1: set, h2: set, cfg) -> bool:
