@@ -245,3 +245,13 @@ def test_sharp_turns_without_odometry(seed):
     assert _aligned_errors(r, scans).max() < 0.05
     t, rot = _relative_errors(r, scans)
     assert t.max() < 0.05 and rot.max() < math.radians(1.0)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.inf, math.nan])
+def test_sharp_turn_must_be_a_positive_angle(bad):
+    from scanclique.errors import ConfigError
+    from scanclique.mapping.config import FrontEndConfig
+
+    with pytest.raises(ConfigError, match="sharp_turn"):
+        FrontEndConfig(sharp_turn=bad)
+    assert FrontEndConfig(sharp_turn=4.0).sharp_turn == 4.0  # beyond pi: off
