@@ -487,9 +487,10 @@ def test_velocity_model_learns_per_scan_or_per_second():
     assert vm.errors[0] < 1e-9 < vm.errors[1]
     # the step bound: none before 2 m of measured path, then 1.5 x q90 x span + 0.6 m
     vm = VelocityModel(FrontEndConfig())
-    vm.steps = [0.25] * 7
+    for _ in range(7):
+        vm.steps.add(0.25)
     assert vm.max_translation(2) is None
-    vm.steps.append(0.25)
+    vm.steps.add(0.25)
     assert vm.max_translation(2) == pytest.approx(1.5 * 0.25 * 2 + 0.6)
 
 
