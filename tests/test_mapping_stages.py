@@ -104,7 +104,8 @@ def _slow_grid(scans, poses, cfg, shape, origin):
     r = cfg.resolution
     lo = np.asarray(origin)
     for s, p in zip(scans, poses, strict=True):
-        keep = np.ones(s.n_beams, bool) if cfg.free_on_no_return else s.valid
+        no_return = np.array([r >= s.range_max for r in s.ranges.tolist()])
+        keep = s.valid | no_return if cfg.free_on_no_return else s.valid
         rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
         hit = s.valid[keep] & (rng <= cfg.max_range)
         rng = np.minimum(rng, cfg.max_range)
@@ -147,6 +148,33 @@ def test_occupancy_kernel_agrees_with_slow_reference(free_on_no_return):
     np.testing.assert_allclose(grid.log_odds, slow, atol=1e-4)
     p = probabilities(grid.log_odds)
     assert (p > 0.65).sum() > 50 and (p < 0.45).sum() > 300
+
+
+@pytest.mark.parametrize("value", [math.nan, -math.inf, 0.0, 0.05])
+def test_free_on_no_return_paints_no_free_space_for_errors(value):
+    # ROS drivers mark a beam that saw nothing within reach by +inf (REP 117), but also
+    # too-close or failed readings by -inf, NaN, 0 or a value below range_min: those say
+    # nothing of the space ahead (an obstacle may stand right there), and painted 30 m of
+    # free space with free_on_no_return
+    angles = np.linspace(-0.2, 0.2, 21)
+    cfg = OccupancyConfig(resolution=0.1, max_range=5.0, free_on_no_return=True, margin=0.5)
+    wall = np.where(np.arange(21) < 5, 2.0 / np.cos(angles), value)  # 5 beams see a wall
+    g = occupancy_grid([Scan(wall, angles, range_min=0.1)], [Pose2.identity()], cfg)
+    slow = _slow_grid([Scan(wall, angles, range_min=0.1)], [Pose2.identity()], cfg, g.shape,
+                      g.origin)  # fmt: skip
+    np.testing.assert_allclose(g.log_odds, slow, atol=1e-4)
+    p = probabilities(g.log_odds)
+    row = int((0.1 - g.origin[1]) / 0.1)  # the error beams' side (y > 0)
+    col = int((1.0 - g.origin[0]) / 0.1)
+    assert p[row, col] == 0.5  # unknown, not free
+    # a no-return (+inf, or at range_max) does paint free space up to max_range
+    for no_return in (math.inf, 30.0):
+        r = np.where(np.arange(21) < 5, 2.0 / np.cos(angles), no_return)
+        g = occupancy_grid([Scan(r, angles, range_max=30.0)], [Pose2.identity()], cfg)
+        p = probabilities(g.log_odds)
+        row = int((0.1 - g.origin[1]) / 0.1)
+        assert p[row, int((1.0 - g.origin[0]) / 0.1)] < 0.45
+        assert p[row, int((2.2 - g.origin[0]) / 0.1)] < 0.45  # beyond the wall's range
 
 
 def test_occupancy_of_a_wall():
@@ -487,9 +515,10 @@ def test_velocity_model_learns_per_scan_or_per_second():
     assert vm.errors[0] < 1e-9 < vm.errors[1]
     # the step bound: none before 2 m of measured path, then 1.5 x q90 x span + 0.6 m
     vm = VelocityModel(FrontEndConfig())
-    vm.steps = [0.25] * 7
+    for _ in range(7):
+        vm.steps.add(0.25)
     assert vm.max_translation(2) is None
-    vm.steps.append(0.25)
+    vm.steps.add(0.25)
     assert vm.max_translation(2) == pytest.approx(1.5 * 0.25 * 2 + 0.6)
 
 

@@ -55,6 +55,7 @@ __all__ = [
     "simulate_scan",
     "simulate_pair",
     "simulate_trajectory",
+    "simulate_sensor_drive",
 ]
 
 # Building dimensions at laser scale, metres (low, high).
@@ -851,6 +852,7 @@ def simulate_scan(
     dropout: float = 0.0,
     rng: np.random.Generator | None = None,
     timestamp: float | None = None,
+    range_sigma_per_m: float = 0.0,
     odometry: Pose2 | None = None,
     people=None,
     source: str = "sim",
@@ -881,9 +883,13 @@ def simulate_scan(
     dropout : float
         Probability that a beam returns nothing (``max_range``).
     rng : numpy.random.Generator, optional
-        Needed when ``range_sigma > 0`` or ``dropout > 0``.
+        Needed when ``range_sigma > 0``, ``range_sigma_per_m > 0`` or ``dropout > 0``.
     timestamp : float, optional
         Seconds, copied to the scan.
+    range_sigma_per_m : float
+        Range noise growing with the range (m/m): the standard deviation of a return at
+        range ``r`` is ``range_sigma + range_sigma_per_m * r`` (triangulation scanners such
+        as the RPLIDAR A1: about 1-2 % of the range).
     odometry : Pose2, optional
         Odometry pose, copied to the scan.
     people : (centres (Q, 2), radii (Q,)), optional
@@ -912,12 +918,12 @@ def simulate_scan(
         )
     _check_count(where, n_beams=n_beams)
     _check_positive(where, n_beams=n_beams, fov=fov, max_range=max_range)
-    _check_nonneg(where, range_sigma=range_sigma)
+    _check_nonneg(where, range_sigma=range_sigma, range_sigma_per_m=range_sigma_per_m)
     if not (math.isfinite(angle_min)):
         raise ConfigError(f"{where}: angle_min must be finite, got {angle_min}")
     if not 0.0 <= dropout <= 1.0:
         raise ConfigError(f"{where}: dropout must be in [0, 1], got {dropout}")
-    if (range_sigma > 0 or dropout > 0) and rng is None:
+    if (range_sigma > 0 or range_sigma_per_m > 0 or dropout > 0) and rng is None:
         raise ConfigError(
             f"{where}: range_sigma={range_sigma} and dropout={dropout} need rng "
             "(a numpy.random.Generator)"
@@ -932,8 +938,9 @@ def simulate_scan(
     )
     hit = np.isfinite(true)
     ranges = np.where(hit, true, max_range)
-    if range_sigma > 0:
-        noise = _check_rng(rng, where).normal(0.0, range_sigma, n_beams)
+    if range_sigma > 0 or range_sigma_per_m > 0:
+        sigma = range_sigma + range_sigma_per_m * np.where(hit, ranges, 0.0)
+        noise = _check_rng(rng, where).normal(0.0, 1.0, n_beams) * sigma
         ranges = np.where(hit, np.clip(ranges + noise, 0.0, max_range), max_range)
     if dropout > 0:
         ranges = np.where(_check_rng(rng, where).random(n_beams) < dropout, max_range, ranges)
@@ -1357,3 +1364,91 @@ def simulate_trajectory(
         )
         for i, (ref, od) in enumerate(zip(refs, odom, strict=True))
     ]
+
+
+def simulate_sensor_drive(
+    rng: np.random.Generator,
+    world: World,
+    n_steps: int,
+    step: float = 0.25,
+    *,
+    scan_rate: float = 10.0,
+    speed: float = 1.0,
+    turn_rate: float = math.radians(90.0),
+    n_beams: int = 361,
+    range_sigma: float = 0.01,
+    range_sigma_per_m: float = 0.0,
+    dropout: float = 0.0,
+    **scan_kw,
+) -> list[Scan]:
+    """The drive of :func:`simulate_trajectory` as a scanner running at ``scan_rate`` Hz
+    sees it: the robot rides at ``speed`` m/s and turns at most ``turn_rate`` rad/s.
+
+    The drive's ``n_steps`` poses ``step`` metres apart (and its drifting odometry) are
+    joined by straight rides that turn evenly along the way; each lasts
+    ``max(step / speed, |turn| / turn_rate)`` seconds and is scanned every
+    ``1 / scan_rate`` s, so a 40 Hz scanner at 1 m/s sees steps of 2.5 cm and at most
+    2.25 degrees at 90 degrees per second. Odometry is interpolated the same way between
+    the drive's odometry poses (its noise is the drive's, whatever the rate).
+
+    Parameters
+    ----------
+    rng, world, n_steps, step
+        As ``rng``, ``world``, ``n_scans`` and ``step`` of :func:`simulate_trajectory`.
+    scan_rate, speed, turn_rate : float
+        Hz, m/s, rad/s.
+    n_beams, range_sigma, range_sigma_per_m, dropout, **scan_kw
+        As in :func:`simulate_scan` (``fov``, ``angle_min``, ``max_range``).
+
+    Returns
+    -------
+    list of Scan
+        Timestamps ``k / scan_rate``, exact ``reference`` poses, drifting ``odometry``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> scans = simulate_sensor_drive(rng, office_world(rng), 5, scan_rate=40.0, n_beams=31)
+    >>> len(scans) >= 4 * 10 + 1 and scans[1].timestamp == 0.025
+    True
+    """
+    where = "simulate_sensor_drive"
+    _check_positive(where, scan_rate=scan_rate, speed=speed, turn_rate=turn_rate)
+    view = {k: scan_kw[k] for k in ("fov", "angle_min", "max_range") if k in scan_kw}
+    coarse = simulate_trajectory(
+        rng, world, n_steps, step, n_beams=n_beams, range_sigma=0.0, **view
+    )
+    dt = 1.0 / scan_rate
+    refs: list[Pose2] = [coarse[0].reference]
+    odom: list[Pose2] = [coarse[0].odometry]
+    for a, b in zip(coarse[:-1], coarse[1:], strict=True):
+        u = a.reference.inverse() @ b.reference
+        v = a.odometry.inverse() @ b.odometry
+        seconds = max(math.hypot(u.x, u.y) / speed, abs(u.theta) / turn_rate)
+        n = max(1, math.ceil(seconds / dt - 1e-9))
+        for k in range(1, n + 1):
+            f = k / n
+            refs.append(a.reference @ _ride(u, f))
+            odom.append(a.odometry @ _ride(v, f))
+    return [
+        simulate_scan(
+            world,
+            ref,
+            n_beams=n_beams,
+            range_sigma=range_sigma,
+            range_sigma_per_m=range_sigma_per_m,
+            dropout=dropout,
+            rng=rng,
+            timestamp=round(i * dt, 9),
+            odometry=od,
+            source=f"sim:{i}",
+            **scan_kw,
+        )
+        for i, (ref, od) in enumerate(zip(refs, odom, strict=True))
+    ]
+
+
+def _ride(u: Pose2, f: float) -> Pose2:
+    """The fraction ``f`` of the straight ride ``u`` (its translation and its turn, each
+    scaled by ``f``)."""
+    return Pose2(f * u.x, f * u.y, f * u.theta)

@@ -9,6 +9,11 @@ Conventions
 * **Beams.** ``angle_min + i * angle_increment``; ``range_min`` / ``range_max`` from the
   message (ranges outside are kept and masked by :class:`Scan`). A message with a negative
   ``angle_increment`` (a scanner mounted upside down) is reversed into increasing angles.
+  Beam angles are brought into [-pi, pi), where the matcher measures bearings (``atan2``):
+  shifted by whole turns, and a full circle published from 0 to 2 pi (the TurtleBot3's
+  LDS-01 driver) rolled to start at -pi, its two halves meeting where they meet on the
+  sensor (:func:`_wrap_beams`). Left outside [-pi, pi), the raw-scan score saw no free
+  space behind the robot: a pose 0.5 m off scored 0.03 instead of -0.42.
 * **Timestamp.** The message header's stamp (seconds), else the bag's receive time.
 * **Odometry.** From ``nav_msgs/Odometry`` (the topic ``odom_topic``, default: the only
   Odometry topic) or, when the bag has none, from ``tf`` / ``tf2_msgs/TFMessage``
@@ -61,6 +66,28 @@ def _stamp(msg, t_ns: int) -> float:
         if sec is not None and (sec or nsec):
             return float(sec) + 1e-9 * float(nsec)
     return 1e-9 * t_ns
+
+
+def _wrap_beams(r: np.ndarray, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ranges and increasing beam angles ``ang`` with the angles in [-pi, pi): shifted by
+    whole turns when that brings them all in; a full circle (``n`` beams spanning ``n``
+    increments of about 2 pi) rolled so that it starts at -pi. A field of view that
+    crosses pi but is no full circle is returned as given (rolling it would make its two
+    ends neighbours)."""
+    if ang.size == 0 or (ang[0] >= -math.pi and ang[-1] < math.pi):
+        return r, ang
+    two_pi = 2.0 * math.pi
+    shifted = ang - two_pi * math.floor((ang[0] + math.pi) / two_pi)
+    if shifted[-1] < math.pi:
+        return r, shifted
+    inc = (ang[-1] - ang[0]) / (ang.size - 1) if ang.size > 1 else 0.0
+    if abs(ang[-1] - ang[0] + inc - two_pi) > 0.5 * inc:
+        return r, ang
+    wrapped = np.mod(shifted + math.pi, two_pi) - math.pi
+    order = np.argsort(wrapped, kind="stable")
+    if not np.all(np.diff(wrapped[order]) > 0):
+        return r, ang
+    return r[order], wrapped[order]
 
 
 def _interp(times: list[float], poses: list[Pose2], t: float) -> Pose2 | None:
@@ -235,6 +262,7 @@ def read_bag(
                     f"{c.topic} message {k}: {r.size} ranges, but angle_min..angle_max by "
                     f"angle_increment gives {expect} beams",
                 )  # fmt: skip
+            r, ang = _wrap_beams(r, ang)
             t = _stamp(msg, t_ns)
             try:
                 out.append(

@@ -334,9 +334,11 @@ class BackEndConfig:
 class OccupancyConfig:
     """The occupancy grid (issue 12, part 4): ``resolution`` m per cell, log-odds added per
     hit and per pass, clamped to ``clamp``; beams longer than ``max_range`` are cut (and
-    mark only free space); no-return beams (max range, invalid) are skipped unless
-    ``free_on_no_return`` (then free up to ``max_range``: a window or an open door would
-    paint free space beyond the walls); every ``scan_stride``-th scan is cast."""
+    mark only free space); no-return beams (at or beyond the scan's ``range_max``, +inf
+    included) are skipped unless ``free_on_no_return`` (then free up to ``max_range``: a
+    window or an open door would paint free space beyond the walls); other invalid beams
+    (NaN, -inf, at or below ``range_min``: too close, or an error) always are; every
+    ``scan_stride``-th scan is cast."""
 
     resolution: float = 0.05
     log_odds_hit: float = 0.85

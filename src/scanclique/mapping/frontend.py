@@ -18,6 +18,7 @@ A scan placed by a prior is flagged (:attr:`Step.kind`), never an exception.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -400,6 +401,42 @@ def prior_step(
     return Step(rel, cov, kind, verdict, score, reason)
 
 
+class SortedHistory:
+    """Values observed so far, kept sorted as they come, with their running sum: a quantile
+    reads two of them instead of sorting the whole history again (which made the front end
+    without odometry quadratic in the log's length: 17 ms per scan after 100000 scans, a
+    40 Hz scanner's 42 minutes).
+
+    >>> h = SortedHistory()
+    >>> for v in (3.0, 1.0, 2.0, 4.0):
+    ...     h.add(v)
+    >>> len(h), h.total, h.quantile(0.5) == float(np.quantile([3.0, 1.0, 2.0, 4.0], 0.5))
+    (4, 10.0, True)
+    """
+
+    __slots__ = ("values", "total")
+
+    def __init__(self) -> None:
+        self.values: list[float] = []
+        self.total = 0.0
+
+    def add(self, value: float) -> None:
+        bisect.insort(self.values, value)
+        self.total += value
+
+    def __len__(self) -> int:
+        return len(self.values)
+
+    def quantile(self, q: float) -> float:
+        """``np.quantile(values, q)`` (its default, linear method), to the bit: the two
+        values around the virtual index ``(n - 1) q``, interpolated by numpy itself."""
+        v = self.values
+        pos = (len(v) - 1) * q
+        lo = math.floor(pos)
+        pair = [v[lo], v[min(lo + 1, len(v) - 1)]]
+        return float(np.quantile(pair, pos - lo))
+
+
 class VelocityModel:
     """The motion model of the front end without odometry, learnt from the steps the scans
     placed (state carried across scans).
@@ -417,9 +454,9 @@ class VelocityModel:
 
     def __init__(self, fe) -> None:
         self.fe = fe
-        self.steps: list[float] = []  # per-scan translation of scan-placed steps (m)
+        self.steps = SortedHistory()  # per-scan translation of scan-placed steps (m)
         self.errors = [0.0, 0.0]  # summed translation errors: per second, per scan
-        self.turns: list[float] = []  # heading errors of the prediction used (rad)
+        self.turns = SortedHistory()  # heading errors of the prediction used (rad)
 
     def predict(self, prev2, prev, times=(None, None, None), by_time=None) -> Pose2:
         """Predicted pose (world frame) of the next scan from the last two, ``prev2`` and
@@ -431,9 +468,9 @@ class VelocityModel:
     def observe(self, prev2, prev, times, placed: Pose2, rel: Pose2, span: int) -> None:
         """Record a scan the scans placed: at ``placed`` (world frame), ``rel`` from a
         keyframe ``span`` scans back."""
-        self.steps.append(math.hypot(rel.x, rel.y) / span)
+        self.steps.add(math.hypot(rel.x, rel.y) / span)
         if prev2 is not None:
-            self.turns.append(self.predict(prev2, prev, times).distance_to(placed)[1])
+            self.turns.add(self.predict(prev2, prev, times).distance_to(placed)[1])
             for m, by_time in enumerate((True, False)):
                 self.errors[m] += self.predict(prev2, prev, times, by_time).distance_to(placed)[0]
 
@@ -445,12 +482,12 @@ class VelocityModel:
         before ten steps have been measured."""
         if len(self.turns) < 10:
             return self.fe.guess_sigma_radians
-        return min(float(np.quantile(self.turns, 0.95)), self.fe.guess_sigma_radians)
+        return min(self.turns.quantile(0.95), self.fe.guess_sigma_radians)
 
     def max_translation(self, span: int) -> float | None:
-        if sum(self.steps) < self.fe.jump_min_path:
+        if self.steps.total < self.fe.jump_min_path:
             return None
-        q = float(np.quantile(self.steps, 0.9))
+        q = self.steps.quantile(0.9)
         return self.fe.jump_factor * q * span + self.fe.jump_floor
 
 

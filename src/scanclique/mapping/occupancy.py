@@ -6,7 +6,10 @@ added), the end cell of a valid return evidence of an obstacle (``log_odds_hit``
 is clamped to ``[-clamp, clamp]`` (Thrun, Burgard and Fox, *Probabilistic Robotics*, §9.2,
 the inverse sensor model in log-odds form). A return beyond ``max_range`` marks free
 space only, up to ``max_range``; a beam with no return is skipped (or, with
-``free_on_no_return``, marks free space up to ``max_range``).
+``free_on_no_return``, marks free space up to ``max_range``: a *no return* is a reading at or
+beyond the scan's ``range_max``, +inf included, as ROS drivers mark "nothing within reach"
+(REP 117); NaN, -inf and readings at or below ``range_min`` say nothing of the space ahead
+and are always skipped).
 
 The kernel is compiled with numba on first use (``@njit(cache=True)``), never at import.
 The grid's cell ``(row, col)`` covers ``x in [x0 + col r, x0 + (col + 1) r)`` and
@@ -128,7 +131,9 @@ def occupancy_grid(
     starts, ends, hits = [], [], []
     for k in idx:
         s, p = scans[k], poses[k]
-        keep = np.ones(s.n_beams, bool) if cfg.free_on_no_return else s.valid
+        keep = s.valid
+        if cfg.free_on_no_return:
+            keep = s.valid | (s.ranges >= s.range_max)  # NaN and -inf compare False
         rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
         hit = s.valid[keep] & (rng <= cfg.max_range)
         rng = np.minimum(rng, cfg.max_range)
