@@ -62,9 +62,9 @@ laser, mounted 0.04 m behind it: the log's FLASER line carries both poses, and t
 constant offset (``x_laser^-1 x_robot = (0.04, 0, 0)`` on every line) is the mounting the
 metric is computed with. Both figures (with and without it) are in the JSON.
 
-Results: ``benchmarks/results/mapping-2026-12-02-s9.json`` and ``.md`` (the previous
-sessions' are ``mapping-2026-12-02-s8.*``, ``mapping-2026-12-01-s7.*``, ``-s6.*`` and
-``mapping-2026-12-01.*``). Wall times include reading the log; numba kernels are warmed up
+Results: ``benchmarks/results/mapping-2026-12-02-s10.json`` and ``.md`` (the previous
+sessions' are ``mapping-2026-12-02-s9.*``, ``-s8.*``, ``mapping-2026-12-01-s7.*``, ``-s6.*``
+and ``mapping-2026-12-01.*``). Wall times include reading the log; numba kernels are warmed up
 on a simulated drive first.
 """
 
@@ -706,7 +706,7 @@ def main(argv=None) -> int:
     stem = (
         Path(args.out)
         if args.out
-        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s9"
+        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s10"
     )
     git_at_start = git_state()
     warm = _warm_up()
