@@ -582,3 +582,30 @@ def test_kernel_agrees_with_reference_on_real_scans(log):
     scans = load_log(log)
     for s in scans[:: max(1, len(scans) // 60)]:
         assert_same_features(extract_features(s), _extract_features_reference(s))
+
+
+@pytest.mark.parametrize("no_return", [80.0, 100.0, math.inf])
+def test_a_no_return_beside_a_cluster_makes_an_edge_whatever_its_value(no_return):
+    # an object 2 m away with nothing within reach on either side: a CARMEN log marks
+    # those beams with the maximum range (or more), a ROS LaserScan with +inf (REP 117);
+    # both are no-returns, and both ends of the object are foreground edges (+inf was
+    # taken for an unknown reading, and ROS bags lost the edges beside open space)
+    ang = np.radians(np.arange(-30.0, 30.0, 1.0))
+    r = np.full(ang.size, no_return)
+    r[20:45] = 2.0
+    s = Scan(r, ang, range_max=80.0)
+    for f in (extract_features(s), _extract_features_reference(s)):
+        assert f.points_beam[f.points_label == EDGE_CW].tolist() == [20]
+        assert f.points_beam[f.points_label == EDGE_CCW].tolist() == [44]
+
+
+@pytest.mark.parametrize("unknown", [math.nan, -math.inf, 0.0])
+def test_an_unknown_reading_beside_a_cluster_makes_no_edge(unknown):
+    # NaN (failed), -inf (too close, REP 117) and readings at or below range_min say
+    # nothing of what lies behind the object's ends: no edge is claimed there
+    ang = np.radians(np.arange(-30.0, 30.0, 1.0))
+    r = np.full(ang.size, unknown)
+    r[20:45] = 2.0
+    s = Scan(r, ang, range_max=80.0)
+    for f in (extract_features(s), _extract_features_reference(s)):
+        assert f.counts()["edge_cw"] == 0 and f.counts()["edge_ccw"] == 0

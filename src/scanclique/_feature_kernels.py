@@ -333,7 +333,8 @@ def extract(ranges, angles, valid, range_max, p):
     beam_width = np.median(np.diff(angles)) if n > 1 else 0.0
     no_return = np.empty(n, np.bool_)
     for i in range(n):
-        no_return[i] = (not valid[i]) and np.isfinite(ranges[i]) and ranges[i] >= range_max
+        # at or beyond range_max, +inf included (REP 117's nothing within reach); never NaN
+        no_return[i] = (not valid[i]) and (not np.isnan(ranges[i])) and ranges[i] >= range_max
 
     # -- lines, fitted on chains looser than the clusters ---------------------------------
     # fit[s] = (rho, alpha, rms, cov00, cov01, cov11, e0x, e0y, e1x, e1y) of line slot s

@@ -450,7 +450,11 @@ def extract_features(
     Parameters
     ----------
     scan : Scan
-        The observation; only its valid beams are used.
+        The observation; only its valid beams are used. An invalid beam at or beyond
+        ``scan.range_max`` (a CARMEN max-range reading, or ROS's ``+inf``, REP 117) is a
+        *no-return*: nothing within reach, so a cluster beside it has open space behind
+        it and its end is a foreground edge. NaN, ``-inf`` and readings at or below
+        ``range_min`` are unknown: no edge is claimed beside them.
     config, cluster_config : FeatureConfig, ClusterConfig, optional
         Defaults are the paper's where it gives one.
 
@@ -535,7 +539,8 @@ def _extract_features_reference(
     valid = scan.valid
     n_beams = scan.n_beams
     beam_width = float(np.median(np.diff(scan.angles))) if n_beams > 1 else 0.0
-    no_return = ~valid & np.isfinite(r_all) & (r_all >= scan.range_max)
+    # at or beyond range_max, +inf included (REP 117's nothing within reach); never NaN
+    no_return = ~valid & ~np.isnan(r_all) & (r_all >= scan.range_max)
 
     pts, labels, covs, pbeams = [], [], [], []
 
