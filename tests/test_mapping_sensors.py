@@ -181,3 +181,34 @@ def test_a_bag_of_a_360_degree_scanner_published_from_0_to_2_pi(tmp_path):
     true = poses[0].inverse() @ poses[1]
     assert pose_score(pa, pb, true) > 0.8
     assert pose_score(pa, pb, true @ Pose2(0.5, 0.0, 0.0)) < -0.2
+
+
+def test_a_scan_made_with_angles_from_0_to_2_pi_scores_as_if_rolled():
+    # a Scan built directly from such a driver's message (not through the bag reader,
+    # which rolls it): the raw-scan score and the free-space conflicts look a bearing up
+    # a whole turn on, so the blind side behind the robot is gone there too
+    from scanclique.refine import free_space_conflicts
+
+    rng = np.random.default_rng(3)
+    world = room_world(8.0, 6.0, rng=rng, doorways=1, pillars=1, clutter=3)
+    kw = dict(n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=0.0, max_range=10.0, rng=rng)
+    poses = (Pose2(4.0, 3.0, 0.0), Pose2(4.3, 3.1, 0.3))
+    scans = [simulate_scan(world, p, **kw) for p in poses]
+
+    def rolled(s):
+        a = np.where(s.angles >= math.pi, s.angles - 2 * math.pi, s.angles)
+        o = np.argsort(a, kind="stable")
+        return Scan(s.ranges[o], a[o], range_min=s.range_min, range_max=s.range_max)
+
+    true = poses[0].inverse() @ poses[1]
+    off = true @ Pose2(0.5, 0.0, 0.0)
+    direct = [prepare_scan(s) for s in scans]
+    turned = [prepare_scan(rolled(s)) for s in scans]
+    for pose in (true, off):
+        assert pose_score(*direct, pose) == pytest.approx(pose_score(*turned, pose), abs=0.02)
+    assert pose_score(*direct, off) < -0.2
+    pts = scans[1].points()
+    for pose in (true, off):
+        assert free_space_conflicts(scans[0], pts, pose=pose) == pytest.approx(
+            free_space_conflicts(rolled(scans[0]), pts, pose=pose), abs=0.01
+        )

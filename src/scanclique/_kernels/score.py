@@ -31,6 +31,13 @@ def _in_free_space(aix, free, half, r, phi, margin, ratio):  # pragma: no cover 
     mean beam spacing; ``aix`` the index of the beam angles)."""
     angles = aix[0]
     n = angles.shape[0]
+    # beam angles may run past pi (a full turn published from 0 to 2 pi): the bearing a
+    # turn on or back is the same direction (for angles within [-pi, pi] the turned
+    # bearing falls outside the scan as the bearing did: no change)
+    if phi < angles[0] - half:
+        phi += 2.0 * math.pi
+    elif phi > angles[n - 1] + half:
+        phi -= 2.0 * math.pi
     if phi < angles[0] - half or phi > angles[n - 1] + half:
         return False
     k = lower(aix, phi)
