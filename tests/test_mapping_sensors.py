@@ -90,27 +90,31 @@ def test_a_360_degree_scanner_with_dropouts():
 
 def test_ros_no_returns_are_never_walls():
     # ROS LaserScan marks a beam without a return by +inf (REP 117), NaN, 0, -inf or a
-    # value below range_min, depending on the driver: each is masked, none becomes a point,
-    # and they all give one map
+    # value below range_min, depending on the driver: each is masked and none becomes a
+    # point. +inf is a no-return like a reading at range_max (open space beyond reach: a
+    # cluster beside it ends in an edge), the others are unknown readings; each group
+    # gives one map, and both map the drive
     rng = np.random.default_rng(1)
     kw = dict(RPLIDAR, dropout=0.15, scan_rate=3.5)
     scans = simulate_sensor_drive(rng, office_world(rng), 8, 0.25, **kw)
-    maps = []
-    for value in (math.inf, math.nan, 0.0, -math.inf, 0.05):
+    maps = {}
+    for value in ("max", math.inf, math.nan, 0.0, -math.inf, 0.05):
         out = []
         for s in scans:
-            r = np.where(s.ranges >= s.range_max, value, s.ranges)
+            v = s.range_max if value == "max" else value
+            r = np.where(s.ranges >= s.range_max, v, s.ranges)
             out.append(
                 Scan(r, s.angles, range_min=0.1, range_max=s.range_max, timestamp=s.timestamp,
                      reference=s.reference)
             )  # fmt: skip
         valid = [int(np.sum(s.ranges < s.range_max)) for s in scans]
         assert [o.n_valid for o in out] == valid
-        maps.append(map_scans(out, use_odometry=False))
-    first = np.array([p.as_array() for p in maps[0].poses])
-    for m in maps[1:]:
-        assert np.array_equal(np.array([p.as_array() for p in m.poses]), first)
-    assert _ate(maps[0], scans).max() < 0.1
+        m = map_scans(out, use_odometry=False)
+        maps[value] = np.array([p.as_array() for p in m.poses])
+        assert _ate(m, scans).max() < 0.1
+    assert np.array_equal(maps[math.inf], maps["max"])
+    for value in (0.0, -math.inf, 0.05):
+        assert np.array_equal(maps[value], maps[math.nan])
 
 
 def test_motion_model_does_not_sort_the_whole_history_per_scan(monkeypatch):
