@@ -263,6 +263,14 @@ def test_version_help_and_verbose():
     assert r.exit_code == 0
 
 
+@pytest.mark.parametrize("flag", ["-v", "-vv", "--verbose"])
+def test_verbose_after_the_command_says_where_it_goes(files, flag):
+    r = invoke("match", files / "a.txt", files / "b.txt", flag)
+    assert_clean_error(r, "goes before the command: scanclique", "match ...")
+    r = invoke("places", "info", files / "x.db", flag)
+    assert_clean_error(r, "goes before the command: scanclique", "places info ...")
+
+
 def test_python_dash_m(monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["scanclique", "--version"])
     with pytest.raises(SystemExit) as exc:

@@ -197,10 +197,14 @@ def _usage_hint(exc) -> str:
     """What to add to a usage error: a negative index is parsed as an option by click."""
     msg = exc.format_message()
     opt = getattr(exc, "option_name", "") or ""
-    if type(exc).__name__ == "NoSuchOption" and opt.lstrip("-").isdigit():
-        msg = f"{opt} is not an option: scan indices start at 0 (a negative index?)"
     ctx = getattr(exc, "ctx", None)
     where = ctx.command_path if ctx is not None else "scanclique"
+    if type(exc).__name__ == "NoSuchOption" and opt.lstrip("-").isdigit():
+        msg = f"{opt} is not an option: scan indices start at 0 (a negative index?)"
+    elif type(exc).__name__ == "NoSuchOption" and (opt == "--verbose" or opt in ("-v", "-vv")):
+        # -v, -vv, --verbose belong to scanclique itself, not to a command
+        sub = where.split(" ", 1)[1] if " " in where else "COMMAND"
+        msg = f"{opt} goes before the command: scanclique {opt} {sub} ..."
     return f"{msg} (see '{where} -h')"
 
 
