@@ -296,10 +296,19 @@ def test_out_directory_that_is_a_file_is_refused_before_the_run(files, tmp_path)
 
 def test_out_directory_that_exists_or_not_is_accepted(files, tmp_path):
     # the check lets the run go on: the error is then the log's, not the directory's
-    for out in (tmp_path, tmp_path / "new" / "dir"):
+    for out in (tmp_path / "empty", tmp_path / "new" / "dir"):
+        (tmp_path / "empty").mkdir(exist_ok=True)
         r = invoke("map", tmp_path / "nope.log", "--out", out)
         assert_clean_error(r, "nope.log")
         assert "--out" not in r.stderr
+    # a directory with files in it: said in a note, then the run goes on
+    (tmp_path / "used").mkdir()
+    (tmp_path / "used" / "map.pgm").write_text("")
+    r = invoke("map", tmp_path / "nope.log", "--out", tmp_path / "used")
+    assert r.exit_code == 2
+    note, err = r.stderr.strip().splitlines()
+    assert note.startswith("note:") and "not empty" in note and "replaced" in note, note
+    assert err.startswith("error:") and "nope.log" in err, err
 
 
 def test_loops_out_and_new_place_database_checked_before_the_run(files, tmp_path):

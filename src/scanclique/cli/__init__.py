@@ -150,14 +150,16 @@ def _check_plot_path(path: Path | None) -> None:
 
 def _check_out_dir(path: str | os.PathLike) -> None:
     """Refuse an output directory (``--out``) before any work: one ``error:`` line, exit
-    code 2. It may exist (the command's files in it are overwritten) or not yet (it is
-    created with its parents when the results are written)."""
+    code 2. It may exist (the command's files in it are replaced, with a ``note:`` when it
+    is not empty) or not yet (it is created with its parents when the results are written)."""
     p = Path(path)
     if p.exists():
         if not p.is_dir():
             raise _fail(_escape(f"{p}: exists and is not a directory (--out names a directory)"))
         if not os.access(p, os.W_OK | os.X_OK):
             raise _fail(_escape(f"{p}: the directory is not writable"))
+        if any(p.iterdir()):
+            _note(f"{p} is not empty: the files this command writes there are replaced")
         return
     ancestor = p.absolute().parent
     while not ancestor.exists() and ancestor != ancestor.parent:
