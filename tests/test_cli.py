@@ -212,6 +212,14 @@ def test_clique_table_and_json(clq):
     assert out["omega"] == 4 and out["optimal"] and out["cliques"] == [[4, 5, 6, 7]]
 
 
+def test_clique_too_large_names_the_variable_not_the_library_argument(tmp_path):
+    big = tmp_path / "big.clq"
+    big.write_text("p edge 100000000 1\n")
+    r = invoke("clique", big)
+    assert_clean_error(r, "big.clq:1", "PiB", "set SCANCLIQUE_MAX_VERTICES")
+    assert "max_vertices=" not in r.stderr
+
+
 def test_clique_bad_files(tmp_path):
     assert_clean_error(invoke("clique", tmp_path / "none.clq"), "none.clq")
     bad = tmp_path / "bad.clq"
