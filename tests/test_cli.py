@@ -212,6 +212,15 @@ def test_clique_table_and_json(clq):
     assert out["omega"] == 4 and out["optimal"] and out["cliques"] == [[4, 5, 6, 7]]
 
 
+def test_validate_stderr_without_a_terminal_has_no_empty_line(files, tmp_path):
+    r = invoke("validate", tmp_path / "nope.log")
+    assert_clean_error(r, "nope.log")
+    assert r.stderr.endswith(")\n") and "\n\n" not in r.stderr, repr(r.stderr)
+    r = invoke("validate", files / "ab.txt", "--cap", "1", "--set", "consecutive", "--no-odometry")
+    assert r.exit_code == 0, r.output
+    assert r.stderr == "", repr(r.stderr)
+
+
 def test_clique_too_large_names_the_variable_not_the_library_argument(tmp_path):
     big = tmp_path / "big.clq"
     big.write_text("p edge 100000000 1\n")
