@@ -328,6 +328,15 @@ def test_out_directory_that_exists_or_not_is_accepted(files, tmp_path):
     assert err.startswith("error:") and "nope.log" in err, err
 
 
+def test_match_save_config_path_checked_before_the_match(files, tmp_path):
+    ab = (files / "a.txt", files / "b.txt")
+    r = invoke("match", *ab, "--save-config", tmp_path / "nodir" / "used.toml")
+    assert_clean_error(r, "nodir", "does not exist")
+    r = invoke("match", *ab, "--save-config", tmp_path)
+    assert_clean_error(r, "is a directory")
+    assert r.stdout == ""
+
+
 def test_loops_out_and_new_place_database_checked_before_the_run(files, tmp_path):
     r = invoke("loops", files / "ab.txt", "--out", tmp_path / "nodir" / "loops.json")
     assert_clean_error(r, "nodir", "does not exist")
