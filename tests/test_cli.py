@@ -212,6 +212,23 @@ def test_clique_table_and_json(clq):
     assert out["omega"] == 4 and out["optimal"] and out["cliques"] == [[4, 5, 6, 7]]
 
 
+def test_validate_stderr_without_a_terminal_has_no_empty_line(files, tmp_path):
+    r = invoke("validate", tmp_path / "nope.log")
+    assert_clean_error(r, "nope.log")
+    assert r.stderr.endswith(")\n") and "\n\n" not in r.stderr, repr(r.stderr)
+    r = invoke("validate", files / "ab.txt", "--cap", "1", "--set", "consecutive", "--no-odometry")
+    assert r.exit_code == 0, r.output
+    assert r.stderr == "", repr(r.stderr)
+
+
+def test_clique_too_large_names_the_variable_not_the_library_argument(tmp_path):
+    big = tmp_path / "big.clq"
+    big.write_text("p edge 100000000 1\n")
+    r = invoke("clique", big)
+    assert_clean_error(r, "big.clq:1", "PiB", "set SCANCLIQUE_MAX_VERTICES")
+    assert "max_vertices=" not in r.stderr
+
+
 def test_clique_bad_files(tmp_path):
     assert_clean_error(invoke("clique", tmp_path / "none.clq"), "none.clq")
     bad = tmp_path / "bad.clq"
@@ -240,14 +257,35 @@ def test_demo_without_data_simulates(tmp_path, monkeypatch):
     assert png.read_bytes()[:8] == PNG_MAGIC
 
 
+def test_demo_without_data_names_each_place_looked_in_once(tmp_path, monkeypatch):
+    # run from the checkout, ../shared/data by the checkout and by the cwd are one directory
+    missing = tmp_path / "shared" / "data"
+    monkeypatch.delenv("SCANCLIQUE_DATA", raising=False)
+    monkeypatch.setattr(sc.datasets, "data_dir_candidates", lambda: [missing, missing])
+    r = invoke("demo", "--plot", tmp_path / "match.png")
+    assert r.exit_code == 0, r.output
+    first = r.stdout.splitlines()[0]
+    assert first.startswith(f"no real data found in {missing} (set SCANCLIQUE_DATA)"), first
+    assert first.count(str(missing)) == 1, first
+
+
 def test_version_help_and_verbose():
     r = invoke("--version")
     assert r.exit_code == 0 and r.stdout.strip() == f"scanclique {sc.__version__}"
-    for cmd in ("match", "features", "clique", "demo", "config"):
-        r = invoke(cmd, "--help")
+    commands = ("match", "features", "clique", "demo", "validate", "config", "slam", "map")
+    for cmd in (*commands, "loops", "places", "places add", "places query", "places info"):
+        r = invoke(*cmd.split(), "--help")
         assert r.exit_code == 0 and "Examples" in r.stdout, cmd
     r = invoke("-vv", "config")
     assert r.exit_code == 0
+
+
+@pytest.mark.parametrize("flag", ["-v", "-vv", "--verbose"])
+def test_verbose_after_the_command_says_where_it_goes(files, flag):
+    r = invoke("match", files / "a.txt", files / "b.txt", flag)
+    assert_clean_error(r, "goes before the command: scanclique", "match ...")
+    r = invoke("places", "info", files / "x.db", flag)
+    assert_clean_error(r, "goes before the command: scanclique", "places info ...")
 
 
 def test_python_dash_m(monkeypatch, capsys):
@@ -256,6 +294,57 @@ def test_python_dash_m(monkeypatch, capsys):
         runpy.run_module("scanclique", run_name="__main__")
     assert exc.value.code in (0, None)
     assert capsys.readouterr().out.strip() == f"scanclique {sc.__version__}"
+
+
+# ---------------------------------------------------------------------------------------
+# output paths: refused before the run (a map of a long log takes minutes), not after it
+# ---------------------------------------------------------------------------------------
+def test_out_directory_that_is_a_file_is_refused_before_the_run(files, tmp_path):
+    a_file = tmp_path / "taken"
+    a_file.write_text("")
+    # a log that does not exist: the output path is checked first, nothing is read
+    for cmd in (("map", tmp_path / "nope.log"), ("slam", tmp_path / "nope")):
+        r = invoke(*cmd, "--out", a_file)
+        assert_clean_error(r, str(a_file), "not a directory")
+        r = invoke(*cmd, "--out", a_file / "sub")
+        assert_clean_error(r, "cannot be created", "is not a directory")
+        assert not (a_file / "sub").exists()
+
+
+def test_out_directory_that_exists_or_not_is_accepted(files, tmp_path):
+    # the check lets the run go on: the error is then the log's, not the directory's
+    for out in (tmp_path / "empty", tmp_path / "new" / "dir"):
+        (tmp_path / "empty").mkdir(exist_ok=True)
+        r = invoke("map", tmp_path / "nope.log", "--out", out)
+        assert_clean_error(r, "nope.log")
+        assert "--out" not in r.stderr
+    # a directory with files in it: said in a note, then the run goes on
+    (tmp_path / "used").mkdir()
+    (tmp_path / "used" / "map.pgm").write_text("")
+    r = invoke("map", tmp_path / "nope.log", "--out", tmp_path / "used")
+    assert r.exit_code == 2
+    note, err = r.stderr.strip().splitlines()
+    assert note.startswith("note:") and "not empty" in note and "replaced" in note, note
+    assert err.startswith("error:") and "nope.log" in err, err
+
+
+def test_match_save_config_path_checked_before_the_match(files, tmp_path):
+    ab = (files / "a.txt", files / "b.txt")
+    r = invoke("match", *ab, "--save-config", tmp_path / "nodir" / "used.toml")
+    assert_clean_error(r, "nodir", "does not exist")
+    r = invoke("match", *ab, "--save-config", tmp_path)
+    assert_clean_error(r, "is a directory")
+    assert r.stdout == ""
+
+
+def test_loops_out_and_new_place_database_checked_before_the_run(files, tmp_path):
+    r = invoke("loops", files / "ab.txt", "--out", tmp_path / "nodir" / "loops.json")
+    assert_clean_error(r, "nodir", "does not exist")
+    r = invoke("loops", files / "ab.txt", "--out", tmp_path)
+    assert_clean_error(r, "is a directory")
+    r = invoke("places", "add", tmp_path / "nodir" / "places.db", files / "ab.txt")
+    assert_clean_error(r, "nodir", "does not exist")
+    assert not (tmp_path / "nodir").exists()
 
 
 # ---------------------------------------------------------------------------------------

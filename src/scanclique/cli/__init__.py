@@ -20,6 +20,7 @@ from __future__ import annotations
 import importlib
 import json
 import logging
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -147,6 +148,39 @@ def _check_plot_path(path: Path | None) -> None:
     _guard(lambda: check_figure_path(path))
 
 
+def _check_out_dir(path: str | os.PathLike) -> None:
+    """Refuse an output directory (``--out``) before any work: one ``error:`` line, exit
+    code 2. It may exist (the command's files in it are replaced, with a ``note:`` when it
+    is not empty) or not yet (it is created with its parents when the results are written)."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir():
+            raise _fail(_escape(f"{p}: exists and is not a directory (--out names a directory)"))
+        if not os.access(p, os.W_OK | os.X_OK):
+            raise _fail(_escape(f"{p}: the directory is not writable"))
+        if any(p.iterdir()):
+            _note(f"{p} is not empty: the files this command writes there are replaced")
+        return
+    ancestor = p.absolute().parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise _fail(_escape(f"{p}: cannot be created: {ancestor} is not a directory"))
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise _fail(_escape(f"{p}: cannot be created: {ancestor} is not writable"))
+
+
+def _check_out_file(path: str | os.PathLike) -> None:
+    """Refuse an output file (``loops --out``, a new place database) before any work: one
+    ``error:`` line, exit code 2. Its directory must exist (it is not created)."""
+    p = Path(path)
+    if p.is_dir():
+        raise _fail(_escape(f"{p}: is a directory, not a file"))
+    parent = p.absolute().parent
+    if not parent.is_dir():
+        raise _fail(_escape(f"{p}: directory {p.parent} does not exist (it is not created)"))
+
+
 def _save_config(cfg: Any, path: Path, comment: str) -> None:
     from ..io.config import write_config
 
@@ -165,10 +199,14 @@ def _usage_hint(exc) -> str:
     """What to add to a usage error: a negative index is parsed as an option by click."""
     msg = exc.format_message()
     opt = getattr(exc, "option_name", "") or ""
-    if type(exc).__name__ == "NoSuchOption" and opt.lstrip("-").isdigit():
-        msg = f"{opt} is not an option: scan indices start at 0 (a negative index?)"
     ctx = getattr(exc, "ctx", None)
     where = ctx.command_path if ctx is not None else "scanclique"
+    if type(exc).__name__ == "NoSuchOption" and opt.lstrip("-").isdigit():
+        msg = f"{opt} is not an option: scan indices start at 0 (a negative index?)"
+    elif type(exc).__name__ == "NoSuchOption" and (opt == "--verbose" or opt in ("-v", "-vv")):
+        # -v, -vv, --verbose belong to scanclique itself, not to a command
+        sub = where.split(" ", 1)[1] if " " in where else "COMMAND"
+        msg = f"{opt} goes before the command: scanclique {opt} {sub} ..."
     return f"{msg} (see '{where} -h')"
 
 

@@ -61,12 +61,18 @@ def clique(
     ```
     """
     from ..clique import solve_file
+    from ..errors import GraphError
 
-    res = _guard(
-        lambda: solve_file(
-            file, all=all_, time_limit=time_limit, node_limit=node_limit, weights=weights
-        )
-    )
+    def solve():
+        try:
+            return solve_file(
+                file, all=all_, time_limit=time_limit, node_limit=node_limit, weights=weights
+            )
+        except GraphError as exc:  # max_vertices= is the library's; the command has the variable
+            msg = str(exc).replace("pass max_vertices= or set ", "set ")
+            raise GraphError(msg) from None
+
+    res = _guard(solve)
     if json_out:
         _print_json(res)
         return

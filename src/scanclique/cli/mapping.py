@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from . import JsonOpt, _console, _err_console, _guard, _print_json, _table
+from . import JsonOpt, _check_out_dir, _console, _err_console, _guard, _print_json, _table
 
 
 def map_cmd(
@@ -62,6 +62,7 @@ def map_cmd(
     scanclique map fr079-raw --out runs/fr079 --workers 2
     ```
     """
+    _check_out_dir(out)  # before the run, not after it
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from ..mapping.run import run_map

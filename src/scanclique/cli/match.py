@@ -15,6 +15,7 @@ from . import (
     PaperOpt,
     PerMetreOpt,
     PerRadianOpt,
+    _check_out_file,
     _check_plot_path,
     _console,
     _guard,
@@ -88,6 +89,8 @@ def match(
     from ..tools import load_config, match_rows, run_match
 
     _check_plot_path(plot)
+    if save_config is not None:
+        _check_out_file(save_config)  # before the match, not after it
     cfg = _guard(lambda: load_config(config, paper))
     noise = _noise(odom_per_metre, odom_per_radian)
     run = _guard(

@@ -17,6 +17,7 @@ from . import (
     ConfigOpt,
     JsonOpt,
     PaperOpt,
+    _check_out_file,
     _console,
     _err_console,
     _guard,
@@ -30,7 +31,13 @@ places_app = typer.Typer(
     add_completion=False,
     rich_markup_mode="markdown",
     help="A place database (topological localisation): add scans as places, query a scan "
-    "for the places it sees and its pose relative to each.",
+    "for the places it sees and its pose relative to each.\n\n"
+    "**Examples**\n\n"
+    "```\n"
+    "scanclique places add places.db freiburg --every 5\n"
+    "scanclique places query places.db freiburg 1002 --top 5\n"
+    "scanclique places info places.db --check\n"
+    "```",
 )
 
 DbArg = Annotated[Path, typer.Argument(help="The place database (SQLite file; created by add).")]
@@ -76,6 +83,8 @@ def add(
     """
     from rich.progress import Progress
 
+    if not db.exists():
+        _check_out_file(db)  # a new database: its directory must exist
     from ..places.run import run_add
 
     cfg = _config(config, paper)
@@ -233,6 +242,8 @@ def loops(
     """
     from rich.progress import Progress
 
+    if out is not None:
+        _check_out_file(out)  # before the search, not after it
     from ..places.run import run_loops
 
     cfg = _config(config, paper)

@@ -8,7 +8,16 @@ from typing import Annotated
 
 import typer
 
-from . import JsonOpt, _console, _err_console, _fail, _guard, _print_json, _table
+from . import (
+    JsonOpt,
+    _check_out_dir,
+    _console,
+    _err_console,
+    _fail,
+    _guard,
+    _print_json,
+    _table,
+)
 
 METHODS = ("clique", "clique-jcbb", "jcbb", "nn")
 
@@ -61,6 +70,8 @@ def slam(
         raise _fail(f"--association must be one of {', '.join(METHODS)}, got {association!r}")
     if plot and out is None:
         raise _fail("--plot writes map.png into --out: give --out DIR")
+    if out is not None:
+        _check_out_dir(out)  # before the run, not after it
     from ..slam.run import run_slam
 
     show = not json_out and sys.stderr.isatty()

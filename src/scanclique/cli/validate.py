@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 from typing import Annotated
 
 import typer
@@ -70,7 +71,9 @@ def validate(
     noise = _noise(odom_per_metre, odom_per_radian)
     from rich.progress import Progress
 
-    with Progress(console=_err_console(), transient=True, disable=json_out) as bar:
+    # no bar when stderr is not a terminal: it would leave an empty line there
+    quiet = json_out or not sys.stderr.isatty()
+    with Progress(console=_err_console(), transient=True, disable=quiet) as bar:
         task = bar.add_task("matching", total=None)
 
         def tick(done: int, total: int) -> None:
