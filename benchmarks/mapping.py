@@ -85,7 +85,12 @@ from common import git_state, machine, versions  # noqa: E402
 
 from scanclique import datasets  # noqa: E402
 from scanclique.config import paper_config  # noqa: E402
-from scanclique.eval import Relation, read_relations, relation_metrics  # noqa: E402
+from scanclique.eval import (  # noqa: E402
+    Relation,
+    frame_mounting,
+    read_relations,
+    relation_metrics,
+)
 from scanclique.geometry import Pose2  # noqa: E402
 from scanclique.mapping import MapConfig, map_scans  # noqa: E402
 
@@ -109,23 +114,6 @@ ANCHORS = {
         ("RBPF", "0.070", ""),
     ],
 }
-
-
-def _mounting(scans) -> Pose2 | None:
-    """The constant pose of the robot frame in the laser frame, when the log's FLASER
-    lines carry both (``Scan.reference`` = laser odometry pose, ``Scan.odometry`` = robot
-    odometry pose in the raw fr079 log); None when they coincide or vary."""
-    offs = [
-        s.reference.inverse() @ s.odometry
-        for s in scans[:: max(1, len(scans) // 50)]
-        if s.reference is not None and s.odometry is not None
-    ]
-    if not offs:
-        return None
-    a = np.array([o.as_array() for o in offs])
-    if np.ptp(a, axis=0).max() > 1e-3 or np.abs(a.mean(axis=0)).max() < 1e-4:
-        return None
-    return Pose2.from_array(a.mean(axis=0))
 
 
 def _precision_self(result) -> tuple[int, int]:
@@ -731,7 +719,7 @@ def main(argv=None) -> int:
             scans = scans[: args.limit]
         t_read = time.perf_counter() - t
         rels = read_relations(datasets.data_dir() / datasets.DATASETS[name].relations)
-        mounting = _mounting(scans)
+        mounting = frame_mounting(scans)
         traj = relations_trajectory(scans, rels, mounting)
         print(f"{name}: the relations' trajectory: {len(traj[0])} scans, "
               f"{len(set(traj[1].values()))} components, relation sigma "

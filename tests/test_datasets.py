@@ -80,13 +80,17 @@ def test_env_var_wins(fake_data):
     assert dimacs_dir() == fake_data / "dimacs"
 
 
-def test_default_location_beside_checkout(monkeypatch):
+def test_default_location_beside_checkout(monkeypatch, tmp_path):
     monkeypatch.delenv(ENV_VAR, raising=False)
     repo_root = datasets._repo_root()
     assert (repo_root / "pyproject.toml").is_file()
+    (tmp_path / "work").mkdir()
+    monkeypatch.chdir(tmp_path / "work")
     candidates = data_dir_candidates()
-    assert candidates[0] == repo_root.parent / "shared" / "data"
-    assert candidates[1] == datasets.Path.cwd().parent / "shared" / "data"
+    assert candidates == [repo_root.parent / "shared" / "data", tmp_path / "shared" / "data"]
+    # run from the checkout, the two are one directory: listed once (messages said it twice)
+    monkeypatch.chdir(repo_root)
+    assert data_dir_candidates() == [repo_root.parent / "shared" / "data"]
 
 
 def test_missing_data_message(no_data):

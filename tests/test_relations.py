@@ -114,3 +114,21 @@ def test_shared_relations_join_raw_logs(name, n):
         scans = datasets.load_log(name)
         _, ok = join_relations(rels, [s.timestamp for s in scans])
         assert ok.all()
+
+
+def test_frame_mounting_is_the_constant_offset_of_the_two_poses_or_none():
+    from scanclique.eval import frame_mounting
+    from scanclique.geometry import Pose2
+    from scanclique.scan import Scan
+
+    def scan(ref, off):
+        return Scan([1.0, 1.0], [0.0, 0.1], reference=ref, odometry=ref @ off)
+
+    refs = [Pose2(0.1 * k, 0.05 * k, 0.2 * k) for k in range(60)]
+    behind = Pose2(0.04, 0.0, 0.0)  # fr079: the robot frame 0.04 m ahead of the laser
+    m = frame_mounting([scan(r, behind) for r in refs])
+    assert m is not None and np.allclose(m.as_array(), [0.04, 0.0, 0.0])
+    assert frame_mounting([scan(r, Pose2(0.0, 0.0, 0.0)) for r in refs]) is None  # same frame
+    varying = [scan(r, Pose2(0.01 * (k % 3), 0.0, 0.0)) for k, r in enumerate(refs)]
+    assert frame_mounting(varying) is None  # not a mounting
+    assert frame_mounting([Scan([1.0, 1.0], [0.0, 0.1])]) is None  # no poses

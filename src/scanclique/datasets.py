@@ -207,7 +207,9 @@ def data_dir_candidates() -> list[Path]:
     env = os.environ.get(ENV_VAR)
     if env:
         return [Path(env).expanduser()]
-    return [_repo_root().parent / "shared" / "data", Path.cwd().parent / "shared" / "data"]
+    found = [_repo_root().parent / "shared" / "data", Path.cwd().parent / "shared" / "data"]
+    # once each (run from the checkout, both are the same directory)
+    return [c for k, c in enumerate(found) if c.resolve() not in {d.resolve() for d in found[:k]}]
 
 
 def data_dir() -> Path:

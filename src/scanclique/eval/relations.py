@@ -42,6 +42,7 @@ from ..errors import ParseError, ScanError
 from ..geometry import Pose2
 
 __all__ = [
+    "frame_mounting",
     "Relation",
     "RelationErrors",
     "SplitErrors",
@@ -155,6 +156,33 @@ def join_relations(
         [[index.get(_key(r.t1), -1), index.get(_key(r.t2), -1)] for r in relations], dtype=int
     ).reshape(-1, 2)
     return ij, (ij >= 0).all(axis=1)
+
+
+def frame_mounting(scans: Sequence) -> Pose2 | None:
+    """The constant pose of the robot frame in the laser frame of a log whose laser lines
+    carry both poses (CARMEN's FLASER: ``Scan.reference`` the laser's odometry pose,
+    ``Scan.odometry`` the robot's; in the raw fr079 log the laser sits 0.04 m behind the
+    robot), the ``mounting`` of :func:`relation_errors` for relations given in the robot
+    frame. None when the two coincide, vary from scan to scan (more than 1e-3 in any
+    component over about 50 scans sampled along the log), or are missing.
+
+    >>> from scanclique.scan import Scan
+    >>> s = Scan([1.0, 1.0], [0.0, 0.1], reference=Pose2(1.0, 2.0, 0.5),
+    ...          odometry=Pose2(1.0, 2.0, 0.5) @ Pose2(0.04, 0.0, 0.0))
+    >>> frame_mounting([s, s]).as_array().round(6).tolist()
+    [0.04, 0.0, 0.0]
+    """
+    offs = [
+        s.reference.inverse() @ s.odometry
+        for s in scans[:: max(1, len(scans) // 50)]
+        if s.reference is not None and s.odometry is not None
+    ]
+    if not offs:
+        return None
+    a = np.array([o.as_array() for o in offs])
+    if np.ptp(a, axis=0).max() > 1e-3 or np.abs(a.mean(axis=0)).max() < 1e-4:
+        return None
+    return Pose2.from_array(a.mean(axis=0))
 
 
 def relation_errors(

@@ -220,8 +220,8 @@ def run_slam(
             "landmarks in duplicate pairs",
             "smoothing time",
         ):
-            if k in ms:
-                m["smoothed " + k] = ms[k]
+            if k in ms:  # the pass's own time needs no prefix
+                m[k if k == "smoothing time" else "smoothed " + k] = ms[k]
     run = SlamRun(result, g, m, {}, align)
     if out is not None:
         d = Path(out)
