@@ -10,11 +10,13 @@ do not have, so this measures :class:`scanclique.places.PlaceDB`, with its defau
 drives of our own simulator (``scanclique.sim.office_world``: rooms off corridors, many
 of them alike, with exact reference poses) for the scanners people use today:
 
-* ``sick180``: 180 deg, 361 beams, 30 m, sigma 1 cm (the shared logs' kind; the control);
-* ``utm270``: 270 deg, 1081 beams, 30 m, sigma 2 cm (Hokuyo UTM-30LX class);
-* ``tim270``: 270 deg, 811 beams, 25 m, sigma 2 cm (SICK TiM571 class);
-* ``rplidar360``: 360 deg, 360 beams, 10 m, sigma 2 cm, 5 % of beams without return
-  (RPLIDAR A1 / LDS-01 class).
+* ``carmen``: 180 deg, 361 beams, 30 m, sigma 1 cm (the shared logs' kind; the control);
+* ``hokuyo``: 270 deg, 1081 beams, 30 m, sigma 2 cm (Hokuyo UTM-30LX class);
+* ``tim571``: 270 deg, 811 beams, 25 m, sigma 2 cm (SICK TiM571 class);
+* ``rplidar``: 360 deg, 360 beams, 10 m, sigma 1.5 % of the range, 7 % of beams without
+  return (RPLIDAR A1 / LDS-01 class).
+
+These are ``benchmarks/mapping_sensors.py``'s scanners (its ``PROFILES``, one definition).
 
 Each drive is 300 scans 0.3 m apart. Every scan is added; every second scan is queried
 (``k=5``) against the places at least 50 scans away, the protocol of
@@ -43,35 +45,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import git_state, machine, results_path, versions  # noqa: E402
+from mapping_sensors import PROFILES as SCANNERS  # noqa: E402
 from places import RIGHT_R, RIGHT_T, true_places  # noqa: E402
 
 DATE = "2026-12-02"
+#: the scanners of ``benchmarks/mapping_sensors.py`` (one definition), as one scan sees
+#: them: its rate and the robot's speed do not matter to a place database
 PROFILES = {
-    "sick180": dict(
-        n_beams=361, fov=math.pi, angle_min=-math.pi / 2, max_range=30.0, range_sigma=0.01
-    ),
-    "utm270": dict(
-        n_beams=1081,
-        fov=math.radians(270.0),
-        angle_min=-math.radians(135.0),
-        max_range=30.0,
-        range_sigma=0.02,
-    ),
-    "tim270": dict(
-        n_beams=811,
-        fov=math.radians(270.0),
-        angle_min=-math.radians(135.0),
-        max_range=25.0,
-        range_sigma=0.02,
-    ),
-    "rplidar360": dict(
-        n_beams=360,
-        fov=2.0 * math.pi * 359.0 / 360.0,
-        angle_min=-math.pi,
-        max_range=10.0,
-        range_sigma=0.02,
-        dropout=0.05,
-    ),
+    name: {k: v for k, v in p.items() if k not in ("scan_rate", "speed")}
+    for name, p in SCANNERS.items()
 }
 N_SCANS = 300
 STEP = 0.3

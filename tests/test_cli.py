@@ -261,7 +261,9 @@ def test_demo_without_data_names_each_place_looked_in_once(tmp_path, monkeypatch
     # run from the checkout, ../shared/data by the checkout and by the cwd are one directory
     missing = tmp_path / "shared" / "data"
     monkeypatch.delenv("SCANCLIQUE_DATA", raising=False)
-    monkeypatch.setattr(sc.datasets, "data_dir_candidates", lambda: [missing, missing])
+    (tmp_path / "repo").mkdir()
+    monkeypatch.setattr(sc.datasets, "_repo_root", lambda: tmp_path / "repo")
+    monkeypatch.chdir(tmp_path / "repo")
     r = invoke("demo", "--plot", tmp_path / "match.png")
     assert r.exit_code == 0, r.output
     first = r.stdout.splitlines()[0]

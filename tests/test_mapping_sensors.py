@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from test_mapping import _aligned_errors as _ate
 
 from scanclique.geometry import Pose2
 from scanclique.mapping import map_scans
@@ -25,13 +26,6 @@ RPLIDAR = dict(
     n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=-math.pi, max_range=10.0,
     range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.07, scan_rate=7.0, speed=0.5,
 )  # fmt: skip
-
-
-def _ate(result, scans):
-    r0 = scans[0].reference.inverse()
-    return np.array(
-        [p.distance_to(r0 @ s.reference)[0] for p, s in zip(result.poses, scans, strict=True)]
-    )
 
 
 def test_sensor_drive_steps_as_the_scanner_sees_them():

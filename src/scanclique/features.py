@@ -539,8 +539,7 @@ def _extract_features_reference(
     valid = scan.valid
     n_beams = scan.n_beams
     beam_width = float(np.median(np.diff(scan.angles))) if n_beams > 1 else 0.0
-    # at or beyond range_max, +inf included (REP 117's nothing within reach); never NaN
-    no_return = ~valid & ~np.isnan(r_all) & (r_all >= scan.range_max)
+    no_return = scan.no_return
 
     pts, labels, covs, pbeams = [], [], [], []
 

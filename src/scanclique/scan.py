@@ -122,6 +122,14 @@ class Scan:
     def n_valid(self) -> int:
         return int(self.valid.sum())
 
+    @property
+    def no_return(self) -> np.ndarray:
+        """``(N,)`` bool: beams that saw nothing within reach, at or beyond ``range_max``
+        (a CARMEN max-range reading, ROS's ``+inf``, REP 117). NaN, ``-inf`` and readings at
+        or below ``range_min`` are not: they say nothing of the space ahead."""
+        with np.errstate(invalid="ignore"):
+            return ~self.valid & (self.ranges >= self.range_max)  # NaN compares False
+
     def points(self) -> np.ndarray:
         """Valid returns as ``(M, 2)`` Cartesian points in the sensor frame (metres)."""
         r = self.ranges[self.valid]

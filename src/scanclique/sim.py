@@ -925,7 +925,8 @@ def simulate_scan(
         raise ConfigError(f"{where}: dropout must be in [0, 1], got {dropout}")
     if (range_sigma > 0 or range_sigma_per_m > 0 or dropout > 0) and rng is None:
         raise ConfigError(
-            f"{where}: range_sigma={range_sigma} and dropout={dropout} need rng "
+            f"{where}: range_sigma={range_sigma}, range_sigma_per_m={range_sigma_per_m} and "
+            f"dropout={dropout} need rng "
             "(a numpy.random.Generator)"
         )
     angles = _beam_angles(n_beams, fov, angle_min)

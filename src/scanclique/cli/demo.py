@@ -53,8 +53,7 @@ def demo(
             soft_wrap=True,
         )
     else:
-        # the two default candidates coincide when run from the checkout: say each once
-        looked = ", ".join(dict.fromkeys(map(str, datasets.data_dir_candidates())))
+        looked = ", ".join(map(str, datasets.data_dir_candidates()))
         con.print(
             f"no real data found in {looked} (set {datasets.ENV_VAR}): "
             f"simulated pair, simulate_pair(default_rng({DEMO_SEED}))",

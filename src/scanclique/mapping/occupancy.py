@@ -131,9 +131,7 @@ def occupancy_grid(
     starts, ends, hits = [], [], []
     for k in idx:
         s, p = scans[k], poses[k]
-        keep = s.valid
-        if cfg.free_on_no_return:
-            keep = s.valid | (s.ranges >= s.range_max)  # NaN and -inf compare False
+        keep = s.valid | s.no_return if cfg.free_on_no_return else s.valid
         rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
         hit = s.valid[keep] & (rng <= cfg.max_range)
         rng = np.minimum(rng, cfg.max_range)

@@ -218,10 +218,10 @@ def run_slam(
             "GPS RMSE (best SE(2) alignment)",
             "GPS max (best SE(2) alignment)",
             "landmarks in duplicate pairs",
-            "smoothing time",
         ):
-            if k in ms:  # the pass's own time needs no prefix
-                m[k if k == "smoothing time" else "smoothed " + k] = ms[k]
+            if k in ms:
+                m["smoothed " + k] = ms[k]
+        m["smoothing time"] = ms["smoothing time"]  # the pass's own: no prefix
     run = SlamRun(result, g, m, {}, align)
     if out is not None:
         d = Path(out)
