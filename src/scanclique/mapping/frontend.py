@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,7 @@ from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
 from ..refine import icp_covariance, icp_point_to_line, weak_direction
+from ..scan import Scan
 from ..uncertainty import pose_difference
 from ..validation import (
     AMBIGUOUS,
@@ -50,6 +52,8 @@ __all__ = [
     "Step",
     "floored",
     "constant_velocity",
+    "reversed_increment",
+    "odometry_sees_reversing",
     "along_corridor",
     "contest_by_odometry",
     "associate",
@@ -111,6 +115,48 @@ def constant_velocity(
     if t2 is not None and t1 is not None and t is not None and t1 - t2 > 1e-6:
         ratio = float(np.clip((t - t1) / (t1 - t2), 0.0, 3.0))
     return prev @ Pose2(v.x * ratio, v.y * ratio, v.theta * ratio)
+
+
+def reversed_increment(rel: Pose2) -> Pose2:
+    """The odometry increment ``rel`` (x, y in m, theta in rad: the later pose in the
+    earlier one's frame) driven backwards: the same wheel speeds with the translation's sign
+    flipped, ``(-x, -y, theta)``. For odometry that measures the speed's magnitude only.
+
+    >>> reversed_increment(Pose2(0.1, 0.01, 0.05)).as_array().round(3).tolist()
+    [-0.1, -0.01, 0.05]
+    """
+    return Pose2(-rel.x, -rel.y, rel.theta)
+
+
+def odometry_sees_reversing(
+    scans: Sequence[Scan], min_step: float = 0.01, min_moving: int = 50
+) -> bool:
+    """Whether the scans' wheel odometry can report the robot backing up: True when some
+    consecutive odometry increment moves backwards by more than ``min_step`` (m, along its
+    own heading), or when fewer than ``min_moving`` increments move more than ``min_step``
+    at all (too little driving to tell). False for odometry that only ever moves forwards
+    over a whole log although it drives: it measures the speed's magnitude, and a robot
+    that reverses is logged as driving forwards (the raw fr079 log: 0 of 4062 moving steps
+    backwards, while its scans and its benchmark relations back up at scans 1400-1434).
+
+    >>> from scanclique.scan import Scan
+    >>> fwd = [Scan([1.0], [0.0], odometry=Pose2(0.1 * i, 0.0, 0.0)) for i in range(60)]
+    >>> odometry_sees_reversing(fwd), odometry_sees_reversing(fwd[::-1])
+    (False, True)
+    >>> odometry_sees_reversing(fwd[:10])  # too little driving to tell
+    True
+    """
+    moving = 0
+    prev = None
+    for s in scans:
+        o = s.odometry
+        if o is not None and prev is not None:
+            dx = (prev.inverse() @ o).x
+            if dx < -min_step:
+                return True
+            moving += dx > min_step
+        prev = o if o is not None else prev
+    return moving < min_moving
 
 
 def refine_pose(pa: PreparedScan, pb: PreparedScan, pose: Pose2, fe) -> Pose2:

@@ -46,7 +46,9 @@ from .frontend import (
     constant_velocity,
     contest_by_odometry,
     icp_fallback,
+    odometry_sees_reversing,
     prior_step,
+    reversed_increment,
 )
 from .loops import LoopClosure
 from .parallel import Verifier
@@ -160,6 +162,11 @@ def _tally(items) -> dict:
     return out
 
 
+#: a scan's placed step backwards (m) beyond which the robot counts as backing up, for
+#: odometry that never reports it (:func:`~scanclique.mapping.frontend.odometry_sees_reversing`)
+REVERSING_STEP = 0.01
+
+
 def _cov_xy_rot(s_xy: float, s_th: float) -> np.ndarray:
     return np.diag([s_xy**2, s_xy**2, s_th**2])
 
@@ -170,6 +177,13 @@ class _Mapper:
     def __init__(self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig, workers: int = 1):
         self.scans = scans
         self.odo = use_odometry
+        # odometry that never reports backing up (the speed's magnitude only): a reversing
+        # robot is logged as driving forwards, so while the scans say it is backing up, a
+        # match the odometry rejects is also validated against the odometry driven
+        # backwards (frontend.odometry_sees_reversing)
+        self.blind_to_reversing = bool(use_odometry) and not odometry_sees_reversing(scans)
+        if self.blind_to_reversing:
+            log.info("the odometry never moves backwards: a match it rejects is tried reversed")
         self.cfg = cfg
         self.fe = cfg.front_end
         self.lc = cfg.loops
@@ -542,6 +556,27 @@ class _Mapper:
                     pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
                     sigma_floor=self.floor, front_end=fe, weak_prior=kind == CONSTANT_VELOCITY,
                 )  # fmt: skip
+                if (
+                    step.kind != MATCH
+                    and kind == ODOMETRY
+                    and self.blind_to_reversing
+                    and world_prev2 is not None
+                    and (world_prev2.inverse() @ world_prev).x < -REVERSING_STEP
+                ):
+                    # the robot was backing up (the scans say so) while its odometry drove
+                    # forwards: it may still be
+                    back_b = prior_a @ reversed_increment(prior_a.inverse() @ prior_b)
+                    back_path = [prior_a @ reversed_increment(prior_a.inverse() @ q) for q in path]
+                    back = associate(
+                        pk, pj, prior_a, back_b, noise, self.cfg.match, path=back_path,
+                        sigma_floor=self.floor, front_end=fe,
+                    )  # fmt: skip
+                    if back.kind == MATCH:
+                        self.reasons[j] = (
+                            f"{step.verdict}: {step.reason}; matched against the odometry "
+                            "reversed (it never reports backing up)"
+                        )
+                        step, prior_b, path = back, back_b, back_path
             # the odometry increment and its covariance (the first prior of the fallback)
             odo = odometry_prior(prior_a, prior_b, noise, path=path) if kind == ODOMETRY else None
             if step.kind == MATCH and odo is not None:

@@ -1,0 +1,78 @@
+"""Odometry that never reports backing up (it logs the speed's magnitude: the raw fr079
+log's, 0 of its 4062 moving steps backwards while its scans back up): the front end
+validates a match the odometry rejects against the odometry reversed too."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import scanclique.mapping.pipeline as pipeline
+from scanclique.mapping import MapConfig, map_scans
+from scanclique.mapping.frontend import odometry_sees_reversing, reversed_increment
+from scanclique.sim import office_world, simulate_trajectory
+
+
+def _forth_and_back(seed: int = 3, n: int = 30, step: float = 0.3):
+    """A drive of ``n`` scans and then the same poses backwards (the robot backs up along
+    its path, seeing what it saw), with odometry that logs every step as forwards."""
+    rng = np.random.default_rng(seed)
+    fwd = simulate_trajectory(rng, office_world(rng, length=14.0), n, step=step)
+    drive = fwd + fwd[-2::-1]
+    odo = [drive[0].reference]
+    for a, b in zip(drive, drive[1:], strict=False):
+        u = a.reference.inverse() @ b.reference
+        odo.append(odo[-1] @ (reversed_increment(u) if u.x < 0 else u))
+    return [dataclasses.replace(s, odometry=o) for s, o in zip(drive, odo, strict=True)]
+
+
+def _chain_config() -> MapConfig:
+    cfg = MapConfig()
+    return dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, enabled=False))
+
+
+def _worst_step_error(scans, poses) -> float:
+    worst = 0.0
+    for i in range(1, len(scans)):
+        true = scans[i - 1].reference.inverse() @ scans[i].reference
+        est = poses[i - 1].inverse() @ poses[i]
+        worst = max(worst, true.distance_to(est)[0])
+    return worst
+
+
+def test_odometry_sees_reversing():
+    scans = _forth_and_back()
+    assert not odometry_sees_reversing(scans)
+    signed = [dataclasses.replace(s, odometry=s.reference) for s in scans]
+    assert odometry_sees_reversing(signed)
+    assert odometry_sees_reversing([])  # nothing to tell from
+
+
+def test_backing_up_with_forward_only_odometry(monkeypatch):
+    scans = _forth_and_back()
+    res = map_scans(scans, config=_chain_config())
+    reversed_matches = [r for r in res.reasons.values() if "odometry reversed" in r]
+    assert reversed_matches  # the backing up was seen as such
+    fixed = _worst_step_error(scans, res.poses)
+    # the same drive with the odometry taken as it is (as before the rule)
+    monkeypatch.setattr(pipeline, "odometry_sees_reversing", lambda s: True)
+    before = map_scans(scans, config=_chain_config())
+    assert not [r for r in before.reasons.values() if "odometry reversed" in r]
+    assert fixed < 0.05
+    assert fixed < _worst_step_error(scans, before.poses)
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_a_drive_forwards_with_the_rule_on(monkeypatch, seed):
+    """The rule on (as for a log whose odometry never backs up) leaves a forward drive
+    mapped as well as with it off: a rejected match is not taken for a backing up."""
+    rng = np.random.default_rng(seed)
+    scans = simulate_trajectory(rng, office_world(rng, length=14.0), 40, step=0.3)
+    monkeypatch.setattr(pipeline, "odometry_sees_reversing", lambda s: False)
+    on = map_scans(scans, config=_chain_config())
+    monkeypatch.setattr(pipeline, "odometry_sees_reversing", lambda s: True)
+    off = map_scans(scans, config=_chain_config())
+    assert _worst_step_error(scans, on.poses) <= _worst_step_error(scans, off.poses) + 0.01
+    assert _worst_step_error(scans, on.poses) < 0.05
