@@ -95,3 +95,19 @@ def test_loops(tmp_path, log):
     d2 = json.loads(r2.stdout)
     assert d2["backend"] == "processes" and d2["loops"] == d["loops"]
     assert d["right"] is None or d["right"] <= d["n_accepted"]
+
+
+@pytest.mark.realdata
+def test_a_log_added_by_name_and_by_path_is_one_log(tmp_path, log_path):
+    """``places add db intel`` and ``places add db <intel's path>`` name the places alike,
+    so the second run skips them all (it used to add a second set)."""
+    path = log_path("intel")
+    db = tmp_path / "p.db"
+    r = invoke("places", "add", db, "intel", "--every", "300", "--json")
+    assert r.exit_code == 0, r.output
+    first = json.loads(r.stdout)
+    assert first["source"] == "intel" and first["added"] == 4
+    r = invoke("places", "add", db, path, "--every", "300", "--json")
+    d = json.loads(r.stdout)
+    assert d["source"] == "intel" and d["added"] == 0 and d["skipped"] == 4
+    assert d["total"] == 4

@@ -47,6 +47,7 @@ __all__ = [
     "data_dir_candidates",
     "dataset_path",
     "resolve_log",
+    "registered_name",
     "load_log",
     "clear_cache",
     "relations_path",
@@ -293,6 +294,30 @@ def resolve_log(path_or_name: str | os.PathLike) -> Path:
         f"{os.fspath(path_or_name)!r} is neither an existing file nor a registered data set "
         f"({', '.join(sorted(DATASETS))})"
     )
+
+
+def registered_name(path_or_name: str | os.PathLike) -> str | None:
+    """The registered name of a log given by name (an alias gives its canonical name) or by
+    the path of a registered data set's file, else None.
+
+    So that a log added to a place database once by name and once by path is one log:
+
+    >>> registered_name("intel-lab"), registered_name("no-such-log.txt")
+    ('intel', None)
+    """
+    if isinstance(path_or_name, str):
+        key = _canonical(path_or_name)
+        if key is not None and not Path(path_or_name).is_file():
+            return key
+    p = Path(path_or_name).expanduser()
+    if not p.is_file():
+        return None
+    for key, ds in DATASETS.items():
+        for base in data_dir_candidates():
+            f = base / ds.relpath
+            if f.is_file() and os.path.samefile(f, p):
+                return key
+    return None
 
 
 @functools.lru_cache(maxsize=8)

@@ -47,7 +47,9 @@ def _scans(source) -> tuple[list[Scan], str]:
         scans = list(datasets.load_log(source))
         if not scans:
             raise ScanCliqueError(f"{s}: the log holds no laser scans")
-        return scans, os.path.basename(s) if os.sep in s else s
+        # a registered log is one log whether it is named or given by its path
+        label = datasets.registered_name(source) or (os.path.basename(s) if os.sep in s else s)
+        return scans, label
     return list(source), "scans"
 
 
@@ -104,8 +106,9 @@ def run_add(
     progress: Callable[[int, int], None] | None = None,
 ) -> AddRun:
     """Add every ``every``-th scan of ``source`` (``start`` to ``stop``) to the database
-    at ``path`` as places named ``"<log>:<index>"``; scans whose name is already there
-    are skipped (so a run can be repeated or resumed)."""
+    at ``path`` as places named ``"<log>:<index>"`` (``<log>`` the registered name of a
+    registered log, given by name or by path, else the file's name); scans whose name is
+    already there are skipped (so a run can be repeated or resumed)."""
     scans, label = _scans(source)
     idx = list(range(start, len(scans) if stop is None else min(stop, len(scans)), max(1, every)))
     t0 = time.perf_counter()
