@@ -62,10 +62,10 @@ laser, mounted 0.04 m behind it: the log's FLASER line carries both poses, and t
 constant offset (``x_laser^-1 x_robot = (0.04, 0, 0)`` on every line) is the mounting the
 metric is computed with. Both figures (with and without it) are in the JSON.
 
-Results: ``benchmarks/results/mapping-2026-12-02-s10.json`` and ``.md`` (the previous
-sessions' are ``mapping-2026-12-02-s9.*``, ``-s8.*``, ``mapping-2026-12-01-s7.*``, ``-s6.*``
-and ``mapping-2026-12-01.*``). Wall times include reading the log; numba kernels are warmed up
-on a simulated drive first.
+Results: ``benchmarks/results/mapping-2026-12-03-s11.json`` and ``.md`` (the previous
+sessions' are ``mapping-2026-12-02-s10.*``, ``-s9.*``, ``-s8.*``,
+``mapping-2026-12-01-s7.*``, ``-s6.*`` and ``mapping-2026-12-01.*``). Wall times include
+reading the log; numba kernels are warmed up on a simulated drive first.
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ from scanclique.eval import (  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
 from scanclique.mapping import MapConfig, map_scans  # noqa: E402
 
-DATE = "2026-12-02"
+DATE = "2026-12-03"
 ROWS = ("odometry", "chain", "full", "full-no-sigma-gate", "full-2-workers", "no-odometry", "paper")
 LOGS = ("fr079-raw", "intel-raw")
 
@@ -694,7 +694,7 @@ def main(argv=None) -> int:
     stem = (
         Path(args.out)
         if args.out
-        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s10"
+        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s11"
     )
     git_at_start = git_state()
     warm = _warm_up()
