@@ -43,3 +43,18 @@ def data_dir() -> Path:
 def log_path():
     """``require_log`` as a fixture: ``log_path("intel")`` -> Path, or the test is skipped."""
     return require_log
+
+
+@pytest.fixture(scope="session")
+def drive_log(tmp_path_factory) -> Path:
+    """A short simulated drive written as a scan text log (12 scans 0.2 m apart)."""
+    import numpy as np
+
+    import scanclique as sc
+    from scanclique.io import write_scans_text
+
+    rng = np.random.default_rng(21)
+    scans = sc.sim.simulate_trajectory(rng, sc.sim.office_world(rng), 12, step=0.2)
+    path = tmp_path_factory.mktemp("log") / "drive.txt"
+    write_scans_text(path, scans)
+    return path

@@ -502,3 +502,108 @@ def test_old_names_still_resolve_from_cli():
         assert getattr(cli, name) is getattr(tools, name)
     with pytest.raises(AttributeError):
         cli.no_such_name  # noqa: B018
+
+
+# ---------------------------------------------------------------------------------------
+# configurations of map and slam: --config, --save-config, scanclique config --for
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("which", ["map", "slam"])
+def test_config_for_map_and_slam_round_trips(which, tmp_path):
+    from scanclique.mapping import MapConfig
+    from scanclique.slam import SlamConfig
+
+    cls = MapConfig if which == "map" else SlamConfig
+    r = invoke("config", "--for", which)
+    assert r.exit_code == 0, r.output
+    assert f"({cls.__name__})" in r.stdout.splitlines()[0]
+    assert loads_config(r.stdout, cls=cls) == cls()
+    r = invoke("config", "--for", which, "-o", tmp_path / "c.toml")
+    assert read_config(tmp_path / "c.toml", cls=cls) == cls()
+
+
+def test_config_flags_that_exclude_each_other():
+    assert_clean_error(invoke("config", "--default", "--paper"), "--paper and --default")
+    assert_clean_error(invoke("config", "--for", "slam", "--paper"), "--paper", "--for slam")
+    assert_clean_error(invoke("config", "--for", "places"), "--for must be one of")
+
+
+@pytest.fixture(scope="module")
+def drive(drive_log):
+    return drive_log
+
+
+def test_map_config_and_save_config(drive, tmp_path):
+    from scanclique.mapping import MapConfig
+
+    cfg_file = tmp_path / "map.toml"
+    cfg_file.write_text("[loops]\nenabled = false\n\n[occupancy]\nresolution = 0.1\n")
+    out, used = tmp_path / "run", tmp_path / "used.toml"
+    r = invoke("map", drive, "--out", out, "-c", cfg_file, "--save-config", used, "--json")
+    assert r.exit_code == 0, r.output
+    saved = read_config(used, cls=MapConfig)
+    assert not saved.loops.enabled and saved.occupancy.resolution == 0.1
+    assert saved.front_end == MapConfig().front_end
+    report = json.loads((out / "report.json").read_text())
+    assert report["config"]["loops"]["enabled"] is False
+    assert "resolution: 0.1" in (out / "map.yaml").read_text()
+
+
+def test_map_bad_config_is_refused_before_the_run(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[loops]\nradius_per_km = 1\n")
+    # the log does not exist: the configuration is read first
+    r = invoke("map", tmp_path / "nope.log", "--out", tmp_path / "o", "-c", bad)
+    assert_clean_error(r, "bad.toml", "loops.radius_per_km")
+    r = invoke("map", tmp_path / "nope.log", "--out", tmp_path / "o", "--save-config", tmp_path)
+    assert_clean_error(r, "is a directory")
+
+
+def test_map_removes_its_own_stale_figure_only(drive, tmp_path):
+    out = tmp_path / "run"
+    r = invoke("map", drive, "--out", out, "--plot")
+    assert r.exit_code == 0, r.output
+    assert (out / "map.png").read_bytes()[:8] == PNG_MAGIC
+    r = invoke("map", drive, "--out", out)  # no --plot: the old figure would mislead
+    assert r.exit_code == 0, r.output
+    assert not (out / "map.png").exists()
+    assert "removed" in r.stderr and "map.png" in r.stderr
+    assert json.loads((out / "report.json").read_text())["removed"] == [str(out / "map.png")]
+    # a map.png that no run of scanclique listed stays
+    (out / "map.png").write_bytes(b"mine")
+    r = invoke("map", drive, "--out", out)
+    assert r.exit_code == 0, r.output
+    assert (out / "map.png").read_bytes() == b"mine"
+
+
+def test_workers_has_both_short_forms(tmp_path):
+    # accepted as options: the error is then the log's
+    for flag in ("-w", "-j"):
+        r = invoke("map", tmp_path / "nope.log", "--out", tmp_path / "o", flag, "1")
+        assert_clean_error(r, "nope.log")
+        r = invoke("loops", tmp_path / "nope.log", flag, "1")
+        assert_clean_error(r, "nope.log")
+
+
+@pytest.mark.realdata
+def test_slam_config_and_save_config(tmp_path, data_dir):
+    """A short stretch of Victoria Park (its first rows) run with a configuration file."""
+    from scanclique.slam import SlamConfig
+
+    src = data_dir / "victoria-park"
+    if not (src / "measurements.dat").is_file():
+        pytest.skip(f"Victoria Park not found in {data_dir}")
+    vp = tmp_path / "vp"
+    vp.mkdir()
+    for name, rows in (("measurements.dat", 1500), ("inputs.dat", 2000), ("gps.dat", 200)):
+        lines = (src / name).read_text().splitlines(keepends=True)[:rows]
+        (vp / name).write_text("".join(lines))
+    cfg_file = tmp_path / "slam.toml"
+    cfg_file.write_text('max_range = 20.0\n\n[association]\nattribute_sigma = "none"\n')
+    used, out = tmp_path / "used.toml", tmp_path / "out"
+    r = invoke("slam", vp, "-a", "nn", "--out", out, "-c", cfg_file, "--save-config", used)
+    assert r.exit_code == 0, r.output
+    saved = read_config(used, cls=SlamConfig)
+    assert saved.max_range == 20.0 and saved.association.attribute_sigma is None
+    assert saved.sigma_range == SlamConfig().sigma_range
+    report = json.loads((out / "report.json").read_text())
+    assert report["config"]["max_range"] == 20.0

@@ -141,3 +141,40 @@ def test_toml_dumps_special_floats_and_keys():
 def test_toml_dumps_round_trips_scalars(key, value):
     data = {"section": {key: value}}
     assert tomllib.loads(toml_dumps(data)) == data
+
+
+def test_map_and_slam_configs_round_trip_with_tuples_and_none(tmp_path):
+    from scanclique.mapping import MapConfig
+    from scanclique.slam import SlamConfig
+
+    room = SlamConfig.for_sensor(0.15, math.radians(3.0), 5.0, math.radians(60.0))
+    assert room.association.attribute_sigma is None  # no diameter gate for this sensor
+    for cfg in (
+        MapConfig(),
+        SlamConfig(),
+        room,
+        dataclasses.replace(room, control_bias_sigma=0.01),
+    ):
+        text = dumps_config(cfg)
+        assert loads_config(text, cls=type(cfg)) == cfg
+        write_config(tmp_path / "c.toml", cfg)
+        assert read_config(tmp_path / "c.toml", base=type(cfg)()) == cfg
+    # MapConfig's odometry noise comes from a factory (scaled): a file changing one of its
+    # keys keeps the others of the factory's default, not of OdometryNoise()
+    cfg = loads_config("[front_end.odometry_noise]\nper_metre = 0.5", base=MapConfig())
+    want = MapConfig().front_end.odometry_noise
+    assert cfg.front_end.odometry_noise == dataclasses.replace(want, per_metre=0.5)
+
+
+def test_tuple_and_optional_fields_are_checked():
+    from scanclique.slam import SlamConfig
+
+    with pytest.raises(ConfigError, match="'initial_sigma' expects an array of 3 numbers"):
+        loads_config("initial_sigma = [0.1, 0.1]", cls=SlamConfig)
+    with pytest.raises(ConfigError, match="'init_range' expects an array of 2 numbers"):
+        loads_config('init_range = [0.0, "far"]', cls=SlamConfig)
+    with pytest.raises(ConfigError, match="'sigma_range' expects a number"):
+        loads_config('sigma_range = "none"', cls=SlamConfig)  # not an optional field
+    assert loads_config("control_bias_sigma = 0.02", cls=SlamConfig).control_bias_sigma == 0.02
+    with pytest.raises(ConfigError, match="base is a SlamConfig, not a MatchConfig"):
+        loads_config("", base=SlamConfig(), cls=MatchConfig)

@@ -5,13 +5,10 @@ from __future__ import annotations
 import json
 import sqlite3
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import scanclique as sc
 from scanclique import cli
-from scanclique.io import write_scans_text
 
 runner = CliRunner()
 
@@ -21,13 +18,9 @@ def invoke(*args):
 
 
 @pytest.fixture(scope="module")
-def log(tmp_path_factory):
-    """A short simulated drive written as a scan text log (12 scans)."""
-    rng = np.random.default_rng(21)
-    scans = sc.sim.simulate_trajectory(rng, sc.sim.office_world(rng), 12, step=0.2)
-    path = tmp_path_factory.mktemp("log") / "drive.txt"
-    write_scans_text(path, scans)
-    return path
+def log(drive_log):
+    """A short simulated drive written as a scan text log (conftest's ``drive_log``)."""
+    return drive_log
 
 
 def test_add_query_info(tmp_path, log):

@@ -545,13 +545,10 @@ def config_from_dict(data: dict, cls=MatchConfig):
     for key, value in data.items():
         if key not in known:
             raise ConfigError(f"{cls.__name__}: unknown key {key!r} (known: {', '.join(known)})")
-        sub = (
-            known[key].default_factory
-            if known[key].default_factory is not dataclasses.MISSING
-            else None
-        )
-        if sub is not None and dataclasses.is_dataclass(sub):
-            kwargs[key] = config_from_dict(value, sub)
+        f = known[key]
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else None
+        if dataclasses.is_dataclass(default):  # a nested record (its factory may be a lambda)
+            kwargs[key] = config_from_dict(value, type(default))
         else:
             kwargs[key] = value
     try:

@@ -188,6 +188,23 @@ def _save_config(cfg: Any, path: Path, comment: str) -> None:
     _note(f"configuration written to {path}")
 
 
+def _read_app_config(path: Path | None, default: Any) -> Any:
+    """The configuration of a ``map`` / ``slam`` run: ``default`` (a ``MapConfig()`` or
+    ``SlamConfig()``) with the keys of the TOML file ``path`` on top; ``default`` itself
+    without a file. A bad file is one ``error:`` line naming it and the key."""
+    if path is None:
+        return default
+    from ..io.config import read_config
+
+    return _guard(lambda: read_config(path, base=default))
+
+
+SaveConfigOpt = Annotated[
+    Path | None,
+    typer.Option("--save-config", help="Write the configuration used (TOML).", dir_okay=False),
+]
+
+
 def _invocation() -> str:
     return "scanclique " + " ".join(sys.argv[1:]) if sys.argv else "scanclique"
 

@@ -7,18 +7,26 @@ from typing import Annotated
 
 import typer
 
-from . import (
-    _save_config,
-)
+from . import _fail, _save_config
+
+FOR = ("match", "map", "slam")
 
 
 def config_cmd(
     paper: Annotated[
-        bool,
-        typer.Option(
-            "--paper/--default", help="The paper's configuration, or this library's defaults."
-        ),
+        bool, typer.Option("--paper", help="The paper's configuration (match only).")
     ] = False,
+    default: Annotated[
+        bool, typer.Option("--default", help="This library's defaults (the default).")
+    ] = False,
+    for_: Annotated[
+        str,
+        typer.Option(
+            "--for",
+            help="Whose configuration: match (MatchConfig), map (MapConfig, the mapper's: "
+            "its [match] table is the matcher's) or slam (SlamConfig).",
+        ),
+    ] = "match",
     output: Annotated[
         Path | None, typer.Option("--output", "-o", help="Write to this file instead of stdout.")
     ] = None,
@@ -31,13 +39,34 @@ def config_cmd(
     scanclique config --default > my.toml
     scanclique config --paper > paper.toml
     scanclique match intel 120 125 --config my.toml
+    scanclique config --for map > map.toml
+    scanclique map intel --out runs/intel --config map.toml
+    scanclique config --for slam -o slam.toml
     ```
     """
-    from ..config import MatchConfig, paper_config
+    if paper and default:
+        raise _fail("--paper and --default exclude each other: give one")
+    if for_ not in FOR:
+        raise _fail(f"--for must be one of {', '.join(FOR)}, got {for_!r}")
+    if paper and for_ != "match":
+        raise _fail(f"--paper is the matcher's configuration: use it without --for {for_}")
     from ..io.config import dumps_config
 
-    cfg = paper_config() if paper else MatchConfig()
-    comment = "the paper's configuration (paper_config())" if paper else "defaults (MatchConfig())"
+    if for_ == "map":
+        from ..mapping import MapConfig
+
+        cfg, comment = MapConfig(), "defaults (MapConfig())"
+    elif for_ == "slam":
+        from ..slam import SlamConfig
+
+        cfg, comment = SlamConfig(), "defaults (SlamConfig(): Victoria Park's)"
+    else:
+        from ..config import MatchConfig, paper_config
+
+        cfg = paper_config() if paper else MatchConfig()
+        comment = (
+            "the paper's configuration (paper_config())" if paper else "defaults (MatchConfig())"
+        )
     if output is not None:
         _save_config(cfg, output, comment)
     else:

@@ -11,7 +11,22 @@ from typing import Annotated
 
 import typer
 
-from . import JsonOpt, _check_out_dir, _console, _err_console, _guard, _print_json, _table
+from . import (
+    ConfigOpt,
+    JsonOpt,
+    SaveConfigOpt,
+    _check_out_dir,
+    _check_out_file,
+    _console,
+    _err_console,
+    _guard,
+    _invocation,
+    _note,
+    _print_json,
+    _read_app_config,
+    _save_config,
+    _table,
+)
 
 
 def map_cmd(
@@ -43,11 +58,14 @@ def map_cmd(
         typer.Option(
             "--workers",
             "-w",
+            "-j",
             min=1,
             help="N processes at work, one per core: loop candidates are verified on N-1 "
             "forked processes beside this one (the map is the same as with 1).",
         ),
     ] = 1,
+    config: ConfigOpt = None,
+    save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Map a log: trajectory.tum, graph.g2o, map.pgm + map.yaml (ROS map_server),
@@ -60,9 +78,16 @@ def map_cmd(
     scanclique map intel-raw --out runs/intel --no-odometry
     scanclique map my.bag --topic /scan --out runs/mine --plot
     scanclique map fr079-raw --out runs/fr079 --workers 2
+    scanclique config --for map > map.toml      # every key of MapConfig, to edit
+    scanclique map intel --out runs/intel -c map.toml --save-config runs/used.toml
     ```
     """
+    from ..mapping import MapConfig
+
     _check_out_dir(out)  # before the run, not after it
+    if save_config is not None:
+        _check_out_file(save_config)
+    cfg = _read_app_config(config, MapConfig())
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from ..mapping.run import run_map
@@ -97,8 +122,13 @@ def map_cmd(
                 plot=plot,
                 progress=tick,
                 workers=workers,
+                config=cfg,
             )
         )
+    for f in run.removed:
+        _note(f"removed {f}: an earlier run's figure (this run drew none; --plot draws one)")
+    if save_config is not None:
+        _save_config(cfg, save_config, f"used by: {_invocation()}")
     if json_out:
         _print_json(
             {

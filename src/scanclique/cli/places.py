@@ -209,7 +209,10 @@ def info(
 def loops(
     source: SourceArg,
     workers: Annotated[
-        int, typer.Option("--workers", "-j", min=0, help="Local worker processes (0: one per CPU).")
+        int,
+        typer.Option(
+            "--workers", "-j", "-w", min=0, help="Local worker processes (0: one per CPU)."
+        ),
     ] = 1,
     scheduler: Annotated[
         str | None,

@@ -9,13 +9,19 @@ from typing import Annotated
 import typer
 
 from . import (
+    ConfigOpt,
     JsonOpt,
+    SaveConfigOpt,
     _check_out_dir,
+    _check_out_file,
     _console,
     _err_console,
     _fail,
     _guard,
+    _invocation,
     _print_json,
+    _read_app_config,
+    _save_config,
     _table,
 )
 
@@ -48,6 +54,8 @@ def slam(
             "its metrics are added as 'smoothed ...' beside the filter's.",
         ),
     ] = False,
+    config: ConfigOpt = None,
+    save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """EKF-SLAM of tree landmarks, each scan associated with the map as a whole.
@@ -64,6 +72,8 @@ def slam(
     scanclique slam victoria-park --association jcbb --json
     scanclique slam /data/victoria-park -a nn --clutter 5
     scanclique slam victoria-park -a clique --smooth
+    scanclique config --for slam > slam.toml     # every key of SlamConfig, to edit
+    scanclique slam victoria-park -c slam.toml --save-config used.toml
     ```
     """
     if association not in METHODS:
@@ -72,12 +82,19 @@ def slam(
         raise _fail("--plot writes map.png into --out: give --out DIR")
     if out is not None:
         _check_out_dir(out)  # before the run, not after it
+    if save_config is not None:
+        _check_out_file(save_config)
+    from ..slam import SlamConfig
     from ..slam.run import run_slam
+
+    cfg = _read_app_config(config, SlamConfig())
 
     show = not json_out and sys.stderr.isatty()
 
     def work():
-        kw = dict(association=association, out=out, clutter=clutter, seed=seed, plot=plot)
+        kw = dict(
+            association=association, out=out, clutter=clutter, seed=seed, plot=plot, config=cfg
+        )
         if not show:
             return run_slam(data, smooth=smooth, **kw)
         from rich.progress import Progress
@@ -91,6 +108,8 @@ def slam(
             return run_slam(data, smooth=smooth, progress=progress, **kw)
 
     run = _guard(work)
+    if save_config is not None:
+        _save_config(cfg, save_config, f"used by: {_invocation()}")
     if json_out:
         _print_json(run.to_dict())
         return

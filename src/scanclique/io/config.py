@@ -1,4 +1,9 @@
-"""TOML files of :class:`~scanclique.config.MatchConfig`: read, write, round trip.
+"""TOML files of configurations: read, write, round trip.
+
+The matcher's :class:`~scanclique.config.MatchConfig` by default; the same functions take
+any configuration record built the same way (frozen dataclasses of scalars, tuples and
+nested records): the mapper's :class:`~scanclique.mapping.MapConfig` and the filter's
+:class:`~scanclique.slam.SlamConfig` (``base=MapConfig()``, ``cls=SlamConfig``).
 
 A configuration file has one table per pipeline stage, each key a field of that stage's
 dataclass (see :mod:`scanclique.config`); keys left out keep their defaults::
@@ -14,8 +19,10 @@ Reading is strict: an unknown table or key, or a value of the wrong type, raises
 :class:`~scanclique.errors.ConfigError` naming the file and the dotted key
 (``"run.toml: unknown key 'features.foo' (known in [features]: ...)"``), and so does a
 file that is not valid TOML (with the parser's line and column). Writing uses a small
-emitter of the nested dict (TOML has no null; floats are written with ``repr``, so
-reading back gives the same values bit for bit).
+emitter of the nested dict (floats are written with ``repr``, so reading back gives the
+same values bit for bit; tuples are arrays; TOML has no null, so a field that is ``None``
+is written as the string ``"none"``, which is read back as ``None`` only where the field
+may be ``None``).
 
 Examples
 --------
@@ -47,7 +54,14 @@ else:  # pragma: no cover - Python 3.10
 __all__ = ["read_config", "write_config", "loads_config", "dumps_config", "toml_dumps"]
 
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
-_HEADER = "# scanclique configuration (MatchConfig): one table per pipeline stage.\n"
+_HEADER = "# scanclique configuration ({}): one table per stage.\n"
+NONE = "none"
+"""How a field that is ``None`` is written (TOML has no null)."""
+
+
+def _is_config(obj) -> bool:
+    """A configuration record (an instance of a dataclass, not the class)."""
+    return dataclasses.is_dataclass(obj) and not isinstance(obj, type)
 
 
 # ---------------------------------------------------------------------------------------
@@ -85,6 +99,15 @@ def _check_tree(data: dict, cls, source: str, prefix: str = "") -> dict:
             continue
         if isinstance(value, dict):
             raise ConfigError(f"{source}: {dotted!r} expects {_type_name(default)}, got a table")
+        optional = "None" in str(f.type)
+        if optional and value == NONE:
+            out[key] = None
+            continue
+        if default is None:  # an optional field off by default: its type from the annotation
+            default = _default_of_type(str(f.type))
+        if isinstance(default, tuple):
+            out[key] = _tuple(value, default, source, dotted)
+            continue
         if isinstance(default, bool):
             ok = isinstance(value, bool)
         elif isinstance(default, int):
@@ -110,6 +133,25 @@ def _check_tree(data: dict, cls, source: str, prefix: str = "") -> dict:
     return out
 
 
+def _default_of_type(annotation: str):
+    """A stand-in default of an optional field's type (``"float | None"`` -> 0.0)."""
+    for name, value in (("tuple", ()), ("float", 0.0), ("int", 0), ("bool", False), ("str", "")):
+        if name in annotation:
+            return value
+    return None
+
+
+def _tuple(value, default: tuple, source: str, dotted: str) -> tuple:
+    """``value`` (a TOML array) as a tuple of numbers, as long as ``default`` when it is."""
+    n = len(default)
+    what = f"an array of {n} numbers" if n else "an array of numbers"
+    if not isinstance(value, list) or (n and len(value) != n):
+        raise ConfigError(f"{source}: {dotted!r} expects {what}, got {_type_name(value)} {value!r}")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ConfigError(f"{source}: {dotted!r} expects {what}, got {value!r}")
+    return tuple(float(v) for v in value)
+
+
 def _merge(base: dict, over: dict) -> dict:
     out = dict(base)
     for k, v in over.items():
@@ -117,23 +159,31 @@ def _merge(base: dict, over: dict) -> dict:
     return out
 
 
-def _from_dict(data: dict, source: str, base: MatchConfig | None) -> MatchConfig:
-    checked = _check_tree(data, MatchConfig, source)
-    if base is not None:
-        checked = _merge(config_to_dict(base), checked)
+def _from_dict(data: dict, source: str, base, cls):
+    if cls is None:
+        cls = type(base) if base is not None else MatchConfig
+    if base is None:
+        base = cls()
+    elif not isinstance(base, cls):
+        raise ConfigError(f"{source}: base is a {type(base).__name__}, not a {cls.__name__}")
+    checked = _check_tree(data, cls, source)
     try:
-        return config_from_dict(checked)
+        return config_from_dict(_merge(config_to_dict(base), checked), cls)
     except ConfigError as exc:
         raise ConfigError(f"{source}: {exc}") from None
 
 
-def loads_config(
-    text: str, source: str = "<string>", base: MatchConfig | None = None
-) -> MatchConfig:
-    """A :class:`MatchConfig` from TOML text; ``source`` names it in error messages.
+def loads_config(text: str, source: str = "<string>", base=None, cls=None):
+    """A configuration from TOML text; ``source`` names it in error messages.
 
-    Keys left out take their values from ``base`` (default: ``MatchConfig()``), e.g.
-    ``base=paper_config()`` for a file of changes to the paper's configuration.
+    Keys left out take their values from ``base`` (default: ``cls()``), e.g.
+    ``base=paper_config()`` for a file of changes to the paper's configuration. ``cls``
+    is the configuration's class (default: ``base``'s, else :class:`MatchConfig`).
+
+    >>> from scanclique.mapping import MapConfig
+    >>> cfg = loads_config("[loops]\\nenabled = false", base=MapConfig())
+    >>> cfg.loops.enabled, cfg.front_end == MapConfig().front_end
+    (False, True)
 
     Raises
     ------
@@ -144,7 +194,7 @@ def loads_config(
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: not valid TOML: {exc}") from None
-    return _from_dict(data, source, base)
+    return _from_dict(data, source, base, cls)
 
 
 MAX_CONFIG_BYTES = 1024 * 1024
@@ -153,9 +203,9 @@ MAX_CONFIG_BYTES = 1024 * 1024
 _INT64 = (-(2**63), 2**63 - 1)
 
 
-def read_config(path: str | os.PathLike, base: MatchConfig | None = None) -> MatchConfig:
-    """Read a :class:`MatchConfig` from a TOML file; keys left out take their values from
-    ``base`` (default: ``MatchConfig()``).
+def read_config(path: str | os.PathLike, base=None, cls=None):
+    """Read a configuration from a TOML file; keys left out take their values from ``base``
+    (default: ``cls()``; ``cls`` default: ``base``'s class, else :class:`MatchConfig`).
 
     Raises
     ------
@@ -187,7 +237,7 @@ def read_config(path: str | os.PathLike, base: MatchConfig | None = None) -> Mat
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start})") from None
-    return loads_config(text, source, base)
+    return loads_config(text, source, base, cls)
 
 
 # ---------------------------------------------------------------------------------------
@@ -265,16 +315,27 @@ def toml_dumps(data: dict, header: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def dumps_config(config: MatchConfig | None = None, comment: str | None = None) -> str:
-    """TOML text of a configuration (default: ``MatchConfig()``), every field written.
+def dumps_config(config=None, comment: str | None = None) -> str:
+    """TOML text of a configuration (default: ``MatchConfig()``; any configuration record,
+    e.g. a ``MapConfig`` or ``SlamConfig``), every field written.
 
     ``comment`` (one or more lines) is added to the header as ``#`` comments.
     """
+    from ..errors import ArgumentError
+
     cfg = config if config is not None else MatchConfig()
-    header = _HEADER
+    if not _is_config(cfg):
+        raise ArgumentError(f"config must be a configuration record, got {type(cfg).__name__}")
+    header = _HEADER.format(type(cfg).__name__)
     if comment:
         header += "".join(f"# {line}\n" for line in comment.splitlines())
-    return toml_dumps(config_to_dict(cfg), header=header.rstrip("\n"))
+    return toml_dumps(_none_as_string(config_to_dict(cfg)), header=header.rstrip("\n"))
+
+
+def _none_as_string(d: dict) -> dict:
+    """``d`` with every ``None`` replaced by :data:`NONE` (TOML has no null)."""
+    return {k: _none_as_string(v) if isinstance(v, dict) else NONE if v is None else v
+            for k, v in d.items()}  # fmt: skip
 
 
 def write_config(path, config, comment: str | None = None) -> Path:
@@ -289,7 +350,7 @@ def write_config(path, config, comment: str | None = None) -> Path:
     ----------
     path : str or path-like
         The file, overwritten.
-    config : MatchConfig
+    config : MatchConfig, MapConfig, SlamConfig or another configuration record
     comment : str, optional
         Written as ``#`` lines at the top.
 
@@ -298,11 +359,11 @@ def write_config(path, config, comment: str | None = None) -> Path:
     ConfigError
         If the file cannot be written.
     ArgumentError
-        ``config`` is not a :class:`MatchConfig` or ``path`` not a path.
+        ``config`` is not a configuration record or ``path`` not a path.
     """
     from ..errors import ArgumentError
 
-    if isinstance(path, MatchConfig) and isinstance(config, (str, os.PathLike)):
+    if _is_config(path) and isinstance(config, (str, os.PathLike)):
         import warnings
 
         warnings.warn(
@@ -312,8 +373,11 @@ def write_config(path, config, comment: str | None = None) -> Path:
             stacklevel=2,
         )
         path, config = config, path
-    if not isinstance(config, MatchConfig):
-        raise ArgumentError(f"config must be a MatchConfig, got {type(config).__name__}")
+    if not _is_config(config):
+        raise ArgumentError(
+            f"config must be a configuration record (MatchConfig, MapConfig, SlamConfig), "
+            f"got {type(config).__name__}"
+        )
     if not isinstance(path, (str, os.PathLike)):
         raise ArgumentError(f"path must be a file path, got {path!r}")
     p = Path(path)

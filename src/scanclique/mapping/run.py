@@ -5,6 +5,7 @@ A plain function a script calls the same way as the command does.
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
@@ -75,6 +76,9 @@ class MapRun:
     files: dict
     metrics: dict | None
     seconds: dict = field(default_factory=dict)
+    removed: tuple = ()
+    """Files of an earlier run in ``out`` that this one removed (a ``map.png`` of an
+    earlier ``plot=True`` run, when this one draws none: it would show another map)."""
 
     def rows(self) -> list[tuple[str, str, str]]:
         """Metric / Value / Units rows for the command's table."""
@@ -157,9 +161,13 @@ def run_map(
     outputs.write_map(outdir / "map.pgm", outdir / "map.yaml", grid)
     files["map"] = outdir / "map.pgm"
     files["map_yaml"] = outdir / "map.yaml"
+    removed = ()
     if plot:
         outputs.write_png(outdir / "map.png", grid, result.poses, result.accepted_closures, label)
         files["image"] = outdir / "map.png"
+    elif _written_by_earlier_run(outdir, "map.png"):
+        (outdir / "map.png").unlink()
+        removed = (str(outdir / "map.png"),)
     t_out = time.perf_counter() - t
     from ..eval import frame_mounting  # noqa: PLC0415
 
@@ -180,7 +188,20 @@ def run_map(
         "unplaced_or_flagged": {str(k): v for k, v in result.reasons.items()},
         "loop_closures": [c.to_dict() for c in result.loop_closures if not c.local],
         "files": {k: str(v) for k, v in files.items()},
+        "removed": list(removed),
     }
     outputs.write_report(outdir / "report.json", report)
     files["report"] = outdir / "report.json"
-    return MapRun(label, result, {k: str(v) for k, v in files.items()}, metrics, seconds)
+    return MapRun(label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed)
+
+
+def _written_by_earlier_run(outdir: Path, name: str) -> bool:
+    """Whether ``outdir/name`` is a file that the ``report.json`` beside it lists among the
+    files an earlier :func:`run_map` wrote (nothing else there is ever removed)."""
+    if not (outdir / name).is_file():
+        return False
+    try:
+        files = json.loads((outdir / "report.json").read_text(encoding="utf-8"))["files"]
+        return any(Path(str(v)).name == name for v in files.values())
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
