@@ -607,3 +607,15 @@ def test_slam_config_and_save_config(tmp_path, data_dir):
     assert saved.sigma_range == SlamConfig().sigma_range
     report = json.loads((out / "report.json").read_text())
     assert report["config"]["max_range"] == 20.0
+
+
+@pytest.mark.realdata
+def test_clique_finds_a_shared_graph_by_its_bare_name(data_dir, tmp_path, monkeypatch):
+    if not (data_dir / "dimacs" / "hamming6-2.clq").is_file():
+        pytest.skip(f"the DIMACS graphs are not in {data_dir}")
+    monkeypatch.chdir(tmp_path)  # not the dimacs directory: the help's example works anyway
+    r = invoke("clique", "hamming6-2.clq", "--json")
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["omega"] == 32
+    assert_clean_error(invoke("clique", "no-such-graph.clq"), "no-such-graph.clq")
+    assert_clean_error(invoke("clique", tmp_path / "hamming6-2.clq"), "hamming6-2.clq")

@@ -17,7 +17,13 @@ from . import (
 
 
 def clique(
-    file: Annotated[Path, typer.Argument(help="A DIMACS .clq graph (p edge N M; e u v).")],
+    file: Annotated[
+        Path,
+        typer.Argument(
+            help="A DIMACS .clq graph (p edge N M; e u v); a bare name not found here is "
+            "looked up among the shared data's DIMACS graphs."
+        ),
+    ],
     all_: Annotated[
         bool, typer.Option("--all", help="Also enumerate every maximum clique (up to 1000).")
     ] = False,
@@ -63,6 +69,8 @@ def clique(
     from ..clique import solve_file
     from ..errors import GraphError
 
+    file = _shared_graph(file)
+
     def solve():
         try:
             return solve_file(
@@ -103,6 +111,21 @@ def clique(
             ),
         )
     _console().print(_table(rows, f"maximum clique of {file}", ("Metric", "Value", "Units")))
+
+
+def _shared_graph(file: Path) -> Path:
+    """``file``, or the shared data's DIMACS graph of that name when ``file`` is a bare
+    name that does not exist here (``scanclique clique brock200_2.clq`` from anywhere)."""
+    if file.exists() or file.parent != Path("."):
+        return file
+    from ..datasets import dimacs_dir
+    from ..errors import DataNotFoundError
+
+    try:
+        shared = dimacs_dir() / file.name
+    except DataNotFoundError:
+        return file
+    return shared if shared.is_file() else file
 
 
 def register(app: typer.Typer) -> None:
