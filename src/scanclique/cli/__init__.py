@@ -199,6 +199,16 @@ def _read_app_config(path: Path | None, default: Any) -> Any:
     return _guard(lambda: read_config(path, base=default))
 
 
+AppConfigOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        "-c",
+        help="TOML configuration: its keys override the defaults ('scanclique config --for "
+        "map' or '--for slam' prints every key).",
+        dir_okay=False,
+    ),
+]
 SaveConfigOpt = Annotated[
     Path | None,
     typer.Option("--save-config", help="Write the configuration used (TOML).", dir_okay=False),

@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 
 from . import (
-    ConfigOpt,
+    AppConfigOpt,
     JsonOpt,
     SaveConfigOpt,
     _check_out_dir,
@@ -64,7 +64,7 @@ def map_cmd(
             "forked processes beside this one (the map is the same as with 1).",
         ),
     ] = 1,
-    config: ConfigOpt = None,
+    config: AppConfigOpt = None,
     save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
 ) -> None:

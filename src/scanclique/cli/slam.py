@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from . import (
-    ConfigOpt,
+    AppConfigOpt,
     JsonOpt,
     SaveConfigOpt,
     _check_out_dir,
@@ -54,7 +54,7 @@ def slam(
             "its metrics are added as 'smoothed ...' beside the filter's.",
         ),
     ] = False,
-    config: ConfigOpt = None,
+    config: AppConfigOpt = None,
     save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
