@@ -170,7 +170,9 @@ def _nees_worker(args):
     return {"method": method, "seed": seed, **_truth_record(run, r, mask)}
 
 
-#: The simulated rooms: (changes of ``room_config``, keyword arguments of ``simulate_room``).
+#: The simulated rooms: (changes of ``room_config``, keyword arguments of ``simulate_room``,
+#: and optionally the filter's configuration when it is not the room's: "default" is
+#: ``SlamConfig()``, Victoria Park's, as a caller who gives no configuration gets).
 ROOM_SETTINGS = {
     "narrow": ({}, {}),
     "wide": ({"sensor_fov": math.pi}, {}),
@@ -180,17 +182,21 @@ ROOM_SETTINGS = {
         {"tentative_update": "landmark"},
         {"clutter": 1.0},
     ),
+    "narrow, SlamConfig()": ({}, {}, "default"),
+    "wide, SlamConfig()": ({"sensor_fov": math.pi}, {}, "default"),
 }
 
 
 def _room_worker(args):
     setting, method, seed = args
-    from scanclique.slam import Unicycle, ekf_slam
+    from scanclique.slam import SlamConfig, Unicycle, ekf_slam
     from scanclique.slam.sim import room_config, simulate_room
 
-    cfg_kw, sim_kw = ROOM_SETTINGS[setting]
+    cfg_kw, sim_kw, *filt = ROOM_SETTINGS[setting]
     cfg = room_config(**cfg_kw)
     run = simulate_room(seed, config=cfg, **sim_kw)
+    if filt == ["default"]:
+        cfg = SlamConfig()  # the filter does not know the sensor
     r = ekf_slam(run.steps, Unicycle(), association=method, config=cfg, initial_pose=run.poses[0])
     # NEES at every frame (the steps without a control): the same count in every run
     mask = np.array([s.control is None for s in run.steps])
