@@ -72,13 +72,45 @@ def normal_pair_hists(pts, nrm, n_norm, nd, na, far):
 
 
 @njit(cache=True)
+def _key_ranges(keys, qk):
+    """``(lo, hi)``: the rows of the sorted ``keys`` equal to each of the sorted needles
+    ``qk`` (``np.searchsorted`` left and right; each needle's binary search starts at the
+    previous one's lower bound, and equal keys are walked)."""
+    nk = keys.shape[0]
+    nq = qk.shape[0]
+    lo = np.empty(nq, dtype=np.int64)
+    hi = np.empty(nq, dtype=np.int64)
+    start = 0
+    for m in range(nq):
+        x = qk[m]
+        if m > 0 and x == qk[m - 1]:
+            lo[m] = lo[m - 1]
+            hi[m] = hi[m - 1]
+            continue
+        a = start
+        b = nk
+        while a < b:
+            mid = (a + b) >> 1
+            if keys[mid] < x:
+                a = mid + 1
+            else:
+                b = mid
+        e = a
+        while e < nk and keys[e] == x:
+            e += 1
+        lo[m] = a
+        hi[m] = e
+        start = a
+    return lo, hi
+
+
+@njit(cache=True)
 def triangle_gather(keys, rows, frames, qk, qt, qf, qc, qs):
     """The votes of the sorted query keys ``qk`` (triangle ``qt`` of frame ``qf``, with
     its cosine and sine ``qc``, ``qs``) in one sorted segment of the triangle index:
     ``(place rows, (theta, x, y) of T_place_query)`` (:meth:`.hashing.TriangleIndex.votes`)."""
     nq = qk.shape[0]
-    lo = np.searchsorted(keys, qk, side="left")
-    hi = np.searchsorted(keys, qk, side="right")
+    lo, hi = _key_ranges(keys, qk)
     tot = 0
     for m in range(nq):
         tot += hi[m] - lo[m]
@@ -108,13 +140,19 @@ def triangle_gather(keys, rows, frames, qk, qt, qf, qc, qs):
 def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses):
     """Bin the votes ``(r, v)`` by place and pose (``vote_xy`` m, ``vote_theta`` rad, bins
     centred on the identity) and write each place's most votes in one bin to ``scores``
-    and that bin's mean pose (the first such bin in key order) to ``poses``."""
+    and that bin's mean pose (the first such bin in key order) to ``poses``.
+
+    The votes are grouped by place (a counting sort, stable), then each place's by bin
+    (stable): the order of a global stable sort by ``(place, bin)``, so each bin's mean
+    sums its votes in the order given. Only a bin with more votes than the place's best
+    so far has its mean computed."""
     n = r.shape[0]
     if n == 0:
         return
     two_pi = 2.0 * math.pi
     half = nxy // 2
-    vk = np.empty(n, dtype=np.int64)
+    sub = np.empty(n, dtype=np.int64)  # the pose bin of each vote, within its place
+    start = np.zeros(n_rows + 1, dtype=np.int64)
     for i in range(n):
         th = (v[i, 0] + 0.5 * vote_theta) % two_pi
         bt = min(int(th / vote_theta), nt - 1)
@@ -122,29 +160,56 @@ def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses):
         by = int(math.floor(v[i, 2] / vote_xy + 0.5)) + half
         bx = min(max(bx, 0), nxy - 1)
         by = min(max(by, 0), nxy - 1)
-        vk[i] = ((r[i] * nxy + bx) * nxy + by) * nt + bt
-    o = np.argsort(vk, kind="mergesort")
-    per_place = nxy * nxy * nt
-    i = 0
-    while i < n:
-        key = vk[o[i]]
-        j = i
-        sc = 0.0
-        ss = 0.0
-        sx = 0.0
-        sy = 0.0
-        while j < n and vk[o[j]] == key:
-            e = o[j]
-            sc += math.cos(v[e, 0])
-            ss += math.sin(v[e, 0])
-            sx += v[e, 1]
-            sy += v[e, 2]
-            j += 1
-        cnt = j - i
-        row = key // per_place
-        if cnt > scores[row]:
-            scores[row] = cnt
-            poses[row, 0] = sx / cnt
-            poses[row, 1] = sy / cnt
-            poses[row, 2] = math.atan2(ss / cnt, sc / cnt)
-        i = j
+        sub[i] = (bx * nxy + by) * nt + bt
+        start[r[i] + 1] += 1
+    for j in range(n_rows):
+        start[j + 1] += start[j]
+    fill = start[:-1].copy()
+    o = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        row = r[i]
+        o[fill[row]] = i
+        fill[row] += 1
+    for row in range(n_rows):
+        a = start[row]
+        b = start[row + 1]
+        m = b - a
+        if m == 0:
+            continue
+        if m <= 24:  # a stable insertion sort of the place's votes by bin
+            for x in range(a + 1, b):
+                e = o[x]
+                ke = sub[e]
+                y = x - 1
+                while y >= a and sub[o[y]] > ke:
+                    o[y + 1] = o[y]
+                    y -= 1
+                o[y + 1] = e
+        else:
+            seg = o[a:b].copy()
+            so = np.argsort(sub[seg], kind="mergesort")
+            for x in range(m):
+                o[a + x] = seg[so[x]]
+        i = a
+        while i < b:
+            key = sub[o[i]]
+            j = i + 1
+            while j < b and sub[o[j]] == key:
+                j += 1
+            cnt = j - i
+            if cnt > scores[row]:
+                sc = 0.0
+                ss = 0.0
+                sx = 0.0
+                sy = 0.0
+                for x in range(i, j):
+                    e = o[x]
+                    sc += math.cos(v[e, 0])
+                    ss += math.sin(v[e, 0])
+                    sx += v[e, 1]
+                    sy += v[e, 2]
+                scores[row] = cnt
+                poses[row, 0] = sx / cnt
+                poses[row, 1] = sy / cnt
+                poses[row, 2] = math.atan2(ss / cnt, sc / cnt)
+            i = j

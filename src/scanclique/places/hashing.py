@@ -87,6 +87,7 @@ VOTE_THETA = 0.25
 _NB = int(MAX_SIDE / QUANTUM) + 2  # side bins (the neighbouring bin of the last included)
 _NXY = 4096  # translation bins each way (centred), +-2 km at 1 m
 _NT = int(math.ceil(2 * math.pi / VOTE_THETA))
+_LOOKUP_BITS = (np.arange(8)[:, None] >> np.arange(3)[None, :] & 1).astype(bool)  # (8, 3)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -117,15 +118,11 @@ class Triangles:
         u = self.sides / QUANTUM
         f0 = np.floor(u).astype(np.int64)
         nb = np.where(u - f0 >= 0.5, f0 + 1, f0 - 1)
-        keys = []
-        for m in range(8):
-            q = f0.copy()
-            for d in range(3):
-                if m >> d & 1:
-                    q[:, d] = nb[:, d]
-            keys.append(_key(q, self.kinds))
-        t = np.arange(len(self.keys))
-        return np.concatenate(keys), np.tile(t, 8)
+        # lookup m takes side d from the neighbouring bin when bit d of m is set; the
+        # keys of lookup 0 for every triangle first, then of lookup 1, ...
+        q = np.where(_LOOKUP_BITS[:, None, :], nb[None], f0[None]).reshape(-1, 3)
+        keys = _key(q, np.tile(self.kinds, (8, 1)))
+        return keys, np.tile(np.arange(len(self.keys)), 8)
 
 
 def _key(q: np.ndarray, kinds: np.ndarray) -> np.ndarray:
