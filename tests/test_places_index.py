@@ -65,3 +65,28 @@ def test_loop_candidates_agree_with_reference(n, candidates, min_gap, seed):
     want = _loop_candidates_reference(S, candidates, min_gap)
     assert [g[:3] for g in got] == [w[:3] for w in want]
     np.testing.assert_allclose([g[3] for g in got], [w[3] for w in want], atol=1e-9)
+
+
+def test_member_mask_is_isin():
+    from scanclique.places.index import member_mask
+
+    rng = np.random.default_rng(3)
+    for n in (0, 1, 7, 300):
+        ids = np.unique(rng.integers(1, 1000, n)).astype(np.int64)
+        for ex in (np.zeros(0, np.int64), rng.integers(-5, 1010, 12), ids[::3], ids[-1:] + 1):
+            ex = np.asarray(ex, dtype=np.int64)
+            want = np.isin(ids, ex)
+            assert np.array_equal(member_mask(ids, ex, True), want)
+            shuffled = rng.permutation(ids)
+            assert np.array_equal(member_mask(shuffled, ex, False), np.isin(shuffled, ex))
+
+
+def test_index_contains_unsorted_ids():
+    idx = SignatureIndex(2)
+    idx.add([5, 9], np.ones((2, 2)))
+    assert idx._ascending
+    idx.add([3], np.ones((1, 2)))  # not ascending any more: np.isin
+    assert not idx._ascending
+    # a mask over the index's ids 5, 9, 3
+    assert idx.contains([3, 9, 4]).tolist() == [False, True, True]
+    assert idx.contains([5]).tolist() == [True, False, False]

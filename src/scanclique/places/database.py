@@ -530,7 +530,7 @@ class PlaceDB:
         ex = None
         if exclude is not None:
             ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
-        allowed = ~np.isin(self.index.ids, ex) if ex is not None and len(ex) else None
+        allowed = ~self.index.contains(ex) if ex is not None and len(ex) else None
         sig = scan_signature(p)
         s_ids, _ = self.index.search(sig, n, allowed)
         tri = feature_triangles(p.features.points_xy, p.features.points_label)

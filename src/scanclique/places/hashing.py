@@ -55,6 +55,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .index import member_mask
+
 __all__ = [
     "HASH_VERSION",
     "QUANTUM",
@@ -194,6 +196,7 @@ class TriangleIndex:
 
     def __init__(self) -> None:
         self._ids = np.zeros(0, dtype=np.int64)  # place id of each row
+        self._ascending = True  # ids strictly ascending in the order added
         self._segs = [self._seg([]), self._seg([])]
         self._pending: list[tuple] = []
         self._n_pending = 0
@@ -242,6 +245,8 @@ class TriangleIndex:
         if len(ids) != len(triangles):
             raise ValueError(f"{len(ids)} ids but {len(triangles)} triangle sets")
         row0 = len(self._ids)
+        if len(ids) and (np.any(ids[1:] <= ids[:-1]) or (row0 and ids[0] <= self._ids[-1])):
+            self._ascending = False
         self._ids = np.concatenate([self._ids, ids])
         for r, t in enumerate(triangles):
             n = len(t.keys)
@@ -319,7 +324,7 @@ class TriangleIndex:
             return
         ex = np.fromiter((int(i) for i in exclude), dtype=np.int64)
         if len(ex):
-            gone = np.isin(self._ids, ex)
+            gone = member_mask(self._ids, ex, self._ascending)
             out[gone] = 0
             poses[gone] = np.nan
 

@@ -24,7 +24,26 @@ import numpy as np
 
 from ..errors import PlaceDatabaseError
 
-__all__ = ["SignatureIndex", "brute_force_knn"]
+__all__ = ["SignatureIndex", "brute_force_knn", "member_mask"]
+
+
+def member_mask(ids: np.ndarray, ex: np.ndarray, ascending: bool) -> np.ndarray:
+    """``np.isin(ids, ex)``: which of ``ids`` are among ``ex`` (int64). When ``ids`` is
+    strictly ascending (``ascending``, as a place database's are), by a binary search of
+    each of ``ex`` in ``ids``: O(len(ex) log len(ids)) instead of a pass over all ids.
+
+    >>> member_mask(np.array([2, 4, 6]), np.array([6, 5, 2, 2]), True).tolist()
+    [True, False, True]
+    """
+    if not ascending:
+        return np.isin(ids, ex)
+    mask = np.zeros(len(ids), dtype=bool)
+    if len(ids) and len(ex):
+        pos = np.searchsorted(ids, ex)
+        ok = pos < len(ids)
+        pos = pos[ok]
+        mask[pos[ids[pos] == ex[ok]]] = True
+    return mask
 
 
 def brute_force_knn(
@@ -63,6 +82,7 @@ class SignatureIndex:
         self._sq = np.zeros(0, dtype=np.float32)
         self._ids = np.zeros(0, dtype=np.int64)
         self._n = 0
+        self._ascending = True  # ids strictly ascending in the order added
 
     def __len__(self) -> int:
         return self._n
@@ -87,6 +107,10 @@ class SignatureIndex:
         S = np.asarray(signatures, dtype=np.float32).reshape(-1, self.dim)
         if len(ids) != len(S):
             raise PlaceDatabaseError(f"{len(ids)} ids but {len(S)} signatures")
+        if len(ids) and (
+            np.any(ids[1:] <= ids[:-1]) or (self._n and ids[0] <= self._ids[self._n - 1])
+        ):
+            self._ascending = False
         need = self._n + len(ids)
         if need > len(self._X):
             cap = max(need, 2 * len(self._X), 64)
@@ -101,6 +125,11 @@ class SignatureIndex:
         self._sq[self._n : need] = np.einsum("ij,ij->i", S, S)
         self._ids[self._n : need] = ids
         self._n = need
+
+    def contains(self, ids) -> np.ndarray:
+        """Boolean mask over :attr:`ids`: which are among ``ids`` (``np.isin``)."""
+        ex = np.atleast_1d(np.asarray(ids, dtype=np.int64))
+        return member_mask(self._ids[: self._n], ex, self._ascending)
 
     def distances(self, q: np.ndarray) -> np.ndarray:
         """Squared Euclidean distance from ``q`` to every stored signature, ``(N,)``
