@@ -174,17 +174,18 @@ def _thinned(pts: np.ndarray, spacing: float) -> np.ndarray:
     return np.flatnonzero(np.concatenate(([True], np.diff(cell) > 0)))
 
 
-def _local_hist(prepared) -> np.ndarray:
+def _local_hist(prepared, cloud: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The ``local`` block: the joint histogram (hard bins) of (distance, smaller |cos|,
     larger |cos|) over the pairs at most :data:`LOCAL_RADIUS` apart of the cloud's points
     that have a normal, thinned (:func:`_thinned`, :data:`LOCAL_SPACING`); distance bins
     linear over ``[0, LOCAL_RADIUS]``. Counts, not normalised: shape
-    ``(_PAIR_DIST_BINS * _PAIR_ANGLE_BINS ** 2,)``, all zero for fewer than two points."""
+    ``(_PAIR_DIST_BINS * _PAIR_ANGLE_BINS ** 2,)``, all zero for fewer than two points.
+    ``cloud``: ``_cloud_with_normals(prepared, cap=None)`` when the caller has it."""
     from scipy.spatial import cKDTree
 
     nd, na = _PAIR_DIST_BINS, _PAIR_ANGLE_BINS
     out = np.zeros(nd * na * na)
-    pts, nrm = _cloud_with_normals(prepared, cap=None)
+    pts, nrm = _cloud_with_normals(prepared, cap=None) if cloud is None else cloud
     keep = _thinned(pts, LOCAL_SPACING)
     pts, nrm = pts[keep], nrm[keep]
     if len(pts) < 2:
@@ -220,13 +221,17 @@ def _blocks(prepared) -> list[np.ndarray]:
     pts = np.ascontiguousarray(np.asarray(prepared.sample, dtype=float).reshape(-1, 2))
     pts = np.ascontiguousarray(pts[_evenly(len(pts), _PAIR_POINTS)])
     h_dist = K.distance_hist(pts, nb["distance"], _FAR)
-    cp, cn = _cloud_with_normals(prepared)
+    # all the cloud's points with a normal (the local block's), and the evenly spaced
+    # ones of the pair blocks: _cloud_with_normals(prepared) without sorting twice
+    cloud = _cloud_with_normals(prepared, cap=None)
+    sel = _evenly(len(cloud[0]), _PAIR_POINTS)
+    cp, cn = cloud[0][sel], cloud[1][sel]
     h_norm, h_pair = K.normal_pair_hists(
         np.ascontiguousarray(cp), np.ascontiguousarray(cn), nb["normal"],
         _PAIR_DIST_BINS, _PAIR_ANGLE_BINS, _FAR,
     )  # fmt: skip
     h_feat = _feature_hist(prepared, nb["feature"])
-    return [h_range, h_dist, h_norm, h_feat, h_pair, _local_hist(prepared)]
+    return [h_range, h_dist, h_norm, h_feat, h_pair, _local_hist(prepared, cloud)]
 
 
 def _blocks_reference(prepared) -> list[np.ndarray]:
