@@ -182,3 +182,26 @@ def test_compiled_votes_agree_with_the_numpy_reference():
         d = p[ok] - p_ref[ok]
         d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
         assert np.abs(d).max() < 1e-9
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(0, 30), st.booleans())
+def test_compiled_triangles_equal_the_numpy_reference(seed, n, grid):
+    """The compiled triangles are the NumPy reference's exactly: same triangles in the
+    same order, sides, kinds and frames bit for bit (points on a grid: many equal
+    distances, which both must order alike; repeated points too)."""
+    from scanclique.places.hashing import _feature_triangles_reference
+
+    rng = np.random.default_rng(seed)
+    if grid:
+        xy = rng.integers(0, 8, (n, 2)) * rng.choice([0.5, 1.0, 1.3])
+        if n > 3:
+            xy[1] = xy[0]
+    else:
+        xy, _ = _place(rng, n=max(n, 1))
+        xy = xy[:n]
+    lab = rng.integers(-1, 5, len(xy)).astype(np.int8)
+    a, b = feature_triangles(xy, lab), _feature_triangles_reference(xy, lab)
+    for f in ("keys", "sides", "kinds", "frames"):
+        x, y = getattr(a, f), getattr(b, f)
+        assert x.dtype == y.dtype and np.array_equal(x, y), f

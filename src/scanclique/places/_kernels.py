@@ -213,3 +213,56 @@ def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses):
                 poses[row, 1] = sy / cnt
                 poses[row, 2] = math.atan2(ss / cnt, sc / cnt)
             i = j
+
+
+@njit(cache=True)
+def triangle_corners(D, k, min_side, max_side):
+    """The local triangles of :func:`.hashing.feature_triangles` from the distances ``D``
+    (``(P, P)``) of the point features, each feature with pairs of its ``k`` nearest (a
+    stable sort of its row of ``D``, itself first): ``(V, s)``, the corners opposite the
+    sorted sides and those sides, rows in the order of the triangles' sorted corner
+    indices, only triangles with sides within ``[min_side, max_side]``."""
+    P = D.shape[0]
+    npair = k * (k - 1) // 2
+    codes = np.empty(P * npair, dtype=np.int64)
+    n = 0
+    for i in range(P):
+        nn = np.argsort(D[i], kind="mergesort")[1 : k + 1]
+        for b in range(k):
+            for c in range(b + 1, k):
+                a0, a1, a2 = i, nn[b], nn[c]
+                if a0 > a1:
+                    a0, a1 = a1, a0
+                if a1 > a2:
+                    a1, a2 = a2, a1
+                if a0 > a1:
+                    a0, a1 = a1, a0
+                codes[n] = (a0 * P + a1) * P + a2
+                n += 1
+    codes = np.sort(codes[:n])
+    V = np.empty((n, 3), dtype=np.int64)
+    s = np.empty((n, 3))
+    m = 0
+    for t in range(n):
+        if t > 0 and codes[t] == codes[t - 1]:
+            continue
+        code = codes[t]
+        i = code // (P * P)
+        j = (code // P) % P
+        q = code % P
+        v = (i, j, q)
+        d = (D[j, q], D[i, q], D[i, j])  # the side opposite i, j, q
+        if max(d[0], max(d[1], d[2])) > max_side or min(d[0], min(d[1], d[2])) < min_side:
+            continue
+        # a stable sort of the three sides (ties keep the order i, j, q)
+        o0, o1, o2 = 0, 1, 2
+        if d[o1] < d[o0]:
+            o0, o1 = o1, o0
+        if d[o2] < d[o1]:
+            o1, o2 = o2, o1
+            if d[o1] < d[o0]:
+                o0, o1 = o1, o0
+        s[m, 0], s[m, 1], s[m, 2] = d[o0], d[o1], d[o2]
+        V[m, 0], V[m, 1], V[m, 2] = v[o0], v[o1], v[o2]
+        m += 1
+    return V[:m], s[:m]

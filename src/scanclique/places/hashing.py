@@ -159,6 +159,26 @@ def feature_triangles(points_xy: np.ndarray, points_label: np.ndarray) -> Triang
     P = len(xy)
     if P < 3:
         return _empty()
+    from ._kernels import triangle_corners
+
+    D = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+    # each triangle once (in the order of its sorted corner indices), its sides within
+    # the limits, sorted (stable), and V[:, m] the corner opposite side m:
+    # _feature_triangles_reference's steps, compiled
+    V, s = triangle_corners(D, min(NEIGHBOURS, P - 1), MIN_SIDE, MAX_SIDE)
+    if not len(V):
+        return _empty()
+    return _frames(xy, lab, V, s)
+
+
+def _feature_triangles_reference(points_xy: np.ndarray, points_label: np.ndarray) -> Triangles:
+    """:func:`feature_triangles` in NumPy: the reference the compiled loop
+    (:func:`._kernels.triangle_corners`) must agree with exactly."""
+    xy = np.asarray(points_xy, dtype=float).reshape(-1, 2)
+    lab = np.asarray(points_label, dtype=np.int64).reshape(-1)
+    P = len(xy)
+    if P < 3:
+        return _empty()
     D = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
     K = min(NEIGHBOURS, P - 1)
     nn = np.argsort(D, axis=1, kind="stable")[:, 1 : K + 1]
@@ -178,6 +198,12 @@ def feature_triangles(points_xy: np.ndarray, points_label: np.ndarray) -> Triang
     o = np.argsort(s, axis=1, kind="stable")
     s = np.take_along_axis(s, o, axis=1)
     V = np.take_along_axis(V, o, axis=1)  # V[:, m]: the corner opposite side m
+    return _frames(xy, lab, V, s)
+
+
+def _frames(xy, lab, V, s) -> Triangles:
+    """The triangles of corners ``V`` (opposite the sorted sides ``s``): kinds, frames,
+    keys."""
     kinds = np.clip(lab[V], 0, 3)
     pa, pb = xy[V[:, 0]], xy[V[:, 1]]  # the longest side joins these two
     th = np.arctan2(pb[:, 1] - pa[:, 1], pb[:, 0] - pa[:, 0])
