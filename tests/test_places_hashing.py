@@ -182,6 +182,12 @@ def test_compiled_votes_agree_with_the_numpy_reference():
         d = p[ok] - p_ref[ok]
         d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
         assert np.abs(d).max() < 1e-9
+        # poses only of the places with at least min_pose votes: the same ones, exactly
+        for min_pose in (2, 5):
+            s2, p2 = idx.votes(q, exclude, min_pose=min_pose)
+            keep = s >= min_pose
+            assert np.array_equal(s2, s) and 0 < keep.sum() < (s > 0).sum()
+            assert np.array_equal(p2[keep], p[keep]) and np.isnan(p2[~keep]).all()
 
 
 @settings(max_examples=150, deadline=None)

@@ -137,15 +137,16 @@ def triangle_gather(keys, rows, frames, qk, qt, qf, qc, qs):
 
 
 @njit(cache=True)
-def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses):
+def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses, min_pose=0):
     """Bin the votes ``(r, v)`` by place and pose (``vote_xy`` m, ``vote_theta`` rad, bins
     centred on the identity) and write each place's most votes in one bin to ``scores``
     and that bin's mean pose (the first such bin in key order) to ``poses``.
 
     The votes are grouped by place (a counting sort, stable), then each place's by bin
     (stable): the order of a global stable sort by ``(place, bin)``, so each bin's mean
-    sums its votes in the order given. Only a bin with more votes than the place's best
-    so far has its mean computed."""
+    sums its votes in the order given. Only each place's best bin has its mean computed,
+    and only when it has at least ``min_pose`` votes (the other places' rows of ``poses``
+    are left as they are)."""
     n = r.shape[0]
     if n == 0:
         return
@@ -190,29 +191,39 @@ def triangle_reduce(r, v, n_rows, vote_xy, vote_theta, nxy, nt, scores, poses):
             so = np.argsort(sub[seg], kind="mergesort")
             for x in range(m):
                 o[a + x] = seg[so[x]]
+        # the first bin (in key order) with the most votes, if more than scores[row]
+        best = scores[row]
+        bi = -1
+        bj = -1
         i = a
         while i < b:
             key = sub[o[i]]
             j = i + 1
             while j < b and sub[o[j]] == key:
                 j += 1
-            cnt = j - i
-            if cnt > scores[row]:
-                sc = 0.0
-                ss = 0.0
-                sx = 0.0
-                sy = 0.0
-                for x in range(i, j):
-                    e = o[x]
-                    sc += math.cos(v[e, 0])
-                    ss += math.sin(v[e, 0])
-                    sx += v[e, 1]
-                    sy += v[e, 2]
-                scores[row] = cnt
-                poses[row, 0] = sx / cnt
-                poses[row, 1] = sy / cnt
-                poses[row, 2] = math.atan2(ss / cnt, sc / cnt)
+            if j - i > best:
+                best = j - i
+                bi = i
+                bj = j
             i = j
+        if bi < 0:
+            continue
+        scores[row] = best
+        if best < min_pose:
+            continue
+        sc = 0.0
+        ss = 0.0
+        sx = 0.0
+        sy = 0.0
+        for x in range(bi, bj):
+            e = o[x]
+            sc += math.cos(v[e, 0])
+            ss += math.sin(v[e, 0])
+            sx += v[e, 1]
+            sy += v[e, 2]
+        poses[row, 0] = sx / best
+        poses[row, 1] = sy / best
+        poses[row, 2] = math.atan2(ss / best, sc / best)
 
 
 @njit(cache=True)

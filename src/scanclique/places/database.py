@@ -534,7 +534,8 @@ class PlaceDB:
         sig = scan_signature(p)
         s_ids, _ = self.index.search(sig, n, allowed)
         tri = feature_triangles(p.features.points_xy, p.features.points_label)
-        votes, poses = self.triangles.votes(tri, ex)
+        # poses only where they are used: places with SEED_MIN_VOTES (pz below)
+        votes, poses = self.triangles.votes(tri, ex, min_pose=SEED_MIN_VOTES)
         t_ids_all = self.triangles.ids
         rows = np.flatnonzero(votes >= MIN_VOTES)
         m = n + extra

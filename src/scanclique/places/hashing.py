@@ -295,10 +295,14 @@ class TriangleIndex:
     def scores(self, query: Triangles, exclude=None) -> np.ndarray:
         """The score of every place (rows in the order added): the most votes in one
         pose bin; places whose id is in ``exclude`` score 0."""
-        return self.votes(query, exclude)[0]
+        return self.votes(query, exclude, min_pose=2**62)[0]
 
-    def votes(self, query: Triangles, exclude=None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`scores`, and the pose hypothesis of each place's best bin.
+    def votes(
+        self, query: Triangles, exclude=None, min_pose: int = 0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`scores`, and the pose hypothesis of each place's best bin (of the places
+        whose best bin has at least ``min_pose`` votes: the others' poses are NaN, and
+        cost nothing).
 
         Returns
         -------
@@ -324,7 +328,8 @@ class TriangleIndex:
         if rs:
             r = np.concatenate(rs) if len(rs) > 1 else rs[0]
             v = np.concatenate(vs) if len(vs) > 1 else vs[0]
-            triangle_reduce(r, v, len(self._ids), VOTE_XY, VOTE_THETA, _NXY, _NT, out, poses)
+            n = len(self._ids)
+            triangle_reduce(r, v, n, VOTE_XY, VOTE_THETA, _NXY, _NT, out, poses, int(min_pose))
         self._exclude(out, poses, exclude)
         return out, poses
 
