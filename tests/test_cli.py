@@ -558,6 +558,25 @@ def test_map_bad_config_is_refused_before_the_run(tmp_path):
     assert_clean_error(r, "is a directory")
 
 
+def test_save_config_may_go_into_the_new_out_directory(drive, tmp_path):
+    from scanclique.mapping import MapConfig
+
+    out = tmp_path / "runs" / "new"  # neither runs/ nor runs/new exists yet
+    r = invoke("map", drive, "--out", out, "--save-config", out / "used.toml", "--json")
+    assert r.exit_code == 0, r.output
+    assert read_config(out / "used.toml", cls=MapConfig) == MapConfig()
+    # any other missing directory is still refused, before the run
+    for cmd in (
+        ("map", tmp_path / "nope.log", "--out", tmp_path / "o2"),
+        ("slam", tmp_path / "nope"),
+    ):
+        r = invoke(*cmd, "--save-config", tmp_path / "missing" / "used.toml")
+        assert_clean_error(r, "missing", "does not exist")
+    vp = tmp_path / "vp"
+    r = invoke("slam", tmp_path / "nope", "--out", vp, "--save-config", vp / "used.toml")
+    assert_clean_error(r, "nope")  # past the path checks: the data set is what is missing
+
+
 def test_map_removes_its_own_stale_figure_only(drive, tmp_path):
     out = tmp_path / "run"
     r = invoke("map", drive, "--out", out, "--plot")
@@ -573,6 +592,12 @@ def test_map_removes_its_own_stale_figure_only(drive, tmp_path):
     r = invoke("map", drive, "--out", out)
     assert r.exit_code == 0, r.output
     assert (out / "map.png").read_bytes() == b"mine"
+    # --json says what it removed too
+    assert invoke("map", drive, "--out", out, "--plot").exit_code == 0
+    r = invoke("map", drive, "--out", out, "--json")
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["removed"] == [str(out / "map.png")]
+    assert not (out / "map.png").exists()
 
 
 def test_workers_has_both_short_forms(tmp_path):

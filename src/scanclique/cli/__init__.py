@@ -170,13 +170,17 @@ def _check_out_dir(path: str | os.PathLike) -> None:
         raise _fail(_escape(f"{p}: cannot be created: {ancestor} is not writable"))
 
 
-def _check_out_file(path: str | os.PathLike) -> None:
-    """Refuse an output file (``loops --out``, a new place database) before any work: one
-    ``error:`` line, exit code 2. Its directory must exist (it is not created)."""
+def _check_out_file(path: str | os.PathLike, out_dir: str | os.PathLike | None = None) -> None:
+    """Refuse an output file (``loops --out``, a new place database, ``--save-config``)
+    before any work: one ``error:`` line, exit code 2. Its directory must exist (it is not
+    created), unless it is ``out_dir``, the command's ``--out`` (checked by
+    :func:`_check_out_dir` and created by the run before the file is written)."""
     p = Path(path)
     if p.is_dir():
         raise _fail(_escape(f"{p}: is a directory, not a file"))
     parent = p.absolute().parent
+    if out_dir is not None and os.path.abspath(parent) == os.path.abspath(out_dir):
+        return
     if not parent.is_dir():
         raise _fail(_escape(f"{p}: directory {p.parent} does not exist (it is not created)"))
 

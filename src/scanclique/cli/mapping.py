@@ -86,7 +86,7 @@ def map_cmd(
 
     _check_out_dir(out)  # before the run, not after it
     if save_config is not None:
-        _check_out_file(save_config)
+        _check_out_file(save_config, out_dir=out)  # may go into a new --out
     cfg = _read_app_config(config, MapConfig())
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -137,6 +137,7 @@ def map_cmd(
                 "seconds": {**run.result.seconds, **run.seconds},
                 "metrics": run.metrics,
                 "files": run.files,
+                "removed": list(run.removed),
             }
         )
         return

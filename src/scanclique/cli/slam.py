@@ -83,7 +83,7 @@ def slam(
     if out is not None:
         _check_out_dir(out)  # before the run, not after it
     if save_config is not None:
-        _check_out_file(save_config)
+        _check_out_file(save_config, out_dir=out)  # may go into a new --out
     from ..slam import SlamConfig
     from ..slam.run import run_slam
 
