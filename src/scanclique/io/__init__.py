@@ -125,7 +125,9 @@ def detect_format(path: str | os.PathLike) -> str:
     head = _head(spath)
     if head.startswith((_ZIP_MAGIC, _EMPTY_ZIP_MAGIC)) or _stem_suffix(spath) == ".npz":
         return "npz"
-    return _format_of_lines(LineSource(spath, strict=False, comments=False), spath)
+    # quiet: the reader that follows says what is wrong with a damaged stream, once
+    lines = LineSource(spath, strict=False, comments=False, quiet=True)
+    return _format_of_lines(lines, spath)
 
 
 def _check_options(strict, max_beams, max_range) -> None:

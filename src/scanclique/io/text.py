@@ -116,6 +116,7 @@ comments or NUL bytes expands about 1000 times (gzip) or far more (bzip2)."""
 EXPANSION_CHECK_BYTES = 8 * 2**20
 
 _CHUNK = 2**20  # bytes read from the file at a time, and most bytes decompressed per step
+_UTF8_BOM = b"\xef\xbb\xbf"
 _NONEMPTY = re.compile(rb"[^\n]+")
 # a line holding something other than white space and not starting with "#"
 _RECORD = re.compile(rb"(?m)^[ \t\r\f\v]*[^\s#][^\n]*")
@@ -288,9 +289,11 @@ class LineSource:
         max_line_bytes: int = MAX_LINE_BYTES,
         max_bytes: int = MAX_TEXT_BYTES,
         comments: bool = True,
+        quiet: bool = False,
     ):
         self.path = check_path(path)
         self.strict = strict
+        self.quiet = quiet  # no warning for a truncated stream (a caller that only peeks)
         self.max_line_bytes = int(max_line_bytes)
         self.max_bytes = int(max_bytes)
         self.compressed = False
@@ -379,7 +382,7 @@ class LineSource:
     def __iter__(self) -> Iterator[tuple[int, str | None]]:
         with open_regular(self.path) as fh:
             yield from self._lines(fh)
-        if self.truncated:
+        if self.truncated and not self.quiet:
             logger.warning("%s: %s; reading what was recovered", self.path, self.truncated)
 
     def _too_long(self, line_no: int) -> ParseError:
@@ -388,12 +391,34 @@ class LineSource:
             f"line longer than {_size(self.max_line_bytes)} (binary data or a corrupt file?)",
         )
 
+    @staticmethod
+    def _without_bom(chunks: Iterator[bytes]) -> Iterator[bytes]:
+        """``chunks`` less a UTF-8 byte order mark at the head of the text.
+
+        Editors on Windows save one; left in place it would glue itself to the first
+        record's type (``\\ufeffFLASER``) and that record would be skipped as an unknown
+        message, silently. The mark is not content, so it is dropped, whether the file is
+        plain or compressed; a mark anywhere else is content and kept.
+        """
+        head = b""
+        for chunk in chunks:
+            head += chunk
+            if len(head) < len(_UTF8_BOM) and _UTF8_BOM.startswith(head):
+                continue  # too short to tell yet
+            break
+        else:  # the text ended within three bytes: a part of a mark is content
+            if head:
+                yield head
+            return
+        yield head[len(_UTF8_BOM) :] if head.startswith(_UTF8_BOM) else head
+        yield from chunks
+
     def _lines(self, fh) -> Iterator[tuple[int, str | None]]:
         line_no = 1  # number of the line that starts at the head of ``pending``
         pending = b""
         skipping = False  # discarding the rest of an over-long line (strict=False)
         limit = self.max_line_bytes
-        for chunk in self._chunks(fh):
+        for chunk in self._without_bom(self._chunks(fh)):
             if skipping:
                 k = chunk.find(b"\n")
                 if k < 0:
