@@ -121,6 +121,7 @@ def occupancy_grid(
     Returns
     -------
     OccupancyGrid
+        All unknown (zeros) when no scan is placed or no placed scan has a beam to cast.
     """
     cfg = config or OccupancyConfig()
     r = cfg.resolution
@@ -144,7 +145,12 @@ def occupancy_grid(
     S = np.vstack(starts)
     H = np.concatenate(hits)
     # size the grid on the hits and the sensor positions (free-only beams are clipped)
-    pts = np.vstack([E[H], S[:1]]) if H.any() else S
+    if H.any():
+        pts = np.vstack([E[H], S[:1]])
+    elif len(S):
+        pts = S
+    else:  # no placed scan kept a beam (all NaN, or no beams): an empty grid at the poses
+        pts = np.array([[poses[k].x, poses[k].y] for k in idx])
     lo = pts.min(axis=0) - cfg.margin
     hi = pts.max(axis=0) + cfg.margin
     cols = int(math.ceil((hi[0] - lo[0]) / r)) + 1

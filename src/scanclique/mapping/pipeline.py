@@ -19,14 +19,15 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .._records import readonly
-from ..errors import ScanError
+from ..errors import ArgumentError, ScanError
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
@@ -709,6 +710,14 @@ def map_scans(
     Returns
     -------
     MapResult
+        No scans give an empty result (no poses).
+
+    Raises
+    ------
+    ArgumentError
+        If ``scans`` is not an iterable of scans (None, a number, a path).
+    ScanError
+        If one of them is not a :class:`~scanclique.scan.Scan`.
 
     Examples
     --------
@@ -720,6 +729,12 @@ def map_scans(
     (2, 'first')
     """
     cfg = config or MapConfig()
+    if isinstance(scans, (str, bytes, os.PathLike)) or not isinstance(scans, Iterable):
+        # list() would fail with a bare TypeError, or split a path into characters
+        raise ArgumentError(
+            f"map_scans: scans must be a sequence of Scan (read a file with read_scans "
+            f"first), got {type(scans).__name__}"
+        )
     scans = list(scans)
     for k, s in enumerate(scans):
         if not isinstance(s, Scan):
