@@ -32,13 +32,21 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .._records import readonly as _ro
-from .association import NEW, REJECTED, AssociationConfig, Predicted, associate_predicted
+from ..errors import ArgumentError, ConfigError
+from .association import (
+    METHODS,
+    NEW,
+    REJECTED,
+    AssociationConfig,
+    Predicted,
+    associate_predicted,
+)
 from .models import MotionModel, inverse_observe, observe, wrap
 from .reader import Step
 
@@ -512,7 +520,29 @@ def ekf_slam(
     Returns
     -------
     SlamResult
+        No steps give an empty result.
+
+    Raises
+    ------
+    ArgumentError
+        ``steps`` is not a sequence of :class:`~scanclique.slam.Step`.
+    ConfigError
+        ``association`` is not one of the methods (checked before the first step, so a
+        log without observations does not hide it).
     """
+    if isinstance(steps, (str, bytes)) or not isinstance(steps, Iterable):
+        raise ArgumentError(
+            f"ekf_slam: steps must be a sequence of Step, got {type(steps).__name__}"
+        )
+    if not isinstance(steps, Sequence):
+        steps = list(steps)
+    for k, s in enumerate(steps):
+        if not isinstance(s, Step):
+            raise ArgumentError(f"ekf_slam: steps[{k}] is a {type(s).__name__}, not a Step")
+    if association not in METHODS:
+        raise ConfigError(
+            f"association method must be one of {', '.join(METHODS)}, got {association!r}"
+        )
     cfg = config or SlamConfig()
     acfg = (
         cfg.association if isinstance(cfg.association, AssociationConfig) else AssociationConfig()

@@ -15,16 +15,18 @@ sequence of :class:`Step` records, the input of :func:`scanclique.slam.ekf_slam`
 
 from __future__ import annotations
 
+import io
 import logging
 import math
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._records import readonly as _ro
-from ..errors import DataNotFoundError, ParseError
+from ..errors import ArgumentError, ConfigError, DataNotFoundError, ParseError
 
 __all__ = [
     "Step",
@@ -123,9 +125,15 @@ def resolve_victoria_park(source: str | os.PathLike = DATASET_NAME) -> Path:
     DataNotFoundError
         The directory or one of its three files is missing; the message names what was
         looked for and where.
+    ArgumentError
+        ``source`` is neither a string nor a path.
     """
     from .. import datasets
 
+    if not isinstance(source, (str, os.PathLike)):
+        raise ArgumentError(
+            f"expected the name {DATASET_NAME!r} or a directory path, got {type(source).__name__}"
+        )
     s = os.fspath(source)
     if s == DATASET_NAME:
         d = datasets.data_dir() / DATASET_NAME
@@ -162,11 +170,24 @@ def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
     path = Path(path)
     n = len(columns)
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except FileNotFoundError:
         raise DataNotFoundError(f"{path}: no such file") from None
+    except OSError as exc:  # a directory, no permission, an I/O error
+        raise ParseError(str(path), None, f"cannot be read ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:  # binary data, or text in another encoding
+        raise ParseError(
+            str(path),
+            data.count(b"\n", 0, exc.start) + 1,
+            f"expected UTF-8/ASCII text, found the byte {data[exc.start : exc.start + 1]!r} "
+            "(binary data?)",
+        ) from None
     try:  # fast path: a well-formed file
-        arr = np.loadtxt(path, dtype=float, comments="#", ndmin=2)
+        with warnings.catch_warnings():  # an empty table is a result, not a warning
+            warnings.simplefilter("ignore", UserWarning)
+            arr = np.loadtxt(io.StringIO(text), dtype=float, comments="#", ndmin=2)
         if arr.size == 0:
             arr = arr.reshape(0, n)
         if arr.shape[1] == n and np.isfinite(arr).all() and (np.diff(arr[:, 0]) >= 0).all():
@@ -251,7 +272,8 @@ def steps_from_arrays(
         Added to every bearing (``-pi/2`` for Victoria Park's scanner); the result is
         wrapped to (-pi, pi].
     max_range : float, optional
-        Observations farther than this are dropped.
+        Observations farther than this are dropped; it must be a positive number (NaN
+        would drop every observation without a word, so it is a ``ConfigError``).
 
     Returns
     -------
@@ -266,6 +288,8 @@ def steps_from_arrays(
     if measurements.ndim != 2 or measurements.shape[1] not in (3, 4):
         raise ValueError(f"measurements must be (M, 3) or (M, 4), got {measurements.shape}")
     if max_range is not None:
+        if not max_range > 0:
+            raise ConfigError(f"max_range must be a positive number of metres, got {max_range}")
         measurements = measurements[measurements[:, 1] <= max_range]
     has_att = measurements.shape[1] == 4
     t_m = measurements[:, 0]

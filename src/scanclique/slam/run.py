@@ -16,10 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParseError
 from .ekf import SlamConfig, SlamResult, ekf_slam
 from .metrics import GpsError, align_se2, duplicate_pairs, gps_error, gps_outliers, sensor_positions
 from .models import Ackermann
-from .reader import Step, read_gps, read_victoria_park
+from .reader import Step, read_gps, read_victoria_park, resolve_victoria_park
 
 __all__ = ["SlamRun", "run_slam", "inject_clutter", "victoria_park_model", "summarise_smoothed"]
 
@@ -110,14 +111,28 @@ class SlamRun:
 
 
 def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0):
-    """``(GpsError or None, metrics dict, alignment)`` of a run."""
+    """``(GpsError or None, metrics dict, alignment)`` of a run.
+
+    The GPS error is None (and the metrics have no GPS rows) when there are no fixes, or
+    no fix (outliers excepted) falls within the run's time span; the latter is logged.
+    """
     pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
     g = None
     align = (np.eye(2), np.zeros(2))
-    if gps_fixes is not None and len(gps_fixes):
-        g = gps_error(result.times, pos, gps_fixes)
+    ok = np.zeros((0, 3))
+    if gps_fixes is not None and len(gps_fixes) and len(result.times):
         ok = gps_fixes[~gps_outliers(gps_fixes)]
         ok = ok[(ok[:, 0] >= result.times[0]) & (ok[:, 0] <= result.times[-1])]
+        if not len(ok):
+            log.warning(
+                "none of the %d GPS fixes falls within the run's time span [%s, %s] s: "
+                "no GPS error",
+                len(gps_fixes),
+                result.times[0],
+                result.times[-1],
+            )
+    if len(ok):
+        g = gps_error(result.times, pos, gps_fixes)
         est = np.column_stack(
             [
                 np.interp(ok[:, 0], result.times, pos[:, 0]),
@@ -195,9 +210,21 @@ def run_slam(
         After the filter, also smooth the run (:func:`~scanclique.slam.smooth.smooth`): its
         metrics are added with the prefix "smoothed ", beside the filter's (which stay
         the filter's), and ``trajectory-smoothed.tum`` is written.
+
+    Raises
+    ------
+    ParseError
+        The data hold no step (``measurements.dat`` and ``inputs.dat`` have no rows),
+        besides the errors of :func:`~scanclique.slam.read_victoria_park`.
     """
     cfg = config or SlamConfig()
     steps = read_victoria_park(source)
+    if not steps:
+        raise ParseError(
+            os.fspath(resolve_victoria_park(source)),
+            None,
+            "holds no steps: measurements.dat and inputs.dat have no rows",
+        )
     gps = read_gps(source)
     if clutter:
         steps = inject_clutter(
