@@ -33,6 +33,7 @@ import math
 import os
 import sqlite3
 import time
+import urllib.parse
 import zlib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
@@ -210,6 +211,8 @@ class PlaceStore:
         durable: bool = False,
         timeout: float = 10.0,
     ) -> None:
+        if not isinstance(path, (str, os.PathLike)):
+            raise PlaceDatabaseError(f"expected a file path, got {type(path).__name__}")
         self.path = Path(path)
         self._where = os.fspath(path)
         self.readonly = bool(readonly)
@@ -219,7 +222,10 @@ class PlaceStore:
         if self.path.is_dir():
             raise PlaceDatabaseError(f"{self._where}: is a directory, not a place database")
         try:
-            uri = f"file:{self.path.resolve().as_posix()}?mode={'ro' if readonly else 'rwc'}"
+            # the path is quoted: in a URI ``?`` and ``#`` would end it and ``%`` escape,
+            # so ``a?b.db`` would open a file named ``a``
+            where = urllib.parse.quote(self.path.resolve().as_posix(), safe="/")
+            uri = f"file:{where}?mode={'ro' if readonly else 'rwc'}"
             self._conn = sqlite3.connect(
                 uri, uri=True, timeout=timeout, isolation_level=None, check_same_thread=False
             )
