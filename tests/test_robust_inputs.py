@@ -1,0 +1,236 @@
+"""Robustness audit (s12): small malformed inputs through the public entry points.
+
+Each case either raises a named :class:`~scanclique.errors.ScanCliqueError` naming the
+file (line, field) or gives the documented result; the CLI exits 2 with one ``error:``
+line and no traceback. Cases already covered elsewhere (``test_io``, ``test_fuzz``,
+``test_hostile``, ``test_slam_reader``, ``test_places_*``) are not repeated here.
+"""
+
+from __future__ import annotations
+
+import bz2
+import gzip
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import scanclique as sc
+from scanclique import cli, slam
+from scanclique.errors import (
+    ArgumentError,
+    ConfigError,
+    ParseError,
+    PlaceDatabaseError,
+    ScanCliqueError,
+)
+from scanclique.geometry import Pose2
+from scanclique.io import detect_format, write_scans_text
+from scanclique.mapping.occupancy import occupancy_grid
+from scanclique.places import PlaceDB
+from scanclique.slam.run import run_slam
+
+runner = CliRunner()
+BOM = b"\xef\xbb\xbf"
+
+
+def invoke(*args):
+    return runner.invoke(cli.app, [str(a) for a in args])
+
+
+def assert_clean_error(result, *words: str) -> None:
+    assert result.exit_code == 2, result.output
+    err = result.stderr.strip()
+    assert err.startswith("error:") and len(err.splitlines()) == 1, err
+    assert "Traceback" not in result.output
+    for w in words:
+        assert w in err, err
+
+
+def flaser(ranges, t: float) -> str:
+    rs = " ".join(str(r) for r in ranges)
+    return f"FLASER {len(ranges)} {rs} 0 0 0 0 0 0 {t} host {t}\n"
+
+
+def carmen_text(n: int = 3, beams: int = 180) -> bytes:
+    return "".join(flaser([1.0 + 0.01 * k] * beams, float(k)) for k in range(n)).encode()
+
+
+# ---------------------------------------------------------------------------------------
+# readers: a UTF-8 byte order mark was glued to the first record's type, which was then
+# skipped as an unknown message (debug log only): the first scan was lost
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("pack", [bytes, gzip.compress, bz2.compress], ids=["plain", "gz", "bz2"])
+def test_a_byte_order_mark_does_not_lose_the_first_scan(tmp_path, pack):
+    p = tmp_path / "bom.log"
+    p.write_bytes(pack(BOM + carmen_text(3)))
+    scans = sc.read_scans(p)
+    assert len(scans) == 3 and scans[0].ranges[0] == 1.0
+
+
+def test_a_byte_order_mark_before_scan_text_and_comments(tmp_path):
+    scans = sc.sim.simulate_trajectory(
+        np.random.default_rng(0), sc.sim.office_world(np.random.default_rng(0)), 2
+    )
+    plain = tmp_path / "a.txt"
+    write_scans_text(plain, scans)
+    marked = tmp_path / "b.txt"
+    marked.write_bytes(BOM + plain.read_bytes())
+    assert detect_format(marked) == "text"
+    assert len(sc.read_scans(marked)) == len(sc.read_scans(plain)) == 2
+    only = tmp_path / "c.log"
+    only.write_bytes(BOM + b"# a comment\n" + carmen_text(1))
+    assert len(sc.read_scans(only)) == 1
+    (tmp_path / "d.log").write_bytes(BOM)  # the mark alone: an empty log
+    assert sc.read_scans(tmp_path / "d.log") == []
+
+
+def test_part_of_a_byte_order_mark_is_content_and_refused(tmp_path):
+    p = tmp_path / "e.log"
+    p.write_bytes(BOM[:2] + carmen_text(1))
+    with pytest.raises(ParseError, match=r"e\.log:1:"):
+        sc.read_scans(p)
+
+
+def test_a_truncated_stream_is_reported_once_not_also_as_recovered(tmp_path, caplog):
+    p = tmp_path / "t.clf.bz2"
+    p.write_bytes(bz2.compress(carmen_text(3))[:-20])
+    with caplog.at_level(logging.WARNING), pytest.raises(ParseError, match="truncated bzip2"):
+        sc.read_scans(p)
+    assert "reading what was recovered" not in caplog.text  # strict: nothing is recovered
+
+
+# ---------------------------------------------------------------------------------------
+# map_scans and the occupancy grid
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("bad", [None, 3, "intel.log"])
+def test_map_scans_of_something_not_a_sequence_of_scans(bad):
+    with pytest.raises(ArgumentError, match="sequence of Scan"):
+        sc.map_scans(bad)
+
+
+def test_map_scans_of_no_scans_is_an_empty_map():
+    r = sc.map_scans([])
+    assert r.poses == () and r.keyframes == ()
+
+
+def test_occupancy_grid_of_scans_without_any_beam_is_unknown():
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 5)
+    nan = sc.Scan(np.full(5, np.nan), angles, 0.0, 80.0)
+    none = sc.Scan(np.zeros(0), np.zeros(0), 0.0, 80.0)
+    g = occupancy_grid([nan, none], [Pose2(0.0, 0.0, 0.0), Pose2(1.0, 2.0, 0.5)])
+    assert g.log_odds.size > 0 and not g.log_odds.any()
+
+
+@pytest.mark.parametrize("ranges", [["nan"] * 4, []], ids=["all NaN", "no beams"])
+def test_map_command_on_a_log_without_a_single_return(tmp_path, ranges):
+    log = tmp_path / "dark.log"
+    log.write_text(flaser(ranges, 1.0) + flaser(ranges, 2.0))
+    r = invoke("map", log, "--out", tmp_path / "out")
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "out" / "map.pgm").is_file()
+
+
+# ---------------------------------------------------------------------------------------
+# Victoria Park reader and EKF-SLAM
+# ---------------------------------------------------------------------------------------
+def _vp(d: Path, meas, inputs=b"0.0 1.0 0.0\n", gps=b"0.0 0.0 0.0\n") -> Path:
+    d.mkdir(parents=True, exist_ok=True)
+    for name, data in (("measurements.dat", meas), ("inputs.dat", inputs), ("gps.dat", gps)):
+        (d / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+    return d
+
+
+@pytest.mark.parametrize(
+    "data, line",
+    [(b"\x89PNG\r\n\x1a\n\x00\xff", 1), (b"0.5 10.0 1.0 0.3\n# caf\xe9\n", 2)],
+    ids=["binary", "latin-1 comment"],
+)
+def test_victoria_park_file_that_is_not_text(tmp_path, data, line):
+    d = _vp(tmp_path / "vp", data)
+    with pytest.raises(ParseError) as ei:
+        slam.read_victoria_park(d)
+    assert ei.value.path.endswith("measurements.dat") and ei.value.line == line
+    assert_clean_error(invoke("slam", d), "measurements.dat", "UTF-8")
+
+
+def test_victoria_park_empty_tables_without_warnings(tmp_path, recwarn):
+    d = _vp(tmp_path / "vp", "", "0.0 1.0 0.0\n0.5 1.0 0.0\n")
+    steps = slam.read_victoria_park(d)
+    assert len(steps) == 2 and all(s.n_observations == 0 for s in steps)
+    assert not [w for w in recwarn if "loadtxt" in str(w.message)]
+
+
+def test_victoria_park_bad_arguments(tmp_path):
+    d = _vp(tmp_path / "vp", "0.5 10.0 1.0 0.3\n")
+    with pytest.raises(ConfigError, match="max_range"):
+        slam.read_victoria_park(d, max_range=float("nan"))  # would drop every detection
+    with pytest.raises(ArgumentError):
+        slam.read_victoria_park(None)
+
+
+def test_slam_command_with_no_steps_and_with_gps_outside_the_run(tmp_path):
+    empty = _vp(tmp_path / "empty", "# nothing\n", "")
+    with pytest.raises(ParseError, match="holds no steps"):
+        run_slam(empty)
+    assert_clean_error(invoke("slam", empty), "holds no steps")
+    late = _vp(tmp_path / "late", "0.5 10.0 1.0 0.3\n1.0 10.0 1.0 0.3\n", gps=b"50 0 0\n")
+    r = invoke("slam", late, "--json")
+    assert r.exit_code == 0, r.output
+    assert "no GPS error" in r.stderr
+
+
+def test_ekf_slam_arguments():
+    model = slam.Ackermann()
+    assert len(slam.ekf_slam([], model).poses) == 0
+    with pytest.raises(ArgumentError):
+        slam.ekf_slam(None, model)
+    with pytest.raises(ArgumentError, match=r"steps\[1\]"):
+        slam.ekf_slam([slam.Step(0.0, None, []), None], model)
+    quiet = [slam.Step(0.0, (1.0, 0.0), []), slam.Step(1.0, None, [])]
+    with pytest.raises(ConfigError, match="association"):  # checked without observations
+        slam.ekf_slam(quiet, model, association="foo")
+    r = slam.ekf_slam(iter(quiet), model)  # any iterable of steps
+    assert r.poses.shape == (2, 3)
+
+
+# ---------------------------------------------------------------------------------------
+# place database
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["a?b.db", "c#d.db", "e%41f.db"])
+def test_place_database_path_is_taken_literally(tmp_path, name):
+    """SQLite URIs end the path at ``?`` / ``#`` and decode ``%``: ``a?b.db`` was ``a``."""
+    with PlaceDB(tmp_path / name) as db:
+        db.add(sc.Scan(np.full(10, 2.0), np.linspace(-1.0, 1.0, 10), 0.0, 80.0))
+    stray = {p.name for p in tmp_path.iterdir()} - {name, f"{name}-wal", f"{name}-shm"}
+    assert (tmp_path / name).is_file() and not stray
+    with PlaceDB(tmp_path / name, readonly=True) as db:
+        assert len(db) == 1
+
+
+def test_place_database_bad_paths(tmp_path):
+    with pytest.raises(PlaceDatabaseError, match="file path"):
+        PlaceDB(None)
+    (tmp_path / "dir.db").mkdir()
+    (tmp_path / "text.db").write_text("hello\n")
+    log = tmp_path / "one.log"
+    log.write_text(flaser([1.0] * 10, 1.0))
+    assert_clean_error(invoke("places", "add", tmp_path / "dir.db", log), "is a directory")
+    assert_clean_error(invoke("places", "query", tmp_path / "text.db", log, 0), "corrupted")
+
+
+def test_place_database_empty_and_featureless_scans(tmp_path):
+    angles = np.linspace(-1.5, 1.5, 180)
+    nan = sc.Scan(np.full(180, np.nan), angles, 0.0, 80.0)
+    none = sc.Scan(np.zeros(0), np.zeros(0), 0.0, 80.0)
+    with PlaceDB(tmp_path / "p.db") as db:
+        assert db.query(nan) == [] and db.best(none) is None  # an empty database
+        db.add(nan)
+        db.add(none)
+        hits = db.query(nan)
+        assert hits and all(h.verdict == "rejected" and "no features" in h.reason for h in hits)
+    with PlaceDB(tmp_path / "p.db") as db, pytest.raises(ScanCliqueError):
+        db.add(None)
