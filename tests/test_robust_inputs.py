@@ -234,3 +234,53 @@ def test_place_database_empty_and_featureless_scans(tmp_path):
         assert hits and all(h.verdict == "rejected" and "no features" in h.reason for h in hits)
     with PlaceDB(tmp_path / "p.db") as db, pytest.raises(ScanCliqueError):
         db.add(None)
+
+
+# ---------------------------------------------------------------------------------------
+# ROS bags
+# ---------------------------------------------------------------------------------------
+def test_a_bag_with_a_non_finite_odometry_pose_names_the_bag_and_message(tmp_path):
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from scanclique.io.rosbag import read_bag
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    T = ts.types
+
+    def header(t: float, frame: str):
+        stamp = T["builtin_interfaces/msg/Time"](sec=int(t), nanosec=0)
+        return T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id=frame)
+
+    def odom(t: float, x: float):
+        v = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+        pose = T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=x, y=0.0, z=0.0),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        )
+        return T["nav_msgs/msg/Odometry"](
+            header=header(t, "odom"), child_frame_id="base_link",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](linear=v, angular=v), covariance=np.zeros(36)
+            ),
+        )  # fmt: skip
+
+    def laser(t: float):
+        return T["sensor_msgs/msg/LaserScan"](
+            header=header(t, "laser"), angle_min=-1.0, angle_max=1.0, angle_increment=0.5,
+            time_increment=0.0, scan_time=0.0, range_min=0.0, range_max=30.0,
+            ranges=np.full(5, 2.0, np.float32), intensities=np.zeros(0, np.float32),
+        )  # fmt: skip
+
+    path = tmp_path / "nan-odom.bag"
+    with Writer(path) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
+        for k, x in enumerate([0.0, math.nan]):
+            t = 1.0 + k
+            w.write(co, int(t * 1e9), ts.serialize_ros1(odom(t, x), "nav_msgs/msg/Odometry"))
+            w.write(cs, int(t * 1e9) + 1, ts.serialize_ros1(laser(t), "sensor_msgs/msg/LaserScan"))
+    with pytest.raises(ParseError, match=r"nan-odom\.bag: /odom message 1: Pose2 needs finite"):
+        read_bag(path)

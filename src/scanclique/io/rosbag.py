@@ -210,26 +210,32 @@ def read_bag(
         o_poses: list[Pose2] = []
         bases = (base_frame,) if base_frame else ("base_link", "base_footprint")
         # (an empty list of connections would mean *all* messages to rosbags)
-        for c, t_ns, raw in reader.messages(connections=odo_c + tf_c) if odo_c + tf_c else ():
+        messages = reader.messages(connections=odo_c + tf_c) if odo_c + tf_c else ()
+        for k, (c, t_ns, raw) in enumerate(messages):
             try:
                 msg = reader.deserialize(raw, c.msgtype)
             except Exception as exc:  # noqa: BLE001
                 raise ParseError(
                     name, None, f"{c.topic}: cannot deserialise {c.msgtype} ({exc})"
                 ) from None
-            if c.msgtype in ODOMETRY:
-                pp = msg.pose.pose
-                o_times.append(_stamp(msg, t_ns))
-                o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
-            else:
-                for tr in msg.transforms:
-                    if (
-                        tr.header.frame_id.lstrip("/") == odom_frame
-                        and tr.child_frame_id.lstrip("/") in bases
-                    ):
-                        q = tr.transform
-                        o_times.append(_stamp(tr, t_ns))
-                        o_poses.append(Pose2(q.translation.x, q.translation.y, _yaw(q.rotation)))
+            try:  # a non-finite pose is a ScanError of Pose2: say which message holds it
+                if c.msgtype in ODOMETRY:
+                    pp = msg.pose.pose
+                    o_times.append(_stamp(msg, t_ns))
+                    o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
+                else:
+                    for tr in msg.transforms:
+                        if (
+                            tr.header.frame_id.lstrip("/") == odom_frame
+                            and tr.child_frame_id.lstrip("/") in bases
+                        ):
+                            q = tr.transform
+                            o_times.append(_stamp(tr, t_ns))
+                            o_poses.append(
+                                Pose2(q.translation.x, q.translation.y, _yaw(q.rotation))
+                            )
+            except ScanCliqueError as exc:
+                raise ParseError(name, None, f"{c.topic} message {k}: {exc}") from None
         order = np.argsort(o_times, kind="stable")
         o_times = [o_times[k] for k in order]
         o_poses = [o_poses[k] for k in order]
