@@ -267,10 +267,10 @@ def test_a_bag_with_a_non_finite_odometry_pose_names_the_bag_and_message(tmp_pat
             ),
         )  # fmt: skip
 
-    def laser(t: float):
+    def laser(t: float, range_max: float = 30.0):
         return T["sensor_msgs/msg/LaserScan"](
             header=header(t, "laser"), angle_min=-1.0, angle_max=1.0, angle_increment=0.5,
-            time_increment=0.0, scan_time=0.0, range_min=0.0, range_max=30.0,
+            time_increment=0.0, scan_time=0.0, range_min=0.0, range_max=range_max,
             ranges=np.full(5, 2.0, np.float32), intensities=np.zeros(0, np.float32),
         )  # fmt: skip
 
@@ -284,3 +284,20 @@ def test_a_bag_with_a_non_finite_odometry_pose_names_the_bag_and_message(tmp_pat
             w.write(cs, int(t * 1e9) + 1, ts.serialize_ros1(laser(t), "sensor_msgs/msg/LaserScan"))
     with pytest.raises(ParseError, match=r"nan-odom\.bag: /odom message 1: Pose2 needs finite"):
         read_bag(path)
+    path = tmp_path / "nan-max.bag"
+    with Writer(path) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        msg = ts.serialize_ros1(laser(1.0, math.nan), "sensor_msgs/msg/LaserScan")
+        w.write(cs, int(1e9), msg)
+    with pytest.raises(ParseError) as ei:
+        read_bag(path)
+    assert str(ei.value).count("nan-max.bag") == 1  # named once, not again as the source
+    assert "/scan message 0: need 0 <= range_min < range_max" in str(ei.value)
+
+
+def test_a_scan_error_in_a_text_log_names_the_file_once(tmp_path):
+    p = tmp_path / "flat.scan"
+    p.write_text("SCAN 1.0 0 0 0 80 3 1 2 3\n")  # angle_increment 0
+    with pytest.raises(ParseError) as ei:
+        sc.read_scans(p)
+    assert str(ei.value) == f"{p}:1: beam angles must be strictly increasing"

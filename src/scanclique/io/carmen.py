@@ -582,19 +582,14 @@ class _CarmenReader:
     def _build(self, p: _Pending, odom: np.ndarray) -> Scan | None:
         odometry = interpolate_odometry(odom, p.timestamp) if p.needs_odometry else p.odometry
         range_max = self.no_return.get(p.kind, p.range_max)
+        source = f"{self.lines.name}:{p.line_no}"
         try:
             return Scan(
-                p.ranges,
-                p.angles,
-                0.0,
-                range_max,
-                p.timestamp,
-                odometry,
-                p.reference,
-                f"{self.lines.name}:{p.line_no}",
+                p.ranges, p.angles, 0.0, range_max, p.timestamp, odometry, p.reference, source
             )
-        except ScanError as exc:
-            err = ParseError(self.lines.path, p.line_no, f"{p.kind} {exc}")
+        except ScanError as exc:  # the error names file and line: not the source again
+            why = str(exc).removeprefix(f"{source}: ")
+            err = ParseError(self.lines.path, p.line_no, f"{p.kind}: {why}")
             if self.strict:
                 raise err from None
             self._skip_malformed(f"malformed:{p.kind}", err)

@@ -281,8 +281,9 @@ def read_bag(
                         source=where,
                     )
                 )  # fmt: skip
-            except ScanCliqueError as exc:
-                raise ParseError(name, None, f"{c.topic} message {k}: {exc}") from None
+            except ScanCliqueError as exc:  # named below by bag, topic and message
+                why = str(exc).removeprefix(f"{where}: ")
+                raise ParseError(name, None, f"{c.topic} message {k}: {why}") from None
         return out
     finally:
         reader.close()

@@ -740,8 +740,8 @@ def _parse_scan_line(tokens: list[str], max_beams: int, err, source: str) -> Sca
         angles = beam_angles(n, a0, inc)
     try:
         return Scan(ranges, angles, rmin, rmax, t, odometry, reference, source)
-    except ScanError as exc:
-        raise err(None, str(exc)) from None
+    except ScanError as exc:  # the error names file and line: not the scan's source again
+        raise err(None, str(exc).removeprefix(f"{source}: ")) from None
 
 
 class _TextReader:
