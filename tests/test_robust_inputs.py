@@ -301,3 +301,16 @@ def test_a_scan_error_in_a_text_log_names_the_file_once(tmp_path):
     with pytest.raises(ParseError) as ei:
         sc.read_scans(p)
     assert str(ei.value) == f"{p}:1: beam angles must be strictly increasing"
+
+
+def test_smoothing_a_run_without_observations_is_empty(tmp_path):
+    pytest.importorskip("gtsam")
+    from scanclique.slam.smooth import smooth
+
+    steps = [slam.Step(0.0, (1.0, 0.0), []), slam.Step(1.0, None, [])]
+    model = slam.Ackermann()
+    sm = smooth(steps, model, slam.ekf_slam(steps, model))
+    assert sm.poses.shape == (0, 3) and sm.landmarks.shape == (0, 2) and sm.factors == 0
+    d = _vp(tmp_path / "vp", "", "0.0 1.0 0.0\n0.5 1.0 0.0\n")
+    r = invoke("slam", d, "--smooth", "--json")
+    assert r.exit_code == 0, r.output

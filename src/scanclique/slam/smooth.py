@@ -139,6 +139,8 @@ def smooth(
     Returns
     -------
     SmoothResult
+        Empty (no poses, no landmarks, no factors) when the run has no observation step:
+        the smoothed variables are the observation steps' poses.
     """
     import gtsam
 
@@ -150,6 +152,11 @@ def smooth(
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     if len(obs_steps) != len(result.associations):
         raise ValueError("the steps are not the ones the filter ran on")
+    if not obs_steps:  # nothing to smooth (GTSAM would fail on a prior of no variable)
+        return SmoothResult(
+            times[:0], np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0, np.int64), 0, 0.0, 0.0,
+            time.perf_counter() - t0, time.process_time() - c0,
+        )  # fmt: skip
     mount = gtsam.Pose2(model.sensor_x, model.sensor_y, 0.0)
     ad = mount.inverse().AdjointMap()  # body-frame perturbation, vehicle -> sensor
 
