@@ -314,3 +314,15 @@ def test_smoothing_a_run_without_observations_is_empty(tmp_path):
     d = _vp(tmp_path / "vp", "", "0.0 1.0 0.0\n0.5 1.0 0.0\n")
     r = invoke("slam", d, "--smooth", "--json")
     assert r.exit_code == 0, r.output
+
+
+def test_wrong_configuration_and_scan_arguments_of_map_scans_and_find_loops():
+    from scanclique.places.loops import find_loops
+
+    with pytest.raises(ConfigError, match="MapConfig"):
+        sc.map_scans([], config=sc.MatchConfig())  # was an AttributeError: front_end
+    with pytest.raises(ArgumentError, match="sequence of Scan"):
+        find_loops(None)
+    with pytest.raises(ConfigError, match="MatchConfig"):
+        find_loops([], "paper")
+    assert find_loops([]).loops == ()

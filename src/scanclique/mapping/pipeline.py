@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._records import readonly
-from ..errors import ArgumentError, ScanError
+from ..errors import ArgumentError, ConfigError, ScanError
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
@@ -716,6 +716,9 @@ def map_scans(
     ------
     ArgumentError
         If ``scans`` is not an iterable of scans (None, a number, a path).
+    ConfigError
+        If ``config`` is not a :class:`MapConfig` (a ``MatchConfig`` goes in its
+        ``match`` field).
     ScanError
         If one of them is not a :class:`~scanclique.scan.Scan`.
 
@@ -728,6 +731,10 @@ def map_scans(
     >>> len(r.poses), r.placed_by[0]
     (2, 'first')
     """
+    if config is not None and not isinstance(config, MapConfig):
+        raise ConfigError(
+            f"map_scans: config must be a MapConfig or None, got {type(config).__name__}"
+        )
     cfg = config or MapConfig()
     if isinstance(scans, (str, bytes, os.PathLike)) or not isinstance(scans, Iterable):
         # list() would fail with a bare TypeError, or split a path into characters

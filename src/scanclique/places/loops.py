@@ -43,7 +43,7 @@ import numpy as np
 
 from .._workers import RunState, local_pool, new_token
 from ..config import MatchConfig, config_from_dict, config_to_dict
-from ..errors import ConfigError, ScanCliqueError
+from ..errors import ArgumentError, ConfigError, ScanCliqueError
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
@@ -420,7 +420,10 @@ def find_loops(
     Raises
     ------
     ConfigError
-        ``candidates < 1``, ``min_gap < 1`` or ``workers < 0``.
+        ``candidates < 1``, ``min_gap < 1`` or ``workers < 0``, or ``config`` is not a
+        :class:`~scanclique.config.MatchConfig`.
+    ArgumentError
+        ``scans`` is not a sequence (None, a path, a generator).
     ScanCliqueError
         The scheduler cannot be reached.
     """
@@ -431,6 +434,15 @@ def find_loops(
     ):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise ConfigError(f"find_loops: {name} must be an integer >= {lo}, got {v!r}")
+    if isinstance(scans, (str, bytes)) or not isinstance(scans, Sequence):
+        raise ArgumentError(
+            f"find_loops: scans must be a sequence of Scan (read a file with read_scans "
+            f"first), got {type(scans).__name__}"
+        )
+    if config is not None and not isinstance(config, MatchConfig):
+        raise ConfigError(
+            f"find_loops: config must be a MatchConfig or None, got {type(config).__name__}"
+        )
     cfg = config or MatchConfig()
     if workers == 0:
         workers = os.cpu_count() or 1
