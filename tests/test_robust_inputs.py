@@ -326,3 +326,11 @@ def test_wrong_configuration_and_scan_arguments_of_map_scans_and_find_loops():
     with pytest.raises(ConfigError, match="MatchConfig"):
         find_loops([], "paper")
     assert find_loops([]).loops == ()
+
+
+def test_of_two_controls_at_one_time_the_last_holds(tmp_path):
+    """The first of two equal-time controls used to hold, the second was dropped."""
+    d = _vp(tmp_path / "vp", "0.5 10.0 1.0 0.3\n", "0.0 1.0 0.0\n0.5 1.0 0.1\n0.5 2.0 0.2\n")
+    steps = slam.read_victoria_park(d)
+    assert [s.time for s in steps] == [0.0, 0.5]
+    assert steps[1].control.tolist() == [2.0, 0.2] and steps[1].n_observations == 1

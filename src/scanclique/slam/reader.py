@@ -265,7 +265,8 @@ def steps_from_arrays(
     Parameters
     ----------
     controls : (U, 3) array
-        ``time c1 c2`` rows; each control holds from its time until the next.
+        ``time c1 c2`` rows; each control holds from its time until the next. Of several
+        controls at one time the last holds (the others hold for no time at all).
     measurements : (M, 3) or (M, 4) array
         ``time range bearing [attribute]`` rows; rows with equal times are one batch.
     bearing_offset : float
@@ -302,12 +303,12 @@ def steps_from_arrays(
     batch_t = t_m[starts]
     ctrl_t = controls[:, 0]
     times = np.union1d(ctrl_t, batch_t)
-    ci = np.searchsorted(ctrl_t, times)
+    ci = np.searchsorted(ctrl_t, times, side="right") - 1  # the last control at that time
     bi = np.searchsorted(batch_t, times)
     empty = np.zeros((0, 2))
     steps: list[Step] = []
     for k, t in enumerate(times):
-        c = controls[ci[k], 1:] if ci[k] < len(ctrl_t) and ctrl_t[ci[k]] == t else None
+        c = controls[ci[k], 1:] if ci[k] >= 0 and ctrl_t[ci[k]] == t else None
         if bi[k] < len(batch_t) and batch_t[bi[k]] == t:
             rows = measurements[starts[bi[k]] : ends[bi[k]]]
             obs = np.column_stack([rows[:, 1], wrap(rows[:, 2] + bearing_offset)])
