@@ -334,3 +334,19 @@ def test_of_two_controls_at_one_time_the_last_holds(tmp_path):
     steps = slam.read_victoria_park(d)
     assert [s.time for s in steps] == [0.0, 0.5]
     assert steps[1].control.tolist() == [2.0, 0.2] and steps[1].n_observations == 1
+
+
+def test_a_byte_order_mark_before_a_table_or_relations_file(tmp_path):
+    from scanclique.eval import read_relations
+
+    d = _vp(tmp_path / "vp", BOM + b"0.5 10.0 1.0 0.3\n", BOM + b"0.0 1.0 0.0\n")
+    steps = slam.read_victoria_park(d)
+    assert [s.time for s in steps] == [0.0, 0.5] and steps[1].n_observations == 1
+    bad = _vp(tmp_path / "bad", BOM + b"0.5 10.0 1.0 0.3\n\xff\n")
+    with pytest.raises(ParseError) as ei:
+        slam.read_victoria_park(bad)
+    assert ei.value.line == 2
+    rel = tmp_path / "r.relations"
+    rel.write_bytes(BOM + b"1.0 2.0 0.5 0.0 0 0 0 0.1\n")
+    (r,) = read_relations(rel)
+    assert (r.t1, r.t2) == (1.0, 2.0)

@@ -89,7 +89,7 @@ def read_relations(path: str | os.PathLike) -> list[Relation]:
     """
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8-sig")  # a byte order mark at the head is dropped
     except (OSError, UnicodeDecodeError) as exc:
         raise ParseError(str(path), None, f"cannot read relations file ({exc})") from None
     names = ("t1", "t2", "x", "y", "z", "roll", "pitch", "yaw")

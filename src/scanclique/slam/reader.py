@@ -175,13 +175,14 @@ def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
         raise DataNotFoundError(f"{path}: no such file") from None
     except OSError as exc:  # a directory, no permission, an I/O error
         raise ParseError(str(path), None, f"cannot be read ({exc.strerror or exc})") from None
-    try:
-        text = data.decode("utf-8")
+    try:  # -sig: a byte order mark at the head is dropped (as the log readers do)
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:  # binary data, or text in another encoding
+        body = exc.object  # the data after the mark, which exc.start counts in
         raise ParseError(
             str(path),
-            data.count(b"\n", 0, exc.start) + 1,
-            f"expected UTF-8/ASCII text, found the byte {data[exc.start : exc.start + 1]!r} "
+            body.count(b"\n", 0, exc.start) + 1,
+            f"expected UTF-8/ASCII text, found the byte {body[exc.start : exc.start + 1]!r} "
             "(binary data?)",
         ) from None
     try:  # fast path: a well-formed file
