@@ -350,3 +350,18 @@ def test_a_byte_order_mark_before_a_table_or_relations_file(tmp_path):
     rel.write_bytes(BOM + b"1.0 2.0 0.5 0.0 0 0 0 0.1\n")
     (r,) = read_relations(rel)
     assert (r.t1, r.t2) == (1.0, 2.0)
+
+
+def test_a_byte_order_mark_before_a_configuration_file(tmp_path):
+    from scanclique.config import MatchConfig, paper_config
+    from scanclique.io.config import read_config, write_config
+
+    plain = tmp_path / "plain.toml"
+    write_config(plain, paper_config())
+    marked = tmp_path / "marked.toml"
+    marked.write_bytes(BOM + plain.read_bytes())
+    assert read_config(marked, cls=MatchConfig) == read_config(plain, cls=MatchConfig)
+    bad = tmp_path / "bad.toml"
+    bad.write_bytes(BOM + b"[a]\n\xff\n")
+    with pytest.raises(ConfigError, match=r"bad\.toml: not UTF-8 text \(byte 7\)"):
+        read_config(bad, cls=MatchConfig)

@@ -233,10 +233,11 @@ def read_config(path: str | os.PathLike, base=None, cls=None):
             f"{source}: larger than {MAX_CONFIG_BYTES // 1024} KiB: not a scanclique "
             "configuration (`scanclique config` writes one of about 4 KiB)"
         )
+    bom = raw.startswith(b"\xef\xbb\xbf")  # a byte order mark (Windows editors) is dropped
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start})") from None
+        raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start + 3 * bom})") from None
     return loads_config(text, source, base, cls)
 
 
