@@ -365,3 +365,45 @@ def test_a_byte_order_mark_before_a_configuration_file(tmp_path):
     bad.write_bytes(BOM + b"[a]\n\xff\n")
     with pytest.raises(ConfigError, match=r"bad\.toml: not UTF-8 text \(byte 7\)"):
         read_config(bad, cls=MatchConfig)
+
+
+# --- PlaceDB arguments of the wrong type (a ConfigError / ArgumentError, no file) ---------
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"cache": -1},
+        {"cache": 2.5},
+        {"escalate": -1},
+        {"seeded": True},
+        {"min_features": "3"},
+        {"min_score": float("nan")},
+        {"min_confidence": 1.5},
+        {"config": {"features": {}}},
+    ],
+)
+def test_placedb_refuses_bad_arguments_before_creating_the_file(tmp_path, kw):
+    path = tmp_path / "p.db"
+    with pytest.raises(ConfigError, match="PlaceDB: "):
+        PlaceDB(path, **kw)
+    assert not path.exists()
+
+
+def test_placedb_query_arguments_are_checked(tmp_path):
+    pair = sc.sim.simulate_pair(np.random.default_rng(3))
+    with PlaceDB(tmp_path / "p.db") as db:
+        pid = db.add(pair.scan_a)
+        for kw in ({"k": float("nan")}, {"k": -1}, {"candidates": 1.5}):
+            with pytest.raises(ConfigError):
+                db.query(pair.scan_b, **kw)
+        for bad in ("12", [1, "x"], 3):
+            with pytest.raises(ArgumentError, match="exclude|place id"):
+                db.query(pair.scan_b, exclude=bad)
+        with pytest.raises(ArgumentError, match="place id"):
+            db.get("x")
+        with pytest.raises(ArgumentError, match="place id"):
+            db.prepared(1.0)
+        # the accepted forms still work: a range, a list, a numpy array, None
+        for ex in (range(pid, pid + 1), [pid], np.array([pid]), None):
+            hits = db.query(pair.scan_b, k=1, exclude=ex)
+            assert [h.place_id for h in hits] == ([] if ex is not None else [pid])
+        assert db.get(np.int64(pid)).scan.n_beams == pair.scan_a.n_beams

@@ -53,6 +53,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 from collections import OrderedDict
 from collections.abc import Iterable
@@ -63,7 +64,7 @@ import numpy as np
 
 from .. import __version__
 from ..config import MatchConfig, config_from_dict, config_to_dict
-from ..errors import ConfigError, PlaceDatabaseError
+from ..errors import ArgumentError, ConfigError, PlaceDatabaseError
 from ..geometry import Pose2
 from ..match import PreparedScan, prepare_scan
 from ..scan import Scan
@@ -274,6 +275,46 @@ def config_differences(stored: dict, given: dict, keys=PREPARE_KEYS) -> list[str
     return out
 
 
+def _whole(name: str, v, lo: int) -> int:
+    """``v`` as an int of at least ``lo``; a :class:`ConfigError` naming the argument
+    otherwise (a bool, a float, NaN or a string is not a count)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+        raise ConfigError(f"PlaceDB: {name} must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _real(name: str, v, lo: float, hi: float) -> float:
+    """``v`` as a float in ``[lo, hi]``; a :class:`ConfigError` naming the argument
+    otherwise (NaN and a string included)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"PlaceDB: {name} must be a number, got {v!r}")
+    if not lo <= float(v) <= hi:  # NaN fails both
+        raise ConfigError(f"PlaceDB: {name} must be in [{lo}, {hi}], got {v!r}")
+    return float(v)
+
+
+def _place_id(v) -> int:
+    """A place id given by the caller, as an int; an :class:`ArgumentError` otherwise."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise ArgumentError(f"PlaceDB: a place id is an integer, got {v!r}")
+    return int(v)
+
+
+def _exclude_ids(exclude) -> np.ndarray | None:
+    """The place ids of a query's ``exclude`` (any iterable of integers, e.g. a range) as
+    an int64 array; None for None. A string, or an item that is not an integer, is an
+    :class:`ArgumentError` (``"12"`` would otherwise exclude places 1 and 2)."""
+    if exclude is None:
+        return None
+    if isinstance(exclude, (str, bytes)) or not isinstance(exclude, Iterable):
+        raise ArgumentError(
+            f"PlaceDB: exclude must be an iterable of place ids, got {type(exclude).__name__}"
+        )
+    if isinstance(exclude, range):
+        return np.arange(exclude.start, exclude.stop, exclude.step, dtype=np.int64)
+    return np.array([_place_id(i) for i in exclude], dtype=np.int64)
+
+
 class PlaceDB:
     """A persistent database of places (paper §2: topological localisation).
 
@@ -333,6 +374,11 @@ class PlaceDB:
         incompatible configuration or a newer signature. Signatures of an older
         version (:data:`.signature.SIGNATURE_VERSION`) are recomputed from the stored
         scans when the database is opened for writing, and refused read-only.
+    ConfigError
+        A count that is not an integer >= 0 (``cache``, ``seeded``, ``escalate``,
+        ``min_features``), a ``min_score`` that is not a number, a ``min_confidence``
+        outside ``[0, 1]``, or a ``config`` that is not a MatchConfig; checked before
+        the file is opened or created.
     """
 
     def __init__(
@@ -351,6 +397,17 @@ class PlaceDB:
         min_confidence: float = ACCEPT_MIN_CONFIDENCE,
         escalate: int = ESCALATE,
     ) -> None:
+        # the arguments first: a refused one creates no file
+        cache = _whole("cache", cache, 0)
+        seeded = _whole("seeded", seeded, 0)
+        escalate = _whole("escalate", escalate, 0)
+        min_features = _whole("min_features", min_features, 0)
+        min_score = _real("min_score", min_score, -math.inf, math.inf)
+        min_confidence = _real("min_confidence", min_confidence, 0.0, 1.0)
+        if config is not None and not isinstance(config, MatchConfig):
+            raise ConfigError(
+                f"PlaceDB: config must be a MatchConfig or None, got {type(config).__name__}"
+            )
         given = None if config is None else config_to_dict(config)
         meta = {
             "config": json.dumps(given if given is not None else config_to_dict(MatchConfig())),
@@ -368,7 +425,7 @@ class PlaceDB:
             raise
         self.search = bool(search)
         self.seeded = int(seeded)
-        self.escalate = max(0, int(escalate))
+        self.escalate = escalate
         self.aliases = bool(aliases)
         self.verify_config = dataclasses.replace(
             self.config, refine=dataclasses.replace(self.config.refine, search=self.search)
@@ -486,7 +543,7 @@ class PlaceDB:
 
     def get(self, place_id: int) -> PlaceRecord:
         """The stored place (scan, features' arrays)."""
-        return self.store.get(place_id)
+        return self.store.get(_place_id(place_id))
 
     def _remember(self, pid: int, p: PreparedScan) -> None:
         self._cache[pid] = p
@@ -496,7 +553,7 @@ class PlaceDB:
 
     def prepared(self, place_id: int) -> PreparedScan:
         """The stored place's scan, prepared (cached)."""
-        pid = int(place_id)
+        pid = _place_id(place_id)
         p = self._cache.get(pid)
         if p is None:
             p = self.prepare(self.store.get(pid, arrays=False).scan)
@@ -508,6 +565,8 @@ class PlaceDB:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The prefilter alone: ids of the ``n`` places of nearest signature and their
         distances, nearest first (places in ``exclude`` left out)."""
+        n = _whole("n", n, 0)
+        exclude = _exclude_ids(exclude)
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
         ids, dist, _, _ = self._candidates(p, n, exclude)
@@ -606,10 +665,20 @@ class PlaceDB:
             Accepted first, then ambiguous, then rejected; by confidence within each
             (to :data:`CONFIDENCE_DIGITS` decimals, then raw-scan score). ``hit.pose``
             maps the query's points into the place's frame.
+
+        Raises
+        ------
+        ConfigError
+            ``k`` or ``candidates`` is not an integer >= 0.
+        ArgumentError
+            ``exclude`` is not an iterable of integers (a string, say).
         """
+        k = _whole("k", k, 0)
+        candidates = 0 if candidates is None else _whole("candidates", candidates, 0)
+        exclude = _exclude_ids(exclude)
         self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
-        n = max(int(k), int(candidates or 0))
+        n = max(k, candidates)
         ids, dist, votes, poses = self._candidates(p, n + self.escalate, exclude, self.seeded)
         missing = [int(i) for i in ids if int(i) not in self._names]
         if missing:
