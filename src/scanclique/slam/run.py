@@ -110,11 +110,12 @@ class SlamRun:
         }
 
 
-def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0):
+def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0, warn: bool = True):
     """``(GpsError or None, metrics dict, alignment)`` of a run.
 
     The GPS error is None (and the metrics have no GPS rows) when there are no fixes, or
-    no fix (outliers excepted) falls within the run's time span; the latter is logged.
+    no fix (outliers excepted) falls within the run's time span; the latter is logged
+    (unless ``warn`` is false: :func:`summarise_smoothed`, whose filter run said it).
     """
     pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
     g = None
@@ -123,7 +124,7 @@ def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0):
     if gps_fixes is not None and len(gps_fixes) and len(result.times):
         ok = gps_fixes[~gps_outliers(gps_fixes)]
         ok = ok[(ok[:, 0] >= result.times[0]) & (ok[:, 0] <= result.times[-1])]
-        if not len(ok):
+        if not len(ok) and warn:
             log.warning(
                 "none of the %d GPS fixes falls within the run's time span [%s, %s] s: "
                 "no GPS error",
@@ -179,7 +180,7 @@ def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clut
         cpu_seconds=result.cpu_seconds + smoothed.cpu_seconds,
         seconds=result.seconds + smoothed.seconds,
     )
-    g, m, align = summarise(r, model, gps_fixes, clutter)
+    g, m, align = summarise(r, model, gps_fixes, clutter, warn=False)
     m["smoothing time"] = (smoothed.seconds, "s")
     return g, m, align
 
