@@ -410,3 +410,17 @@ def test_placedb_query_arguments_are_checked(tmp_path):
             hits = db.query(pair.scan_b, k=1, exclude=ex)
             assert [h.place_id for h in hits] == ([] if ex is not None else [pid])
         assert db.get(np.int64(pid)).scan.n_beams == pair.scan_a.n_beams
+
+
+# --- an absurd pose (a corrupt field) is refused where the scan is built -----------------
+def test_a_pose_beyond_any_frame_is_refused_with_its_line(tmp_path):
+    ok = flaser([1.0] * 180, 0.0)
+    bad = ok.replace(" 0 0 0 0 0 0 ", " 0 0 0 1e300 0 0 ").replace(" 0.0 host 0.0", " 1.0 host 1.0")
+    p = tmp_path / "absurd.log"
+    p.write_text(ok + bad)
+    with pytest.raises(ParseError, match=r"absurd\.log.*2.*odometry .*not a pose"):
+        sc.read_scans(p, strict=True)
+    assert len(sc.read_scans(p, strict=False)) == 1  # lenient: the line is skipped, warned
+    with pytest.raises(ScanCliqueError, match="reference"):
+        sc.Scan.from_ranges([1.0, 2.0], reference=Pose2(0.0, -2e9, 0.0))
+    assert sc.Scan.from_ranges([1.0, 2.0], odometry=Pose2(5e6, 4e6, 0.0)).odometry.x == 5e6

@@ -17,7 +17,13 @@ from ._records import readonly as _readonly
 from .errors import ScanError
 from .geometry import Pose2
 
-__all__ = ["Scan", "beam_angles"]
+__all__ = ["Scan", "beam_angles", "MAX_POSE_COORDINATE"]
+
+#: a scan's odometry or reference pose farther than this from its frame's origin (metres,
+#: in x or y) is refused: 10^9 m is beyond any robot's frame (UTM coordinates are below
+#: 10^7 m), and such a value is a corrupt field whose square overflows the uncertainty
+#: arithmetic downstream
+MAX_POSE_COORDINATE = 1e9
 
 
 def beam_angles(n: int, angle_min: float, angle_increment: float) -> np.ndarray:
@@ -44,6 +50,7 @@ class Scan:
         Odometry pose of the sensor in the odometry frame (drifts).
     reference : Pose2 or None
         Reference ("ground truth" / corrected) pose of the sensor in the world frame.
+        Both poses within :data:`MAX_POSE_COORDINATE` of their frame's origin.
     source : str
         Where the scan came from, e.g. ``"intel-odometry.log.gz:17"``, for messages.
     """
@@ -80,6 +87,11 @@ class Scan:
             v = getattr(self, name)
             if v is not None and not isinstance(v, Pose2):
                 raise ScanError(f"{where}{name} must be a Pose2 or None, got {type(v).__name__}")
+            if v is not None and max(abs(v.x), abs(v.y)) > MAX_POSE_COORDINATE:
+                raise ScanError(
+                    f"{where}{name} ({v.x:g}, {v.y:g}) lies beyond {MAX_POSE_COORDINATE:g} m "
+                    "of its frame's origin: not a pose"
+                )
         if self.timestamp is not None:
             t = float(self.timestamp)
             if not math.isfinite(t):
