@@ -1,0 +1,198 @@
+"""Robustness audit (s13): configuration values, CLI numeric options, output paths.
+
+A configuration value that is NaN, infinite where no limit is meant, negative, zero
+where zero means nothing, of the wrong type, or not one of a field's choices is a
+:class:`~scanclique.errors.ConfigError` naming the record and the field, raised when the
+record is built (so before any work), and a TOML file's naming the file too. The CLI
+exits 2 with one ``error:`` line. The matcher's own records (``MatchConfig`` and its
+sections) are covered by ``test_config``; these are the mapper's and the filter's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from scanclique import cli
+from scanclique.errors import ConfigError
+from scanclique.mapping import MapConfig
+from scanclique.mapping.config import (
+    BackEndConfig,
+    FrontEndConfig,
+    LoopConfig,
+    OccupancyConfig,
+)
+from scanclique.slam import SlamConfig
+from scanclique.slam.association import AssociationConfig
+
+runner = CliRunner()
+NAN, INF = math.nan, math.inf
+
+
+def invoke(*args):
+    return runner.invoke(cli.app, [str(a) for a in args])
+
+
+def assert_clean_error(result, *words: str) -> None:
+    assert result.exit_code == 2, result.output
+    err = result.stderr.strip()
+    assert err.startswith("error:") and len(err.splitlines()) == 1, err
+    assert "Traceback" not in result.output
+    for w in words:
+        assert w in err, err
+
+
+# ---------------------------------------------------------------------------------------
+# the mapper's and the filter's records had no type check and few range checks: NaN,
+# strings and negative counts went into the run (a NaN gate or score silently changed
+# the map, a wrong-typed section was used or replaced by the defaults, a typo of a
+# choice ran the other choice, a negative margin or clique_limit ended in a traceback)
+# ---------------------------------------------------------------------------------------
+BAD_FIELDS = [
+    (FrontEndConfig, "icp_gate", NAN),
+    (FrontEndConfig, "icp_gate", 0.0),
+    (FrontEndConfig, "refine_iterations", -1),
+    (FrontEndConfig, "refine_max_correspondence", NAN),
+    (FrontEndConfig, "refine_min_correspondence", 0.0),
+    (FrontEndConfig, "refine_max_shift", -0.1),
+    (FrontEndConfig, "icp_min_fitness", -INF),
+    (FrontEndConfig, "icp_score_tie", INF),
+    (FrontEndConfig, "scan_min_score", NAN),
+    (FrontEndConfig, "refine", "no"),
+    (FrontEndConfig, "max_seeds", 2.5),
+    (FrontEndConfig, "refine_max_turn", "0.1"),
+    (FrontEndConfig, "odometry_noise", None),
+    (FrontEndConfig, "velocity_noise", (0.1, 0.1)),
+    (LoopConfig, "enabled", "false"),
+    (LoopConfig, "growth", NAN),
+    (LoopConfig, "heading_growth", -0.1),
+    (LoopConfig, "local", -1),
+    (LoopConfig, "per_keyframe", -2),
+    (LoopConfig, "separation", -1),
+    (LoopConfig, "pcm_anchor_batches", -1),
+    (LoopConfig, "min_score", NAN),
+    (LoopConfig, "pcm_gate", "0.99"),  # a TypeError from the comparison before
+    (LoopConfig, "every", 10**30),
+    (BackEndConfig, "max_iterations", 2.5),
+    (OccupancyConfig, "margin", -100.0),  # negative dimensions (ValueError) before
+    (OccupancyConfig, "margin", NAN),  # cannot convert NaN to integer before
+    (OccupancyConfig, "log_odds_miss", NAN),  # an all-unknown grid before
+    (OccupancyConfig, "log_odds_miss", 0.5),  # passes marked cells occupied
+    (OccupancyConfig, "free_on_no_return", 1),
+    (MapConfig, "loops", "x"),
+    (MapConfig, "match", {}),
+    (MapConfig, "occupancy", LoopConfig()),
+    (SlamConfig, "sigma_range", 0.0),
+    (SlamConfig, "sigma_range", -0.5),  # squared: silently 0.5 before
+    (SlamConfig, "sigma_range", NAN),  # an empty map before
+    (SlamConfig, "sigma_bearing", INF),
+    (SlamConfig, "sigma_xy_rate", "0.1"),  # a TypeError at the first prediction before
+    (SlamConfig, "sensor_fov", -1.0),
+    (SlamConfig, "max_range", -1.0),
+    (SlamConfig, "max_range", NAN),
+    (SlamConfig, "visible_range", NAN),
+    (SlamConfig, "confirm_range", NAN),
+    (SlamConfig, "confirm_hits", 0),
+    (SlamConfig, "confirm_hits", 2.5),
+    (SlamConfig, "max_misses", -1),
+    (SlamConfig, "tentative_scans", 0),
+    (SlamConfig, "update_iterations", 0),
+    (SlamConfig, "control_bias_sigma", -1.0),
+    (SlamConfig, "bearing_bias_sigma", NAN),
+    (SlamConfig, "initial_sigma", (1.0, 2.0)),  # negative dimensions (ValueError) before
+    (SlamConfig, "initial_sigma", (0.1, 0.1, NAN)),
+    (SlamConfig, "initial_sigma", [0.1, 0.1, 0.1]),
+    (SlamConfig, "init_range", (5.0, 1.0)),
+    (SlamConfig, "init_range", (-1.0, INF)),
+    (SlamConfig, "tentative_update", "Full"),  # ran the "landmark" update before
+    (SlamConfig, "association", "x"),  # replaced by the defaults before
+    (AssociationConfig, "gate_probability", 1.0),
+    (AssociationConfig, "gate_probability", NAN),
+    (AssociationConfig, "new_probability", 0.0),
+    (AssociationConfig, "ambiguity_probability", 2.0),
+    (AssociationConfig, "invariant_sigmas", -1.0),
+    (AssociationConfig, "attribute_tolerance", -1.0),
+    (AssociationConfig, "attribute_sigma", (0.0, 0.0)),
+    (AssociationConfig, "attribute_sigma", (NAN, 0.1)),
+    (AssociationConfig, "ambiguity", "Distinct"),  # ran "conflict" before
+    (AssociationConfig, "clique_limit", -1),  # max() of an empty sequence before
+    (AssociationConfig, "node_limit", 0),
+    (AssociationConfig, "clique_individual_gate", "yes"),
+]
+
+
+@pytest.mark.parametrize(
+    "cls, name, value", BAD_FIELDS, ids=[f"{c.__name__}.{n}={v!r}" for c, n, v in BAD_FIELDS]
+)
+def test_a_bad_field_is_a_config_error_naming_it(cls, name, value):
+    with pytest.raises(ConfigError, match=rf"{cls.__name__}\.{name} must "):
+        dataclasses.replace(cls(), **{name: value})
+
+
+GOOD_FIELDS = [  # the documented meanings of the edge values
+    (SlamConfig, "max_range", None),  # no limit
+    (SlamConfig, "max_range", INF),
+    (SlamConfig, "visible_range", INF),
+    (SlamConfig, "confirm_range", None),
+    (SlamConfig, "init_range", (0.0, INF)),
+    (SlamConfig, "initial_sigma", (0.0, 0.0, 0.0)),  # a known start
+    (SlamConfig, "sigma_xy_rate", 0.0),
+    (SlamConfig, "control_bias_sigma", 0.1),
+    (SlamConfig, "tentative_update", "landmark"),
+    (AssociationConfig, "attribute_sigma", None),
+    (AssociationConfig, "attribute_sigma", (0.1, 0.0)),
+    (AssociationConfig, "ambiguity", "conflict"),
+    (LoopConfig, "per_keyframe", 0),  # no loop candidates
+    (LoopConfig, "min_score", -INF),
+    (FrontEndConfig, "icp_min_score", -0.5),  # raw-scan scores can be negative
+    (OccupancyConfig, "log_odds_miss", 0.0),  # passes leave cells alone
+    (OccupancyConfig, "margin", 0.0),
+]
+
+
+@pytest.mark.parametrize(
+    "cls, name, value", GOOD_FIELDS, ids=[f"{c.__name__}.{n}={v!r}" for c, n, v in GOOD_FIELDS]
+)
+def test_edge_values_with_a_documented_meaning_are_kept(cls, name, value):
+    cfg = dataclasses.replace(cls(), **{name: value})
+    assert getattr(cfg, name) == value
+
+
+def test_the_defaults_and_the_sensor_configurations_are_valid():
+    from scanclique.slam.sim import room_config
+
+    assert MapConfig() == MapConfig() and SlamConfig() == SlamConfig()
+    cfg = SlamConfig.for_sensor(0.2, 0.03, None, attribute_sigma=(0.1, 0.0))
+    assert cfg.max_range is None and cfg.visible_range == INF
+    assert room_config().max_range == 5.0
+
+
+# --- the same through a TOML file given with -c: the error names the file and the field --
+TOML_CASES = [
+    ("map", "[front_end]\nicp_gate = nan\n", "FrontEndConfig.icp_gate"),
+    ("map", "[occupancy]\nmargin = -1.0\n", "OccupancyConfig.margin"),
+    ("map", "[occupancy]\nlog_odds_miss = inf\n", "OccupancyConfig.log_odds_miss"),
+    ("map", "[loops]\nlocal = -1\n", "LoopConfig.local"),
+    ("slam", "sigma_range = nan\n", "SlamConfig.sigma_range"),
+    ("slam", "max_range = -inf\n", "SlamConfig.max_range"),
+    ("slam", "initial_sigma = [nan, 0, 0]\n", "SlamConfig.initial_sigma"),
+    ("slam", 'tentative_update = "Full"\n', "SlamConfig.tentative_update"),
+    ("slam", "[association]\ngate_probability = 1\n", "AssociationConfig.gate_probability"),
+    ("slam", '[association]\nambiguity = "x"\n', "AssociationConfig.ambiguity"),
+]
+
+
+@pytest.mark.parametrize("command, text, field", TOML_CASES)
+def test_a_bad_value_in_a_configuration_file_stops_the_command_first(
+    tmp_path, command, text, field
+):
+    conf = tmp_path / "bad.toml"
+    conf.write_text(text)
+    out = tmp_path / "out"
+    data = tmp_path / "no-such-log"  # the configuration is read before the data
+    r = invoke(command, data, "--out", out, "-c", conf)
+    assert_clean_error(r, "bad.toml", field)
+    assert not out.exists()
