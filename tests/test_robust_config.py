@@ -196,3 +196,77 @@ def test_a_bad_value_in_a_configuration_file_stops_the_command_first(
     r = invoke(command, data, "--out", out, "-c", conf)
     assert_clean_error(r, "bad.toml", field)
     assert not out.exists()
+
+
+# ---------------------------------------------------------------------------------------
+# CLI numeric options: typer's range checks where the option is declared, the library's
+# check (one ConfigError line) where the bound depends on the machine
+# ---------------------------------------------------------------------------------------
+def _scan_text(tmp_path):
+    import numpy as np
+
+    import scanclique as sc
+    from scanclique.io import write_scans_text
+
+    rng = np.random.default_rng(0)
+    scans = sc.sim.simulate_trajectory(rng, sc.sim.office_world(np.random.default_rng(0)), 3)
+    path = tmp_path / "s.txt"
+    write_scans_text(path, scans)
+    return path
+
+
+def _tiny_victoria_park(d):
+    d.mkdir()
+    (d / "measurements.dat").write_text("0.5 10.0 1.0 0.3\n1.0 10.0 1.0 0.3\n")
+    (d / "inputs.dat").write_text("0.0 1.0 0.0\n")
+    (d / "gps.dat").write_text("0.0 0.0 0.0\n")
+    return d
+
+
+# a worker count beyond the machine forked every process at once (--workers 100000 forked
+# thousands on a 2-core machine until the system refused), or 10**12 ended in a traceback
+@pytest.mark.parametrize("command", ["map", "loops"])
+def test_a_worker_count_beyond_the_machine_is_refused_before_any_fork(tmp_path, command):
+    from scanclique._workers import max_workers
+
+    log = _scan_text(tmp_path)
+    out = tmp_path / "out"
+    extra = ["--out", out] if command == "map" else []
+    for n in (10**12, max_workers() + 1):
+        assert_clean_error(invoke(command, log, *extra, "--workers", n), "--workers", str(n))
+    assert not out.exists()
+
+
+def test_map_scans_checks_its_worker_count_before_the_scans():
+    from scanclique.mapping import map_scans
+
+    for bad in (0, -1, 2.0, 10**6):  # an empty log hid them (the check was the verifier's)
+        with pytest.raises(ConfigError, match="map_scans: workers must be an integer from 1"):
+            map_scans([], workers=bad)
+    assert map_scans([], workers=2).poses == ()
+
+
+# --clutter 10**5 ran out of memory in the association (10**12 at once), a negative --seed
+# with clutter ended in numpy's ValueError traceback
+@pytest.mark.parametrize(
+    "args, word",
+    [
+        (["--clutter", "101"], "--clutter"),
+        (["--clutter", "1000000000000"], "--clutter"),
+        (["--clutter", "1", "--seed", "-1"], "--seed"),
+    ],
+)
+def test_slam_clutter_and_seed_are_bounded(tmp_path, args, word):
+    d = _tiny_victoria_park(tmp_path / "vp")
+    assert_clean_error(invoke("slam", d, *args), word)
+
+
+def test_run_slam_checks_clutter_and_seed_before_reading(tmp_path):
+    from scanclique.slam.run import MAX_CLUTTER, run_slam
+
+    missing = tmp_path / "no-such-dir"
+    for kw in ({"clutter": MAX_CLUTTER + 1}, {"clutter": -1}, {"clutter": 2.5}, {"seed": -1}):
+        with pytest.raises(ConfigError, match=f"run_slam: {next(iter(kw))} must be"):
+            run_slam(missing, **kw)
+    r = invoke("slam", _tiny_victoria_park(tmp_path / "vp"), "--clutter", MAX_CLUTTER, "--json")
+    assert r.exit_code == 0, r.output

@@ -82,8 +82,10 @@ def map_cmd(
     scanclique map intel --out runs/intel -c map.toml --save-config runs/used.toml
     ```
     """
+    from .._workers import check_workers
     from ..mapping import MapConfig
 
+    _guard(lambda: check_workers("--workers", workers))  # before reading the log
     _check_out_dir(out)  # before the run, not after it
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out

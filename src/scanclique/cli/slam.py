@@ -42,9 +42,14 @@ def slam(
     ] = None,
     clutter: Annotated[
         int,
-        typer.Option("--clutter", min=0, help="Spurious detections added per scan (benchmark)."),
+        typer.Option(
+            "--clutter",
+            min=0,
+            max=100,  # scanclique.slam.run.MAX_CLUTTER (not imported here: light CLI)
+            help="Spurious detections added per scan (benchmark; at most 100).",
+        ),
     ] = 0,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of the clutter.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the clutter.")] = 0,
     plot: Annotated[bool, typer.Option("--plot", help="Also write map.png into --out.")] = False,
     smooth: Annotated[
         bool,
