@@ -270,3 +270,59 @@ def test_run_slam_checks_clutter_and_seed_before_reading(tmp_path):
             run_slam(missing, **kw)
     r = invoke("slam", _tiny_victoria_park(tmp_path / "vp"), "--clutter", MAX_CLUTTER, "--json")
     assert r.exit_code == 0, r.output
+
+
+# ---------------------------------------------------------------------------------------
+# output paths: refused before the run, not when the results are written
+# ---------------------------------------------------------------------------------------
+def test_output_directories_under_a_file_or_that_are_a_file(tmp_path):
+    log = _scan_text(tmp_path)
+    vp = _tiny_victoria_park(tmp_path / "vp")
+    f = tmp_path / "file"
+    f.write_text("kept")
+    for args in (["map", log, "--out"], ["slam", vp, "--out"]):
+        assert_clean_error(invoke(*args, f / "sub"), "is not a directory")
+        assert_clean_error(invoke(*args, f), "exists and is not a directory")
+    assert f.read_text() == "kept"
+
+
+# a directory in the way of one of the command's files failed after the whole run, with
+# the files before it written and those after it not
+@pytest.mark.parametrize(
+    "command, name",
+    [
+        ("map", "report.json"),
+        ("map", "map.pgm"),
+        ("map", "trajectory.tum"),
+        ("slam", "landmarks.csv"),
+        ("slam", "report.json"),
+    ],
+)
+def test_a_directory_in_the_way_of_an_output_file_is_refused_first(tmp_path, command, name):
+    out = tmp_path / "out"
+    (out / name).mkdir(parents=True)
+    missing = tmp_path / "no-such-data"  # refused before the data are even looked for
+    assert_clean_error(invoke(command, missing, "--out", out), name, "is a directory")
+    if name == "report.json":  # the last file: every other one was written before
+        source = _scan_text(tmp_path) if command == "map" else _tiny_victoria_park(tmp_path / "vp")
+        assert_clean_error(invoke(command, source, "--out", out), name, "is a directory")
+        assert sorted(p.name for p in out.iterdir()) == [name]
+
+
+def test_the_output_names_are_the_files_written(tmp_path):
+    from scanclique.mapping.run import output_names as map_names
+    from scanclique.slam.run import output_names as slam_names
+
+    r = invoke("map", _scan_text(tmp_path), "--out", tmp_path / "m", "--json")
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "m").iterdir()) == sorted(map_names(plot=False))
+    r = invoke("slam", _tiny_victoria_park(tmp_path / "vp"), "--out", tmp_path / "s", "--json")
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == sorted(slam_names())
+
+
+def test_an_empty_out_is_not_the_current_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # '' wrote the map's five files here, replacing any
+    log = _scan_text(tmp_path)
+    assert_clean_error(invoke("map", log, "--out", ""), "--out is empty")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.txt"]

@@ -86,7 +86,9 @@ def map_cmd(
     from ..mapping import MapConfig
 
     _guard(lambda: check_workers("--workers", workers))  # before reading the log
-    _check_out_dir(out)  # before the run, not after it
+    from ..mapping.run import output_names
+
+    _check_out_dir(out, output_names(plot))  # before the run, not after it
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out
     cfg = _read_app_config(config, MapConfig())

@@ -85,12 +85,13 @@ def slam(
         raise _fail(f"--association must be one of {', '.join(METHODS)}, got {association!r}")
     if plot and out is None:
         raise _fail("--plot writes map.png into --out: give --out DIR")
+    from ..slam import SlamConfig
+    from ..slam.run import output_names, run_slam
+
     if out is not None:
-        _check_out_dir(out)  # before the run, not after it
+        _check_out_dir(out, output_names(plot, smooth))  # before the run, not after it
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out
-    from ..slam import SlamConfig
-    from ..slam.run import run_slam
 
     cfg = _read_app_config(config, SlamConfig())
 

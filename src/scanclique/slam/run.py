@@ -25,6 +25,7 @@ from .reader import Step, read_gps, read_victoria_park, resolve_victoria_park
 __all__ = [
     "MAX_CLUTTER",
     "SlamRun",
+    "output_names",
     "run_slam",
     "inject_clutter",
     "victoria_park_model",
@@ -196,6 +197,17 @@ MAX_CLUTTER = 100
 """Most spurious detections :func:`run_slam` injects per scan: Victoria Park's scans see
 about 10 trees, the benchmarks add 5 or 10; 10**5 ran out of memory in the association
 (a matrix of 65539 x 65539), 10**12 at once."""
+
+
+def output_names(plot: bool = False, smooth: bool = False) -> tuple[str, ...]:
+    """The names of the files :func:`run_slam` writes into its ``out`` directory (the
+    ``slam`` command checks them before the run)."""
+    return (
+        ("trajectory.tum", "landmarks.csv")
+        + (("trajectory-smoothed.tum",) if smooth else ())
+        + (("map.png",) if plot else ())
+        + ("report.json",)
+    )
 
 
 def run_slam(
