@@ -326,3 +326,52 @@ def test_an_empty_out_is_not_the_current_directory(tmp_path, monkeypatch):
     log = _scan_text(tmp_path)
     assert_clean_error(invoke("map", log, "--out", ""), "--out is empty")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.txt"]
+
+
+# ---------------------------------------------------------------------------------------
+# the occupancy grid: max_range=1e300 with free_on_no_return walked without end (the cell
+# index of the beam's end was not an integer), resolution=1e-7 or margin=1e9 asked numpy
+# for petabytes (a MemoryError traceback after the whole mapping run)
+# ---------------------------------------------------------------------------------------
+def _no_return_scan():
+    import numpy as np
+
+    import scanclique as sc
+
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 61)
+    r = np.full(61, 3.0)
+    r[::6] = 80.0  # no return
+    return sc.Scan(r, angles, 0.0, 80.0)
+
+
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        ({"max_range": 1e300}, "max_range"),
+        ({"max_range": 1e7}, "max_range"),
+        ({"resolution": 1e-7}, "resolution"),
+    ],
+)
+def test_occupancy_limits_that_keep_cell_indices_integers(kw, field):
+    with pytest.raises(ConfigError, match=rf"OccupancyConfig\.{field} must be"):
+        OccupancyConfig(**kw)
+
+
+def test_an_occupancy_grid_beyond_the_cell_limit_names_the_resolution():
+    from scanclique.geometry import Pose2
+    from scanclique.mapping.occupancy import occupancy_grid
+
+    for kw in ({"margin": 1e9}, {"resolution": 1e-4}):
+        with pytest.raises(ConfigError, match=r"cells .*OccupancyConfig\.resolution="):
+            occupancy_grid([_no_return_scan()], [Pose2.identity()], OccupancyConfig(**kw))
+
+
+def test_a_long_free_beam_stops_where_it_leaves_the_grid():
+    from scanclique.geometry import Pose2
+    from scanclique.mapping.occupancy import occupancy_grid
+
+    scan, pose = _no_return_scan(), [Pose2.identity()]
+    near = occupancy_grid([scan], pose, OccupancyConfig(max_range=30.0, free_on_no_return=True))
+    far = occupancy_grid([scan], pose, OccupancyConfig(max_range=1e6, free_on_no_return=True))
+    assert far.shape == near.shape  # the grid is sized on the hits
+    assert abs(int((far.log_odds < 0).sum()) - int((near.log_odds < 0).sum())) < 10

@@ -22,6 +22,8 @@ __all__ = [
     "BackEndConfig",
     "OccupancyConfig",
     "MapConfig",
+    "MIN_RESOLUTION",
+    "MAX_OCCUPANCY_RANGE",
 ]
 
 
@@ -339,6 +341,12 @@ class BackEndConfig:
         _positive(self, "robust_scale", "max_iterations")
 
 
+MIN_RESOLUTION = 1e-4
+"""Finest occupancy grid cell (m): a tenth of a millimetre, far below any laser's noise."""
+MAX_OCCUPANCY_RANGE = 1e6
+"""Longest beam cast into an occupancy grid (m)."""
+
+
 @dataclass(frozen=True, slots=True)
 class OccupancyConfig:
     """The occupancy grid (issue 12, part 4): ``resolution`` m per cell, log-odds added per
@@ -348,7 +356,10 @@ class OccupancyConfig:
     window or an open door would paint free space beyond the walls); other invalid beams
     (NaN, -inf, at or below ``range_min``: too close, or an error) always are; every
     ``scan_stride``-th scan is cast. ``log_odds_miss`` is at most 0 (0: passes leave a
-    cell alone), ``margin`` (m of unknown around the map) at least 0."""
+    cell alone), ``margin`` (m of unknown around the map) at least 0, ``resolution`` at
+    least :data:`MIN_RESOLUTION` and ``max_range`` at most :data:`MAX_OCCUPANCY_RANGE`
+    (cell indices stay exact integers; ``max_range=1e300`` with ``free_on_no_return``
+    made the ray caster walk without end)."""
 
     resolution: float = 0.05
     log_odds_hit: float = 0.85
@@ -363,6 +374,16 @@ class OccupancyConfig:
         _check_types(self)
         _positive(self, "resolution", "log_odds_hit", "clamp", "max_range", "scan_stride")
         _nonneg(self, "margin")
+        if self.resolution < MIN_RESOLUTION:
+            raise ConfigError(
+                f"OccupancyConfig.resolution must be at least {MIN_RESOLUTION:g} m, "
+                f"got {self.resolution!r}"
+            )
+        if self.max_range > MAX_OCCUPANCY_RANGE:
+            raise ConfigError(
+                f"OccupancyConfig.max_range must be at most {MAX_OCCUPANCY_RANGE:g} m, "
+                f"got {self.max_range!r}"
+            )
         if not (math.isfinite(self.log_odds_miss) and self.log_odds_miss <= 0):
             raise ConfigError(
                 "OccupancyConfig.log_odds_miss must be a number <= 0 (a pass makes a cell "
