@@ -375,3 +375,16 @@ def test_a_long_free_beam_stops_where_it_leaves_the_grid():
     far = occupancy_grid([scan], pose, OccupancyConfig(max_range=1e6, free_on_no_return=True))
     assert far.shape == near.shape  # the grid is sized on the hits
     assert abs(int((far.log_odds < 0).sum()) - int((near.log_odds < 0).sum())) < 10
+
+
+# --max-range of a log that is not CARMEN was ignored whatever its value (-1, 0, nan: the
+# command ran); the CARMEN reader refused them. Now every format refuses them.
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf"])
+def test_a_bad_max_range_is_refused_whatever_the_log_format(tmp_path, value):
+    from scanclique.io import read_scans
+
+    log = _scan_text(tmp_path)
+    assert_clean_error(invoke("features", log, 0, "--max-range", value), "max_range")
+    with pytest.raises(ConfigError, match="max_range must be a positive number"):
+        read_scans(log, max_range=float(value))
+    assert len(read_scans(log, max_range=30.0)) == 3  # a good one is still ignored here
