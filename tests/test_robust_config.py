@@ -388,3 +388,13 @@ def test_a_bad_max_range_is_refused_whatever_the_log_format(tmp_path, value):
     with pytest.raises(ConfigError, match="max_range must be a positive number"):
         read_scans(log, max_range=float(value))
     assert len(read_scans(log, max_range=30.0)) == 3  # a good one is still ignored here
+
+
+def test_an_unknown_top_level_key_of_a_slam_file_lists_keys_and_tables(tmp_path):
+    conf = tmp_path / "slam.toml"
+    conf.write_text("[associaton]\nnode_limit = 1\n")  # 'known tables: sigma_range, ...'
+    r = invoke("slam", tmp_path / "vp", "-c", conf)
+    assert_clean_error(r, "slam.toml", "unknown key 'associaton'", "known keys and tables")
+    conf.write_text("[refine]\ncandidates = 1\n")
+    r = invoke("map", tmp_path / "log", "--out", tmp_path / "out", "-c", conf)
+    assert_clean_error(r, "unknown key 'refine'", "known tables: match, front_end")
