@@ -398,3 +398,13 @@ def test_an_unknown_top_level_key_of_a_slam_file_lists_keys_and_tables(tmp_path)
     conf.write_text("[refine]\ncandidates = 1\n")
     r = invoke("map", tmp_path / "log", "--out", tmp_path / "out", "-c", conf)
     assert_clean_error(r, "unknown key 'refine'", "known tables: match, front_end")
+
+
+def test_an_empty_slam_out_is_not_the_current_directory(tmp_path, monkeypatch):
+    vp = _tiny_victoria_park(tmp_path / "vp")
+    monkeypatch.chdir(tmp_path)  # '' wrote trajectory.tum, landmarks.csv... here
+    assert_clean_error(invoke("slam", vp, "--out", ""), "--out is empty")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["vp"]
+    r = invoke("slam", vp, "--out", "runs", "--json")  # a relative --out still works
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "runs" / "report.json").is_file()

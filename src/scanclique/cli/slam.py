@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -37,7 +36,7 @@ def slam(
         str, typer.Option("--association", "-a", help="clique, clique-jcbb (hybrid), jcbb or nn.")
     ] = "clique",
     out: Annotated[
-        Path | None,
+        str | None,  # not a Path: Path('') is '.', and an empty --out must be refused
         typer.Option("--out", help="Directory for trajectory.tum, landmarks.csv, report.json."),
     ] = None,
     clutter: Annotated[
