@@ -408,3 +408,18 @@ def test_an_empty_slam_out_is_not_the_current_directory(tmp_path, monkeypatch):
     r = invoke("slam", vp, "--out", "runs", "--json")  # a relative --out still works
     assert r.exit_code == 0, r.output
     assert (tmp_path / "runs" / "report.json").is_file()
+
+
+@pytest.mark.parametrize(
+    "args, kw",
+    [
+        (("x", 0.03, 5.0), {}),  # a ValueError from float('x') before
+        (("0.2", 0.03, 5.0), {}),  # taken as 0.2 before
+        ((0.2, 0.03, "5"), {}),
+        ((0.2, 0.03, 5.0, True), {}),  # fov=True was 1.0 rad
+        ((0.2, 0.03, 5.0), {"association": "x"}),  # an AttributeError before
+    ],
+)
+def test_for_sensor_takes_numbers_only(args, kw):
+    with pytest.raises(ConfigError, match="SlamConfig"):
+        SlamConfig.for_sensor(*args, **kw)

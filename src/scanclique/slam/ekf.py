@@ -267,13 +267,22 @@ class SlamConfig:
         """
         from dataclasses import replace
 
+        def num(name, v) -> float:  # float('0.5') would take a string, float('x') fail
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.number)):
+                raise ConfigError(f"SlamConfig.for_sensor: {name} must be a number, got {v!r}")
+            return float(v)
+
         assoc = fields.pop("association", None) or AssociationConfig()
+        if not isinstance(assoc, AssociationConfig):
+            raise ConfigError(
+                f"SlamConfig.association must be a AssociationConfig, got {type(assoc).__name__}"
+            )
         base = dict(
-            sigma_range=float(sigma_range),
-            sigma_bearing=float(sigma_bearing),
-            max_range=None if max_range is None else float(max_range),
-            sensor_fov=float(fov),
-            visible_range=math.inf if max_range is None else float(max_range),
+            sigma_range=num("sigma_range", sigma_range),
+            sigma_bearing=num("sigma_bearing", sigma_bearing),
+            max_range=None if max_range is None else num("max_range", max_range),
+            sensor_fov=num("fov", fov),
+            visible_range=math.inf if max_range is None else num("max_range", max_range),
             confirm_range=None,
             association=replace(assoc, attribute_sigma=attribute_sigma),
         )
