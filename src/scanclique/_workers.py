@@ -19,12 +19,34 @@ candidates (:mod:`scanclique.mapping.parallel`) and the all-pairs revisit search
 from __future__ import annotations
 
 import logging
+import os
 import uuid
 from collections.abc import Callable
 
-__all__ = ["Done", "RunState", "local_pool", "new_token"]
+__all__ = ["Done", "RunState", "check_workers", "local_pool", "max_workers", "new_token"]
 
 log = logging.getLogger(__name__)
+
+
+def max_workers() -> int:
+    """The most local worker processes a run may ask for: 4 per core of this machine, and
+    at least 64. The pool forks all of them at once; more only compete for the cores
+    (the results are the same for every number), and a mistyped count (``--workers
+    100000``) forked processes until the system refused."""
+    return max(64, 4 * (os.cpu_count() or 1))
+
+
+def check_workers(where: str, workers, lo: int = 1) -> None:
+    """``workers`` is an integer from ``lo`` to :func:`max_workers`, else a
+    :class:`~scanclique.errors.ConfigError` naming ``where`` (``"map_scans: workers"``)."""
+    from .errors import ConfigError  # noqa: PLC0415
+
+    top = max_workers()
+    if isinstance(workers, bool) or not isinstance(workers, int) or not lo <= workers <= top:
+        raise ConfigError(
+            f"{where} must be an integer from {lo} to {top} (4 processes per core of this "
+            f"machine's {os.cpu_count() or 1}, at least 64), got {workers!r}"
+        )
 
 
 def new_token() -> str:

@@ -30,6 +30,9 @@ __all__ = [
     "MatchConfig",
     "check_nonneg",
     "check_positive",
+    "check_types",
+    "check_probability",
+    "check_choice",
     "require_nonneg",
     "require_positive",
     "paper_config",
@@ -40,30 +43,60 @@ __all__ = [
 
 _TYPES = {"bool": (bool,), "int": (int,), "float": (int, float), "str": (str,)}
 _INT64_MAX = 2**63 - 1
+_SECTIONS: dict[tuple[type, str], type | None] = {}
+
+
+def _section_type(cls, f) -> type | None:
+    """The configuration record a field holds (its default's class), None for a scalar."""
+    key = (cls, f.name)
+    if key not in _SECTIONS:
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else None
+        _SECTIONS[key] = type(default) if dataclasses.is_dataclass(default) else None
+    return _SECTIONS[key]
 
 
 def _check_types(obj) -> None:
     """Every field holds a value of its annotated type (bools are not ints here, ints
     are accepted for floats), integers fit in 64 bits (the compiled kernels take them)
-    and no number is NaN; sections are checked by their own classes."""
+    and no number is NaN; sections are checked by their own classes.
+
+    Annotations understood (written as strings, ``from __future__ import annotations``):
+    ``bool``, ``int``, ``float``, ``str``, any of them ``| None`` (None allowed),
+    ``tuple[float, ...]`` (a tuple of that many numbers, none NaN; ``| None`` too), and a
+    section (a field whose default is a configuration record: a record of that class)."""
+    cls = type(obj)
     for f in fields(obj):
-        expected = _TYPES.get(
-            f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
-        )
-        if expected is None:
-            continue
+        name = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
         v = getattr(obj, f.name)
+        where = f"{cls.__name__}.{f.name}"
+        optional = name.endswith(" | None")
+        if optional:
+            if v is None:
+                continue
+            name = name[: -len(" | None")]
+        if name.startswith("tuple["):
+            n = len(name[len("tuple[") : -1].split(","))
+            if not (isinstance(v, tuple) and len(v) == n and all(_is_number(x) for x in v)):
+                raise ConfigError(f"{where} must be a tuple of {n} numbers, got {v!r}")
+            if any(math.isnan(x) for x in v):
+                raise ConfigError(f"{where} must be a tuple of {n} numbers, got {v!r} (nan)")
+            continue
+        expected = _TYPES.get(name)
+        if expected is None:
+            section = _section_type(cls, f)
+            if section is not None and not isinstance(v, section):
+                raise ConfigError(f"{where} must be a {section.__name__}, got {type(v).__name__}")
+            continue
         wrong = not isinstance(v, expected) or (bool not in expected and isinstance(v, bool))
         if wrong:
-            raise ConfigError(
-                f"{type(obj).__name__}.{f.name} must be {f.type}, got {v!r} ({type(v).__name__})"
-            )
+            raise ConfigError(f"{where} must be {f.type}, got {v!r} ({type(v).__name__})")
         if isinstance(v, int) and not isinstance(v, bool) and abs(v) > _INT64_MAX:
-            raise ConfigError(
-                f"{type(obj).__name__}.{f.name} must fit in 64 bits (|value| <= 2**63 - 1), got {v}"
-            )
+            raise ConfigError(f"{where} must fit in 64 bits (|value| <= 2**63 - 1), got {v}")
         if isinstance(v, float) and math.isnan(v):
-            raise ConfigError(f"{type(obj).__name__}.{f.name} must be a number, got nan")
+            raise ConfigError(f"{where} must be a number, got nan")
+
+
+check_types = _check_types
 
 
 def _is_number(v) -> bool:
@@ -87,14 +120,48 @@ def require_nonneg(where: str, **values) -> None:
             raise ConfigError(f"{where}{name} must be a number >= 0, got {v!r}")
 
 
-def check_positive(obj, *names: str) -> None:
-    """Each named field of ``obj`` is a finite number > 0 (:func:`require_positive`)."""
-    require_positive(f"{type(obj).__name__}.", **{n: getattr(obj, n) for n in names})
+def _set(obj, names, infinite: bool) -> dict:
+    """The named fields of ``obj`` to check: not an optional field's None (which means
+    "off"; a field is optional when annotated ``... | None``), nor +inf when ``infinite``
+    (which stands for "no limit")."""
+    optional = {f.name for f in fields(obj) if str(f.type).endswith("| None")}
+    values = {n: getattr(obj, n) for n in names}
+    return {
+        n: v
+        for n, v in values.items()
+        if not (v is None and n in optional) and not (infinite and v == math.inf)
+    }
 
 
-def check_nonneg(obj, *names: str) -> None:
-    """Each named field of ``obj`` is a finite number >= 0 (:func:`require_nonneg`)."""
-    require_nonneg(f"{type(obj).__name__}.", **{n: getattr(obj, n) for n in names})
+def check_positive(obj, *names: str, infinite: bool = False) -> None:
+    """Each named field of ``obj`` is a finite number > 0 (:func:`require_positive`), or
+    None (an optional field), or +inf when ``infinite`` (no limit)."""
+    require_positive(f"{type(obj).__name__}.", **_set(obj, names, infinite))
+
+
+def check_nonneg(obj, *names: str, infinite: bool = False) -> None:
+    """Each named field of ``obj`` is a finite number >= 0 (:func:`require_nonneg`), or
+    None (an optional field), or +inf when ``infinite`` (no limit)."""
+    require_nonneg(f"{type(obj).__name__}.", **_set(obj, names, infinite))
+
+
+def check_probability(obj, *names: str) -> None:
+    """Each named field of ``obj`` is a probability strictly between 0 and 1 (a gate at
+    0 or 1 admits nothing or everything)."""
+    for n in names:
+        v = getattr(obj, n)
+        if not (_is_number(v) and 0.0 < v < 1.0):
+            raise ConfigError(
+                f"{type(obj).__name__}.{n} must be a probability in (0, 1), got {v!r}"
+            )
+
+
+def check_choice(obj, name: str, choices: tuple[str, ...]) -> None:
+    """The named field of ``obj`` is one of ``choices`` (exactly: no case folding)."""
+    v = getattr(obj, name)
+    if v not in choices:
+        listed = ", ".join(repr(c) for c in choices)
+        raise ConfigError(f"{type(obj).__name__}.{name} must be one of {listed}, got {v!r}")
 
 
 _positive = check_positive

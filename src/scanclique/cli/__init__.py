@@ -148,16 +148,26 @@ def _check_plot_path(path: Path | None) -> None:
     _guard(lambda: check_figure_path(path))
 
 
-def _check_out_dir(path: str | os.PathLike) -> None:
+def _check_out_dir(path: str | os.PathLike, files: Sequence[str] = ()) -> None:
     """Refuse an output directory (``--out``) before any work: one ``error:`` line, exit
     code 2. It may exist (the command's files in it are replaced, with a ``note:`` when it
-    is not empty) or not yet (it is created with its parents when the results are written)."""
+    is not empty) or not yet (it is created with its parents when the results are written).
+    It may not be empty text (which named the current directory), nor hold anything but a
+    regular file under one of the names ``files`` the command writes (a directory there
+    failed only when the results were written, after the whole run)."""
+    if os.fspath(path) == "":
+        raise _fail("--out is empty: give the output directory ('.' for this one)")
     p = Path(path)
     if p.exists():
         if not p.is_dir():
             raise _fail(_escape(f"{p}: exists and is not a directory (--out names a directory)"))
         if not os.access(p, os.W_OK | os.X_OK):
             raise _fail(_escape(f"{p}: the directory is not writable"))
+        for name in files:
+            f = p / name
+            if (f.exists() or f.is_symlink()) and not f.is_file():
+                what = "a directory" if f.is_dir() else "not a regular file"
+                raise _fail(_escape(f"{f}: is {what}: this command writes its {name} there"))
         if any(p.iterdir()):
             _note(f"{p} is not empty: the files this command writes there are replaced")
         return

@@ -82,9 +82,13 @@ def map_cmd(
     scanclique map intel --out runs/intel -c map.toml --save-config runs/used.toml
     ```
     """
+    from .._workers import check_workers
     from ..mapping import MapConfig
 
-    _check_out_dir(out)  # before the run, not after it
+    _guard(lambda: check_workers("--workers", workers))  # before reading the log
+    from ..mapping.run import output_names
+
+    _check_out_dir(out, output_names(plot))  # before the run, not after it
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out
     cfg = _read_app_config(config, MapConfig())

@@ -245,6 +245,9 @@ def loops(
     """
     from rich.progress import Progress
 
+    from .._workers import check_workers
+
+    _guard(lambda: check_workers("--workers", workers, 0))  # before reading the log
     if out is not None:
         _check_out_file(out)  # before the search, not after it
     from ..places.run import run_loops

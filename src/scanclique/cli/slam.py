@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -37,14 +36,19 @@ def slam(
         str, typer.Option("--association", "-a", help="clique, clique-jcbb (hybrid), jcbb or nn.")
     ] = "clique",
     out: Annotated[
-        Path | None,
+        str | None,  # not a Path: Path('') is '.', and an empty --out must be refused
         typer.Option("--out", help="Directory for trajectory.tum, landmarks.csv, report.json."),
     ] = None,
     clutter: Annotated[
         int,
-        typer.Option("--clutter", min=0, help="Spurious detections added per scan (benchmark)."),
+        typer.Option(
+            "--clutter",
+            min=0,
+            max=100,  # scanclique.slam.run.MAX_CLUTTER (not imported here: light CLI)
+            help="Spurious detections added per scan (benchmark; at most 100).",
+        ),
     ] = 0,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of the clutter.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the clutter.")] = 0,
     plot: Annotated[bool, typer.Option("--plot", help="Also write map.png into --out.")] = False,
     smooth: Annotated[
         bool,
@@ -80,12 +84,13 @@ def slam(
         raise _fail(f"--association must be one of {', '.join(METHODS)}, got {association!r}")
     if plot and out is None:
         raise _fail("--plot writes map.png into --out: give --out DIR")
+    from ..slam import SlamConfig
+    from ..slam.run import output_names, run_slam
+
     if out is not None:
-        _check_out_dir(out)  # before the run, not after it
+        _check_out_dir(out, output_names(plot, smooth))  # before the run, not after it
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out
-    from ..slam import SlamConfig
-    from ..slam.run import run_slam
 
     cfg = _read_app_config(config, SlamConfig())
 

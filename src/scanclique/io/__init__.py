@@ -13,6 +13,7 @@ Nothing downstream of the readers parses files.
 from __future__ import annotations
 
 import logging
+import math
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ from dataclasses import field as _field
 from pathlib import Path
 from types import MappingProxyType
 
-from ..errors import ArgumentError
+from ..errors import ArgumentError, ConfigError
 from ..scan import Scan
 from .carmen import (
     DEFAULT_MAX_BEAMS,
@@ -139,6 +140,10 @@ def _check_options(strict, max_beams, max_range) -> None:
         isinstance(max_range, bool) or not isinstance(max_range, (int, float))
     ):
         raise ArgumentError(f"max_range must be a positive number of metres, got {max_range!r}")
+    if max_range is not None and not (math.isfinite(max_range) and max_range > 0):
+        # the CARMEN reader's own check, for every format: a log's format should not
+        # decide whether a bad value is refused or silently ignored
+        raise ConfigError(f"max_range must be a positive number, got {max_range!r}")
 
 
 def read_scans(
@@ -175,7 +180,9 @@ def read_scans(
         the SICK logs of the shared data, which log no return as 81.83 or 81.91), or the
         log's own no-return value when it marks no return below 80 m (found in its first
         200 FLASER/RLASER messages by :func:`~scanclique.io.carmen.detect_no_return`,
-        logged at warning level, and then the ``range_max`` of those scans).
+        logged at warning level, and then the ``range_max`` of those scans). Ignored by
+        the other formats, but checked for all: not a finite number > 0 is a
+        :class:`~scanclique.errors.ConfigError`.
 
     Returns
     -------

@@ -78,6 +78,12 @@ def _type_name(value) -> str:
     return names.get(type(value), type(value).__name__)
 
 
+def _is_section(f) -> bool:
+    """Whether field ``f`` holds a nested configuration record (a TOML table)."""
+    default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+    return dataclasses.is_dataclass(default)
+
+
 def _check_tree(data: dict, cls, source: str, prefix: str = "") -> dict:
     """Check ``data`` against the fields of dataclass ``cls``; return it with integers
     given for float fields turned into floats. Errors name ``source`` and the dotted key."""
@@ -86,7 +92,12 @@ def _check_tree(data: dict, cls, source: str, prefix: str = "") -> dict:
     for key, value in data.items():
         dotted = f"{prefix}{key}"
         if key not in known:
-            where = f"keys in [{prefix[:-1]}]" if prefix else "tables"
+            if prefix:
+                where = f"keys in [{prefix[:-1]}]"
+            elif all(_is_section(g) for g in known.values()):
+                where = "tables"
+            else:  # a SlamConfig: keys at the top, and the [association] table
+                where = "keys and tables"
             raise ConfigError(
                 f"{source}: unknown key {dotted!r} (known {where}: {', '.join(known)})"
             )

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from ..config import MatchConfig
 from ..config import check_nonneg as _nonneg
 from ..config import check_positive as _positive
+from ..config import check_types as _check_types
 from ..errors import ConfigError
 from ..validation import OdometryNoise
 
@@ -21,6 +22,8 @@ __all__ = [
     "BackEndConfig",
     "OccupancyConfig",
     "MapConfig",
+    "MIN_RESOLUTION",
+    "MAX_OCCUPANCY_RANGE",
 ]
 
 
@@ -198,14 +201,17 @@ class FrontEndConfig:
     guess_sigma_radians: float = math.radians(60.0)
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _positive(
             self, "keyframe_distance", "keyframe_angle", "sigma_floor_metres",
             "sigma_floor_radians", "jump_factor", "turn_seeds", "guess_sigma_radians",
-            "sharp_turn",
+            "sharp_turn", "refine_iterations", "refine_max_correspondence",
+            "refine_min_correspondence", "icp_gate",
         )  # fmt: skip
         _nonneg(
             self, "jump_floor", "jump_min_path", "scan_min_fitness", "max_seeds", "shift_cost",
-            "turn_cost", "soft_constraint",
+            "turn_cost", "soft_constraint", "refine_max_shift", "refine_max_turn",
+            "refine_min_fitness", "icp_min_fitness", "icp_min_constraint", "icp_score_tie",
         )  # fmt: skip
 
 
@@ -298,11 +304,15 @@ class LoopConfig:
     max_sigma_radians: float = math.radians(1.0) / 2.807
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _positive(
             self, "radius", "max_radius", "min_path", "pcm_batch", "every", "max_sigma_metres",
             "max_sigma_radians",
         )  # fmt: skip
-        _nonneg(self, "corroborate_batches")
+        _nonneg(
+            self, "corroborate_batches", "growth", "heading_growth", "local", "per_keyframe",
+            "separation", "pcm_anchor_batches",
+        )  # fmt: skip
         if not 0 < self.pcm_gate < 1:
             raise ConfigError(f"LoopConfig.pcm_gate must be in (0, 1), got {self.pcm_gate!r}")
 
@@ -323,11 +333,18 @@ class BackEndConfig:
     max_iterations: int = 100
 
     def __post_init__(self) -> None:
+        _check_types(self)
         if self.robust not in ("cauchy", "huber", "none"):
             raise ConfigError(
                 f"BackEndConfig.robust must be 'cauchy', 'huber' or 'none', got {self.robust!r}"
             )
         _positive(self, "robust_scale", "max_iterations")
+
+
+MIN_RESOLUTION = 1e-4
+"""Finest occupancy grid cell (m): a tenth of a millimetre, far below any laser's noise."""
+MAX_OCCUPANCY_RANGE = 1e6
+"""Longest beam cast into an occupancy grid (m)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -338,7 +355,11 @@ class OccupancyConfig:
     included) are skipped unless ``free_on_no_return`` (then free up to ``max_range``: a
     window or an open door would paint free space beyond the walls); other invalid beams
     (NaN, -inf, at or below ``range_min``: too close, or an error) always are; every
-    ``scan_stride``-th scan is cast."""
+    ``scan_stride``-th scan is cast. ``log_odds_miss`` is at most 0 (0: passes leave a
+    cell alone), ``margin`` (m of unknown around the map) at least 0, ``resolution`` at
+    least :data:`MIN_RESOLUTION` and ``max_range`` at most :data:`MAX_OCCUPANCY_RANGE`
+    (cell indices stay exact integers; ``max_range=1e300`` with ``free_on_no_return``
+    made the ray caster walk without end)."""
 
     resolution: float = 0.05
     log_odds_hit: float = 0.85
@@ -350,7 +371,24 @@ class OccupancyConfig:
     free_on_no_return: bool = False
 
     def __post_init__(self) -> None:
+        _check_types(self)
         _positive(self, "resolution", "log_odds_hit", "clamp", "max_range", "scan_stride")
+        _nonneg(self, "margin")
+        if self.resolution < MIN_RESOLUTION:
+            raise ConfigError(
+                f"OccupancyConfig.resolution must be at least {MIN_RESOLUTION:g} m, "
+                f"got {self.resolution!r}"
+            )
+        if self.max_range > MAX_OCCUPANCY_RANGE:
+            raise ConfigError(
+                f"OccupancyConfig.max_range must be at most {MAX_OCCUPANCY_RANGE:g} m, "
+                f"got {self.max_range!r}"
+            )
+        if not (math.isfinite(self.log_odds_miss) and self.log_odds_miss <= 0):
+            raise ConfigError(
+                "OccupancyConfig.log_odds_miss must be a number <= 0 (a pass makes a cell "
+                f"less likely occupied), got {self.log_odds_miss!r}"
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -362,3 +400,6 @@ class MapConfig:
     loops: LoopConfig = field(default_factory=LoopConfig)
     back_end: BackEndConfig = field(default_factory=BackEndConfig)
     occupancy: OccupancyConfig = field(default_factory=OccupancyConfig)
+
+    def __post_init__(self) -> None:
+        _check_types(self)  # each section a record of its class

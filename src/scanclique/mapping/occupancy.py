@@ -25,11 +25,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..geometry import Pose2
 from ..scan import Scan
 from .config import OccupancyConfig
 
-__all__ = ["OccupancyGrid", "occupancy_grid", "probabilities"]
+__all__ = ["MAX_GRID_CELLS", "OccupancyGrid", "occupancy_grid", "probabilities"]
+
+MAX_GRID_CELLS = 2**30
+"""Most cells of an occupancy grid (4 GiB of float32): a finer one is a
+:class:`~scanclique.errors.ConfigError` naming the resolution (``resolution=1e-7`` asked
+numpy for 32.9 PiB, a MemoryError traceback after the whole mapping run). A 250 x 200 m
+building at the default 0.05 m is 2 10^7 cells."""
 
 _KERNEL = None
 
@@ -65,6 +72,13 @@ def _kernel():
                     if e2 <= dx:
                         err += dx
                         y += sy
+                    # off the grid and moving away (x and y never pass x1, y1): no cell
+                    # of the rest, the end included, is on it; a long free-only beam
+                    # (max_range) walked all of its cells
+                    if (x < 0 and sx < 0) or (x >= cols and sx > 0):
+                        break
+                    if (y < 0 and sy < 0) or (y >= rows and sy > 0):
+                        break
                 if 0 <= x1 < cols and 0 <= y1 < rows:
                     if hit[b]:
                         v = grid[y1, x1] + l_hit
@@ -155,6 +169,12 @@ def occupancy_grid(
     hi = pts.max(axis=0) + cfg.margin
     cols = int(math.ceil((hi[0] - lo[0]) / r)) + 1
     rows = int(math.ceil((hi[1] - lo[1]) / r)) + 1
+    if rows * cols > MAX_GRID_CELLS:
+        raise ConfigError(
+            f"occupancy grid of {cols} x {rows} cells ({hi[0] - lo[0]:.6g} x "
+            f"{hi[1] - lo[1]:.6g} m at OccupancyConfig.resolution={r:g} m, margin "
+            f"{cfg.margin:g} m): more than {MAX_GRID_CELLS} cells; use a coarser resolution"
+        )
     grid = np.zeros((rows, cols), dtype=np.float32)
 
     def cell(P):

@@ -22,8 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from .._workers import Done, RunState, local_pool, new_token
-from ..errors import ConfigError
+from .._workers import Done, RunState, check_workers, local_pool, new_token
 from . import loops as _loops
 
 __all__ = ["Job", "Verifier"]
@@ -79,8 +78,7 @@ class Verifier:
     """
 
     def __init__(self, match_cfg, front_end, floor, workers: int = 1):
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ConfigError(f"map_scans: workers must be an integer >= 1, got {workers!r}")
+        check_workers("map_scans: workers", workers)
         self.workers = workers
         self.token = new_token()
         self.pool = None

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._records import readonly
+from .._workers import check_workers
 from ..errors import ArgumentError, ConfigError, ScanError
 from ..geometry import Pose2
 from ..match import prepare_scan
@@ -718,7 +719,8 @@ def map_scans(
         If ``scans`` is not an iterable of scans (None, a number, a path).
     ConfigError
         If ``config`` is not a :class:`MapConfig` (a ``MatchConfig`` goes in its
-        ``match`` field).
+        ``match`` field), or ``workers`` is not an integer from 1 to
+        :func:`scanclique._workers.max_workers` (4 per core, at least 64).
     ScanError
         If one of them is not a :class:`~scanclique.scan.Scan`.
 
@@ -736,6 +738,7 @@ def map_scans(
             f"map_scans: config must be a MapConfig or None, got {type(config).__name__}"
         )
     cfg = config or MapConfig()
+    check_workers("map_scans: workers", workers)
     if isinstance(scans, (str, bytes, os.PathLike)) or not isinstance(scans, Iterable):
         # list() would fail with a bare TypeError, or split a path into characters
         raise ArgumentError(

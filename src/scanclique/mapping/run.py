@@ -20,7 +20,7 @@ from ..scan import Scan
 from .config import MapConfig
 from .pipeline import MapResult, map_scans
 
-__all__ = ["MapRun", "load_map_log", "relation_summary", "run_map", "is_bag"]
+__all__ = ["MapRun", "load_map_log", "output_names", "relation_summary", "run_map", "is_bag"]
 
 log = logging.getLogger(__name__)
 
@@ -115,6 +115,15 @@ class MapRun:
         for k, v in self.files.items():
             rows.append((k, str(v), "file"))
         return rows
+
+
+def output_names(plot: bool = True) -> tuple[str, ...]:
+    """The names of the files :func:`run_map` writes into its ``out`` directory (the
+    ``map`` command checks them before the run: a directory in the way of one failed
+    only when the results were written)."""
+    return ("trajectory.tum", "graph.g2o", "map.pgm", "map.yaml", "report.json") + (
+        ("map.png",) if plot else ()
+    )
 
 
 def run_map(

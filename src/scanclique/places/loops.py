@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._workers import RunState, local_pool, new_token
+from .._workers import RunState, check_workers, local_pool, new_token
 from ..config import MatchConfig, config_from_dict, config_to_dict
 from ..errors import ArgumentError, ConfigError, ScanCliqueError
 from ..geometry import Pose2
@@ -420,8 +420,9 @@ def find_loops(
     Raises
     ------
     ConfigError
-        ``candidates < 1``, ``min_gap < 1`` or ``workers < 0``, or ``config`` is not a
-        :class:`~scanclique.config.MatchConfig`.
+        ``candidates < 1``, ``min_gap < 1``, ``workers < 0`` or above
+        :func:`scanclique._workers.max_workers` (4 per core, at least 64), or ``config``
+        is not a :class:`~scanclique.config.MatchConfig`.
     ArgumentError
         ``scans`` is not a sequence (None, a path, a generator).
     ScanCliqueError
@@ -430,10 +431,10 @@ def find_loops(
     for name, v, lo in (
         ("candidates", candidates, 1),
         ("min_gap", min_gap, 1),
-        ("workers", workers, 0),
     ):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise ConfigError(f"find_loops: {name} must be an integer >= {lo}, got {v!r}")
+    check_workers("find_loops: workers", workers, 0)
     if isinstance(scans, (str, bytes)) or not isinstance(scans, Sequence):
         raise ArgumentError(
             f"find_loops: scans must be a sequence of Scan (read a file with read_scans "

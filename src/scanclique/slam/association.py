@@ -46,6 +46,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import check_choice, check_positive, check_probability, check_types
+from ..errors import ConfigError
 from ..graph import point_distance_invariants  # the point-point invariant, in the core
 from .models import inverse_observe, observe, wrap
 
@@ -155,6 +157,10 @@ class AssociationConfig:
     node_limit : int
         Search nodes the clique search may spend per scan (the budget that decides the
         result, the same on every machine; Victoria Park's graphs need a few hundred).
+
+    The probabilities lie strictly between 0 and 1, the sigmas, gates and limits are
+    positive, ``ambiguity`` is one of its choices: anything else (NaN, a wrong type) is
+    a :class:`~scanclique.errors.ConfigError` naming the field when the record is built.
     """
 
     gate_probability: float = 0.99
@@ -170,6 +176,25 @@ class AssociationConfig:
     jcbb_node_limit: int = 200_000
     clique_limit: int = 4
     node_limit: int = 1_000_000
+
+    def __post_init__(self) -> None:
+        check_types(self)
+        check_probability(
+            self, "gate_probability", "new_probability", "clique_probability",
+            "ambiguity_probability",
+        )  # fmt: skip
+        check_positive(
+            self, "invariant_sigmas", "attribute_tolerance", "attribute_gate", "jcbb_node_limit",
+            "clique_limit", "node_limit",
+        )  # fmt: skip
+        if self.attribute_sigma is not None:
+            a, b = self.attribute_sigma
+            if not (math.isfinite(a) and math.isfinite(b) and a >= 0 and b >= 0 and a + b > 0):
+                raise ConfigError(
+                    "AssociationConfig.attribute_sigma must be two numbers >= 0, not both 0 "
+                    f"(a + b * range), or None, got {self.attribute_sigma!r}"
+                )
+        check_choice(self, "ambiguity", ("distinct", "conflict"))
 
 
 @dataclass(frozen=True, slots=True, eq=False)

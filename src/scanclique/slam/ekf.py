@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._records import readonly as _ro
+from ..config import check_choice, check_nonneg, check_positive, check_types
 from ..errors import ArgumentError, ConfigError
 from .association import (
     METHODS,
@@ -167,6 +168,13 @@ class SlamConfig:
         detections is no longer below JCBB's. Hence ``"full"`` by default; ``"landmark"``
         is worth trying for a sensor with frequent false detections.
     association : AssociationConfig
+
+    Every field is checked when the record is built: a value of the wrong type, NaN, a
+    noise or count out of range (sigmas of the sensor, ``sensor_fov``, ``confirm_hits``,
+    ``max_misses``, ``tentative_scans`` and ``update_iterations`` > 0; ``max_range``,
+    ``visible_range`` and ``confirm_range`` > 0, +inf meaning no limit; the rates and
+    the calibration sigmas >= 0), or a ``tentative_update`` that is not one of its
+    choices is a :class:`~scanclique.errors.ConfigError` naming the field.
     """
 
     sigma_range: float = 0.5
@@ -188,6 +196,29 @@ class SlamConfig:
     update_iterations: int = 1
     tentative_update: str = "full"
     association: AssociationConfig = field(default_factory=AssociationConfig)
+
+    def __post_init__(self) -> None:
+        check_types(self)
+        check_positive(
+            self, "sigma_range", "sigma_bearing", "sensor_fov", "confirm_hits", "max_misses",
+            "tentative_scans", "update_iterations",
+        )  # fmt: skip
+        check_positive(self, "max_range", "visible_range", "confirm_range", infinite=True)
+        check_nonneg(
+            self, "sigma_xy_rate", "sigma_theta_rate", "control_bias_sigma",
+            "control_bias_rate", "bearing_bias_sigma",
+        )  # fmt: skip
+        if not all(math.isfinite(s) and s >= 0 for s in self.initial_sigma):
+            raise ConfigError(
+                f"SlamConfig.initial_sigma must be three numbers >= 0, got {self.initial_sigma!r}"
+            )
+        lo, hi = self.init_range
+        if not (math.isfinite(lo) and 0 <= lo <= hi):
+            raise ConfigError(
+                "SlamConfig.init_range must be (low, high) with 0 <= low <= high (high may be "
+                f"inf), got {self.init_range!r}"
+            )
+        check_choice(self, "tentative_update", ("full", "landmark"))
 
     @classmethod
     def for_sensor(
@@ -236,13 +267,22 @@ class SlamConfig:
         """
         from dataclasses import replace
 
+        def num(name, v) -> float:  # float('0.5') would take a string, float('x') fail
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.number)):
+                raise ConfigError(f"SlamConfig.for_sensor: {name} must be a number, got {v!r}")
+            return float(v)
+
         assoc = fields.pop("association", None) or AssociationConfig()
+        if not isinstance(assoc, AssociationConfig):
+            raise ConfigError(
+                f"SlamConfig.association must be a AssociationConfig, got {type(assoc).__name__}"
+            )
         base = dict(
-            sigma_range=float(sigma_range),
-            sigma_bearing=float(sigma_bearing),
-            max_range=None if max_range is None else float(max_range),
-            sensor_fov=float(fov),
-            visible_range=math.inf if max_range is None else float(max_range),
+            sigma_range=num("sigma_range", sigma_range),
+            sigma_bearing=num("sigma_bearing", sigma_bearing),
+            max_range=None if max_range is None else num("max_range", max_range),
+            sensor_fov=num("fov", fov),
+            visible_range=math.inf if max_range is None else num("max_range", max_range),
             confirm_range=None,
             association=replace(assoc, attribute_sigma=attribute_sigma),
         )

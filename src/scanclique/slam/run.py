@@ -16,13 +16,21 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParseError
+from ..errors import ConfigError, ParseError
 from .ekf import SlamConfig, SlamResult, ekf_slam
 from .metrics import GpsError, align_se2, duplicate_pairs, gps_error, gps_outliers, sensor_positions
 from .models import Ackermann
 from .reader import Step, read_gps, read_victoria_park, resolve_victoria_park
 
-__all__ = ["SlamRun", "run_slam", "inject_clutter", "victoria_park_model", "summarise_smoothed"]
+__all__ = [
+    "MAX_CLUTTER",
+    "SlamRun",
+    "output_names",
+    "run_slam",
+    "inject_clutter",
+    "victoria_park_model",
+    "summarise_smoothed",
+]
 
 log = logging.getLogger(__name__)
 
@@ -185,6 +193,23 @@ def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clut
     return g, m, align
 
 
+MAX_CLUTTER = 100
+"""Most spurious detections :func:`run_slam` injects per scan: Victoria Park's scans see
+about 10 trees, the benchmarks add 5 or 10; 10**5 ran out of memory in the association
+(a matrix of 65539 x 65539), 10**12 at once."""
+
+
+def output_names(plot: bool = False, smooth: bool = False) -> tuple[str, ...]:
+    """The names of the files :func:`run_slam` writes into its ``out`` directory (the
+    ``slam`` command checks them before the run)."""
+    return (
+        ("trajectory.tum", "landmarks.csv")
+        + (("trajectory-smoothed.tum",) if smooth else ())
+        + (("map.png",) if plot else ())
+        + ("report.json",)
+    )
+
+
 def run_slam(
     source: str | os.PathLike = "victoria-park",
     *,
@@ -206,7 +231,10 @@ def run_slam(
         Directory for ``trajectory.tum``, ``landmarks.csv``, ``report.json`` (and
         ``map.png`` with ``plot``).
     clutter : int
-        Spurious detections injected per scan (:func:`inject_clutter`).
+        Spurious detections injected per scan (:func:`inject_clutter`), 0 to
+        :data:`MAX_CLUTTER`.
+    seed : int
+        Seed of the clutter (>= 0).
     smooth : bool
         After the filter, also smooth the run (:func:`~scanclique.slam.smooth.smooth`): its
         metrics are added with the prefix "smoothed ", beside the filter's (which stay
@@ -217,7 +245,13 @@ def run_slam(
     ParseError
         The data hold no step (``measurements.dat`` and ``inputs.dat`` have no rows),
         besides the errors of :func:`~scanclique.slam.read_victoria_park`.
+    ConfigError
+        ``clutter`` or ``seed`` out of range (checked before the data are read).
     """
+    for name, v, hi in (("clutter", clutter, MAX_CLUTTER), ("seed", seed, None)):
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0 or (hi and v > hi):
+            to = f"from 0 to {hi}" if hi else ">= 0"
+            raise ConfigError(f"run_slam: {name} must be an integer {to}, got {v!r}")
     cfg = config or SlamConfig()
     steps = read_victoria_park(source)
     if not steps:
