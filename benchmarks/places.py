@@ -62,7 +62,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import git_state, machine, results_path, versions  # noqa: E402
 
-DATE = "2026-12-02"
+DATE = "2026-12-04"
 LOGS = ("intel", "csail", "freiburg")
 RIGHT_T = 0.5  # metres
 RIGHT_R = 0.2  # radians
@@ -732,7 +732,7 @@ def main(argv=None) -> None:
     if a.full:
         a.query_every, a.loops_every = 1, 1
     stages = set(a.stages.split(","))
-    out_json = results_path(a.out, f"places-{DATE}-s9.json")
+    out_json = results_path(a.out, f"places-{DATE}-s13.json")
     res = {
         "date": DATE,
         "args": vars(a),
