@@ -15,6 +15,19 @@ from scanclique import datasets
 from scanclique.errors import DataNotFoundError
 
 
+def assert_clean_error(result, *words: str) -> None:
+    """A command line run (typer's ``CliRunner``) that failed as a user should see it:
+    exit code 2, one line on stderr starting with ``error:`` and naming each of
+    ``words``, no traceback. Importable as ``from conftest import assert_clean_error``."""
+    assert result.exit_code == 2, (result.exit_code, result.output)
+    err = result.stderr.strip()
+    assert err.startswith("error:"), err
+    assert len(err.splitlines()) == 1, err
+    assert "Traceback" not in result.output
+    for w in words:
+        assert w in err, err
+
+
 def _looked_in() -> str:
     return ", ".join(str(p) for p in datasets.data_dir_candidates())
 

@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import require_log
+from conftest import assert_clean_error, require_log
 from typer.testing import CliRunner
 
 import scanclique as sc
@@ -45,17 +45,6 @@ def files(pair, tmp_path_factory):
     write_scans_text(d / "bb.txt", [pair.scan_b, pair.scan_a])
     write_scans_text(d / "empty.txt", [])
     return d
-
-
-def assert_clean_error(result, *words: str) -> None:
-    """Exit code 2, one line on stderr naming the problem, no traceback."""
-    assert result.exit_code == 2, result.output
-    err = result.stderr.strip()
-    assert err.startswith("error:"), err
-    assert len(err.splitlines()) == 1, err
-    assert "Traceback" not in result.output
-    for w in words:
-        assert w in err, err
 
 
 # ---------------------------------------------------------------------------------------

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import require_log
+from conftest import assert_clean_error, require_log
 from typer.testing import CliRunner
 
 import scanclique as sc
@@ -97,17 +97,6 @@ def bomb(path: Path, unit: bytes, mib: int, kind: str = "gzip") -> Path:
 
 def cli_run(*args):
     return runner.invoke(cli.app, [str(a) for a in args])
-
-
-def assert_clean_error(result, *words: str) -> None:
-    """Exit code 2, one line on stderr starting with error:, no traceback."""
-    assert result.exit_code == 2, (result.exit_code, result.output)
-    err = result.stderr.strip()
-    assert err.startswith("error:"), err
-    assert len(err.splitlines()) == 1, err
-    assert "Traceback" not in result.output
-    for w in words:
-        assert w in err, err
 
 
 def flaser_line(ranges, t=0.0, pose=(0.0, 0.0, 0.0), odom=(0.0, 0.0, 0.0)) -> str:

@@ -14,6 +14,7 @@ import dataclasses
 import math
 
 import pytest
+from conftest import assert_clean_error
 from typer.testing import CliRunner
 
 from scanclique import cli
@@ -34,15 +35,6 @@ NAN, INF = math.nan, math.inf
 
 def invoke(*args):
     return runner.invoke(cli.app, [str(a) for a in args])
-
-
-def assert_clean_error(result, *words: str) -> None:
-    assert result.exit_code == 2, result.output
-    err = result.stderr.strip()
-    assert err.startswith("error:") and len(err.splitlines()) == 1, err
-    assert "Traceback" not in result.output
-    for w in words:
-        assert w in err, err
 
 
 # ---------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_clean_error
 from typer.testing import CliRunner
 
 import scanclique as sc
@@ -39,15 +40,6 @@ BOM = b"\xef\xbb\xbf"
 
 def invoke(*args):
     return runner.invoke(cli.app, [str(a) for a in args])
-
-
-def assert_clean_error(result, *words: str) -> None:
-    assert result.exit_code == 2, result.output
-    err = result.stderr.strip()
-    assert err.startswith("error:") and len(err.splitlines()) == 1, err
-    assert "Traceback" not in result.output
-    for w in words:
-        assert w in err, err
 
 
 def flaser(ranges, t: float) -> str:
