@@ -10,8 +10,10 @@ import math
 from dataclasses import dataclass, field
 
 from ..config import MatchConfig
+from ..config import check_choice as _choice
 from ..config import check_nonneg as _nonneg
 from ..config import check_positive as _positive
+from ..config import check_probability as _probability
 from ..config import check_types as _check_types
 from ..errors import ConfigError
 from ..validation import OdometryNoise
@@ -313,8 +315,7 @@ class LoopConfig:
             self, "corroborate_batches", "growth", "heading_growth", "local", "per_keyframe",
             "separation", "pcm_anchor_batches",
         )  # fmt: skip
-        if not 0 < self.pcm_gate < 1:
-            raise ConfigError(f"LoopConfig.pcm_gate must be in (0, 1), got {self.pcm_gate!r}")
+        _probability(self, "pcm_gate")
 
 
 @dataclass(frozen=True, slots=True)
@@ -334,10 +335,7 @@ class BackEndConfig:
 
     def __post_init__(self) -> None:
         _check_types(self)
-        if self.robust not in ("cauchy", "huber", "none"):
-            raise ConfigError(
-                f"BackEndConfig.robust must be 'cauchy', 'huber' or 'none', got {self.robust!r}"
-            )
+        _choice(self, "robust", ("cauchy", "huber", "none"))
         _positive(self, "robust_scale", "max_iterations")
 
 

@@ -596,7 +596,7 @@ def associate_predicted(
     elif method == "clique-jcbb":
         out, cands, csize, amb, blocked = _clique(z, R, d2, nu, pred, cfg, attributes, "jcbb")
     else:
-        raise ValueError(f"association method must be one of {', '.join(METHODS)}, got {method!r}")
+        raise ConfigError(f"association method must be one of {', '.join(METHODS)}, got {method!r}")
     pairs = np.column_stack([np.flatnonzero(out >= 0), out[out >= 0]])
     D2 = joint_distance(pairs, nu, pred.Sz, R) if len(pairs) else 0.0
     _new_or_rejected(out, d2, cfg, blocked)
