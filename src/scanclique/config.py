@@ -33,6 +33,7 @@ __all__ = [
     "check_types",
     "check_probability",
     "check_choice",
+    "require_count",
     "require_nonneg",
     "require_positive",
     "paper_config",
@@ -110,6 +111,15 @@ def require_positive(where: str, **values) -> None:
     for name, v in values.items():
         if not (_is_number(v) and math.isfinite(v) and v > 0):
             raise ConfigError(f"{where}{name} must be a positive number, got {v!r}")
+
+
+def require_count(where: str, lo: int = 0, **values) -> None:
+    """Each value is an integer (not a bool, a float or NaN) of at least ``lo``, else
+    :class:`ConfigError` (see :func:`require_positive`): the checker of counts given as
+    arguments (candidates, a cache size)."""
+    for name, v in values.items():
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise ConfigError(f"{where}{name} must be an integer >= {lo}, got {v!r}")
 
 
 def require_nonneg(where: str, **values) -> None:

@@ -63,7 +63,7 @@ from itertools import zip_longest
 import numpy as np
 
 from .. import __version__
-from ..config import MatchConfig, config_from_dict, config_to_dict
+from ..config import MatchConfig, config_from_dict, config_to_dict, require_count
 from ..errors import ArgumentError, ConfigError, PlaceDatabaseError
 from ..geometry import Pose2
 from ..match import PreparedScan, prepare_scan
@@ -277,9 +277,8 @@ def config_differences(stored: dict, given: dict, keys=PREPARE_KEYS) -> list[str
 
 def _whole(name: str, v, lo: int) -> int:
     """``v`` as an int of at least ``lo``; a :class:`ConfigError` naming the argument
-    otherwise (a bool, a float, NaN or a string is not a count)."""
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise ConfigError(f"PlaceDB: {name} must be an integer >= {lo}, got {v!r}")
+    otherwise (:func:`scanclique.config.require_count`)."""
+    require_count("PlaceDB: ", lo, **{name: v})
     return int(v)
 
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._workers import RunState, check_workers, local_pool, new_token
-from ..config import MatchConfig, config_from_dict, config_to_dict
+from ..config import MatchConfig, config_from_dict, config_to_dict, require_count
 from ..errors import ArgumentError, ConfigError, ScanCliqueError
 from ..geometry import Pose2
 from ..match import prepare_scan
@@ -428,12 +428,7 @@ def find_loops(
     ScanCliqueError
         The scheduler cannot be reached.
     """
-    for name, v, lo in (
-        ("candidates", candidates, 1),
-        ("min_gap", min_gap, 1),
-    ):
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-            raise ConfigError(f"find_loops: {name} must be an integer >= {lo}, got {v!r}")
+    require_count("find_loops: ", 1, candidates=candidates, min_gap=min_gap)
     check_workers("find_loops: workers", workers, 0)
     if isinstance(scans, (str, bytes)) or not isinstance(scans, Sequence):
         raise ArgumentError(
