@@ -32,6 +32,26 @@ Times include the numba kernels' warm-up only in the first run (a warm-up drive 
 first).
 
 Results: ``benchmarks/results/mapping-sensors-2026-12-02-s10.{md,json}``.
+
+**Real logs with another scanner's limits** (session 14), one command::
+
+    python benchmarks/mapping_sensors.py --real fr079-raw,intel-raw
+
+The raw Kümmerle logs (180-degree SICK, 361 / 181 beams, wheel odometry), each scan
+degraded to what a cheaper or different scanner gives, then mapped with the defaults and
+scored by the benchmark's relation metric (mean translation and rotation error over the
+log's relations, as in ``mapping.py``; the relations refer to the robot frame, the
+laser's mounting taken into account). Variants (:data:`VARIANTS`):
+
+* ``as-is``: the log as recorded (the control);
+* ``range-5.6``: readings at 5.6 m or beyond become no-returns (a Hokuyo URG-04LX);
+* ``half-beams``: every second beam (half the angular resolution: 1 or 2 degrees);
+* ``noise-3cm``: Gaussian noise of 3 cm added to every return (seeded; three times the
+  SICK's);
+* ``every-2nd-scan``: every second scan dropped (twice the motion between scans); only the
+  relations whose two scans are kept are scored (``missing`` counts the others).
+
+Results: ``benchmarks/results/mapping-sensors-real-2026-12-04-s14.{md,json}``.
 """
 
 from __future__ import annotations
@@ -53,6 +73,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import git_state, machine, results_path  # noqa: E402
 
 TAG = "2026-12-02-s10"
+REAL_TAG = "2026-12-04-s14"
 
 PROFILES = {
     "carmen": dict(
@@ -169,6 +190,118 @@ def table(records: list[dict]) -> list[str]:
     return lines
 
 
+#: degradations of a real log's scans (module docstring)
+VARIANTS = ("as-is", "range-5.6", "half-beams", "noise-3cm", "every-2nd-scan")
+
+
+def degrade(scans: list, variant: str, seed: int = 0) -> list:
+    """The scans of a real log as another scanner would give them (:data:`VARIANTS`)."""
+    import dataclasses  # noqa: PLC0415
+
+    if variant == "as-is":
+        return list(scans)
+    if variant == "every-2nd-scan":
+        return list(scans[::2])
+    rng = np.random.default_rng(seed)
+    out = []
+    for s in scans:
+        if variant == "range-5.6":
+            out.append(dataclasses.replace(s, range_max=min(s.range_max, 5.6)))
+        elif variant == "half-beams":
+            out.append(dataclasses.replace(s, ranges=s.ranges[::2], angles=s.angles[::2]))
+        elif variant == "noise-3cm":
+            r = np.where(s.valid, s.ranges + rng.normal(0.0, 0.03, s.ranges.shape), s.ranges)
+            out.append(dataclasses.replace(s, ranges=r))
+        else:
+            raise ValueError(f"unknown variant {variant!r}; one of {', '.join(VARIANTS)}")
+    return out
+
+
+def run_real(name: str, scans0: list, rels, mounting, variant: str, odometry: bool) -> dict:
+    """Map ``variant`` of the real log ``name`` and score it by its relations."""
+    from scanclique.eval import relation_metrics  # noqa: PLC0415
+    from scanclique.mapping import map_scans  # noqa: PLC0415
+
+    scans = degrade(scans0, variant)
+    t0 = time.perf_counter()
+    res = map_scans(scans, use_odometry=None if odometry else False)
+    wall = time.perf_counter() - t0
+    m = relation_metrics(rels, list(res.poses), [s.timestamp for s in scans], mounting=mounting)
+    c = res.counts()
+    return {
+        "log": name,
+        "variant": variant,
+        "odometry": odometry,
+        "scans": len(scans),
+        "metrics": m.to_dict(),
+        "placed_by": {k: v for k, v in c["placed_by"].items() if v},
+        "closures": c["loop_closures_accepted"],
+        "wall": wall,
+    }
+
+
+def real_table(records: list[dict]) -> list[str]:
+    lines = [
+        "| log | variant | odometry | scans | relations (missing) | translation (m) "
+        "| rotation (deg) | ≤10 s (m) | >10 s (m) | max (m) | placed by | closures | wall (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in records:
+        a, sh, lo = (r["metrics"][k] for k in ("all", "short", "long"))
+        lines.append(
+            f"| {r['log']} | {r['variant']} | {'yes' if r['odometry'] else 'no'} | {r['scans']} "
+            f"| {a['n']} ({a['missing']}) "
+            f"| {a['translation_mean']:.4f} ± {a['translation_std']:.4f} "
+            f"| {a['rotation_mean']:.3f} ± {a['rotation_std']:.3f} | {sh['translation_mean']:.4f} "
+            f"| {lo['translation_mean']:.4f} | {a['translation_max']:.3f} "
+            f"| {_fmt_placed([r])} | {r['closures']} | {r['wall']:.1f} |"
+        )
+    return lines
+
+
+def main_real(logs: list[str], variants: list[str], odos: list[bool], out_arg) -> None:
+    from scanclique import datasets  # noqa: PLC0415
+    from scanclique.eval import frame_mounting, read_relations  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    run_one("carmen", 100, True, 12)  # warm-up: numba kernels
+    records = []
+    for name in logs:
+        scans0 = datasets.load_log(name)
+        rels = read_relations(datasets.data_dir() / datasets.DATASETS[name].relations)
+        mounting = frame_mounting(scans0)
+        for variant in variants:
+            for odo in odos:
+                rec = run_real(name, scans0, rels, mounting, variant, odo)
+                records.append(rec)
+                print(real_table([rec])[-1], flush=True)
+    lines = real_table(records)
+    out = results_path(out_arg, f"mapping-sensors-real-{REAL_TAG}")
+    if out.suffix in (".md", ".json"):
+        out = out.with_suffix("")
+    result = {
+        "tag": REAL_TAG,
+        "git": git_state(),
+        "machine": machine(detailed=True),
+        "seconds": time.perf_counter() - t0,
+        "records": records,
+    }
+    out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    md = [
+        "# Mapping real logs with another scanner's limits (benchmarks/mapping_sensors.py --real)",
+        "",
+        f"`map_scans` with its defaults on degraded scans of {', '.join(logs)}; the relation "
+        "metric of `mapping.py` (robot frame, the laser's mounting taken into account). git "
+        f"{(result['git']['commit'] or '?')[:7]}, {result['seconds']:.0f} s in all, load "
+        f"{result['machine'].get('load_average')}.",
+        "",
+        *lines,
+        "",
+    ]
+    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+    print(f"wrote {out.with_suffix('.json')} and .md in {time.perf_counter() - t0:.0f} s")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--profiles", default=",".join(PROFILES))
@@ -176,10 +309,19 @@ def main(argv=None) -> None:
     ap.add_argument("--odometry", choices=("both", "yes", "no"), default="both")
     ap.add_argument("--steps", type=int, default=60, help="drive poses, 0.25 m apart")
     ap.add_argument("--out", default=None, help="path stem (default: benchmarks/results/...)")
+    ap.add_argument("--real", default="", help="real logs to degrade instead (fr079-raw,...)")
+    ap.add_argument("--variants", default=",".join(VARIANTS), help="with --real")
     a = ap.parse_args(argv)
+    odos = {"both": [True, False], "yes": [True], "no": [False]}[a.odometry]
+    if a.real:
+        variants = [v for v in a.variants.split(",") if v]
+        for v in variants:
+            if v not in VARIANTS:
+                ap.error(f"unknown variant {v!r}; one of {', '.join(VARIANTS)}")
+        main_real([x for x in a.real.split(",") if x], variants, odos, a.out)
+        return
     profiles = [p for p in a.profiles.split(",") if p]
     seeds = [int(s) for s in a.seeds.split(",") if s]
-    odos = {"both": [True, False], "yes": [True], "no": [False]}[a.odometry]
     t0 = time.perf_counter()
     run_one("carmen", 100, True, 12)  # warm-up: numba kernels
     print(f"warm-up {time.perf_counter() - t0:.1f} s", flush=True)
