@@ -29,7 +29,10 @@ One command::
    ``--calibrate`` fits the confidence's weights on the logs run and, leaving each log
    out, reports the curve on it under the others' fit. ``--search`` verifies with the
    matcher's raw-scan pose search
-   (``PlaceDB(search=True)``; off by default).
+   (``PlaceDB(search=True)``; off by default). ``--degrade range-5.6`` (or
+   ``half-beams``, ``noise-3cm``) runs it on every scan degraded to another scanner's
+   limits (``benchmarks/mapping_sensors.py``'s variants: a 5.6 m range, every second
+   beam, 3 cm more range noise), the protocol unchanged.
 2. **Scale**: one database grown to 1k, 5k and 50k places (the logs' scans added again
    and again with distinct names): add time per place (features, signature and
    transaction), query time (``k=5``, five candidates verified, five more for a query
@@ -42,8 +45,9 @@ One command::
    ``--full``) serially, over 2 local worker processes, and over a local Dask cluster of
    2 worker processes: wall time, speedup, and whether the results are identical.
 
-Results: ``benchmarks/results/places-2026-12-02-s9.json`` / ``.md`` / ``.png`` (earlier
-sessions: ``places-2026-12-02-s8.*``, ``places-2026-12-01*``).
+Results: ``benchmarks/results/places-2026-12-04-s13.json`` / ``.md`` / ``.png`` (earlier
+sessions: ``places-2026-12-02-s9.*``, ``-s8.*``, ``places-2026-12-01*``); degraded
+scanners: ``places-degraded-2026-12-04-s14-<variant>.*``.
 """
 
 from __future__ import annotations
@@ -181,6 +185,7 @@ def recognition(
     aliases=False,
     min_features=None,
     escalate=None,
+    degrade=None,
 ) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
@@ -194,6 +199,10 @@ def recognition(
     )
 
     scans = load_log(name)
+    if degrade:  # another scanner's limits (mapping_sensors.degrade); the protocol unchanged
+        from mapping_sensors import degrade as degraded  # noqa: PLC0415
+
+        scans = degraded(scans, degrade)
     n = len(scans)
     # every answer accepted (validation and min_features), thresholded by confidence (and
     # by score) below (the default min_score and min_confidence are one point of that)
@@ -727,6 +736,13 @@ def main(argv=None) -> None:
         action="store_true",
         help="every scan a query, all freiburg scans in the loop search",
     )
+    ap.add_argument(
+        "--degrade",
+        choices=("range-5.6", "half-beams", "noise-3cm"),
+        default=None,
+        help="recognition: every scan degraded to another scanner's limits "
+        "(benchmarks/mapping_sensors.py's VARIANTS)",
+    )
     ap.add_argument("--out", default=None, help="results JSON (default benchmarks/results/)")
     a = ap.parse_args(argv)
     if a.full:
@@ -758,6 +774,7 @@ def main(argv=None) -> None:
                     aliases=a.aliases,
                     min_features=a.min_features,
                     escalate=a.escalate,
+                    degrade=a.degrade,
                 )
                 for n in a.logs.split(",")
             ]
