@@ -210,3 +210,35 @@ def test_a_scan_made_with_angles_from_0_to_2_pi_scores_as_if_rolled():
         assert free_space_conflicts(scans[0], pts, pose=pose) == pytest.approx(
             free_space_conflicts(rolled(scans[0]), pts, pose=pose), abs=0.01
         )
+
+
+def test_real_log_degradations_do_what_they_say():
+    """benchmarks/mapping_sensors.py --real: each variant of a scan is what its name says,
+    and the scan given is never altered."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import mapping_sensors as bench  # noqa: PLC0415
+
+    rng = np.random.default_rng(3)
+    r = rng.uniform(0.5, 12.0, 181)
+    r[[5, 9]] = 80.0  # no returns
+    r[7] = np.nan
+    s = Scan(r, np.linspace(-math.pi / 2, math.pi / 2, 181), range_max=80.0, timestamp=1.0)
+    scans = [s, Scan(r, s.angles, range_max=80.0, timestamp=2.0)]
+    before = s.ranges.copy()
+    assert bench.degrade(scans, "as-is") == scans
+    assert bench.degrade(scans, "every-2nd-scan") == scans[:1]
+    cap = bench.degrade(scans, "range-5.6")[0]
+    assert cap.range_max == 5.6 and np.array_equal(cap.ranges, s.ranges, equal_nan=True)
+    assert not cap.valid[s.ranges >= 5.6].any() and cap.valid[s.valid & (s.ranges < 5.6)].all()
+    half = bench.degrade(scans, "half-beams")[0]
+    assert half.ranges.size == 91 and np.array_equal(half.angles, s.angles[::2])
+    noisy = bench.degrade(scans, "noise-3cm")[0]
+    moved = noisy.ranges[s.valid] - s.ranges[s.valid]
+    assert 0.02 < moved.std() < 0.04
+    assert np.array_equal(noisy.ranges[~s.valid], s.ranges[~s.valid], equal_nan=True)
+    assert np.array_equal(s.ranges, before, equal_nan=True)
+    with pytest.raises(ValueError, match="unknown variant"):
+        bench.degrade(scans, "range-3")
