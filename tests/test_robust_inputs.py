@@ -416,3 +416,39 @@ def test_a_pose_beyond_any_frame_is_refused_with_its_line(tmp_path):
     with pytest.raises(ScanCliqueError, match="reference"):
         sc.Scan.from_ranges([1.0, 2.0], reference=Pose2(0.0, -2e9, 0.0))
     assert sc.Scan.from_ranges([1.0, 2.0], odometry=Pose2(5e6, 4e6, 0.0)).odometry.x == 5e6
+
+
+# ---------------------------------------------------------------------------------------
+# s14: a read-only place database left SQLite's -wal and -shm files behind
+# ---------------------------------------------------------------------------------------
+def _wall_scan(k: int) -> sc.Scan:
+    return sc.Scan(np.full(10, 2.0 + 0.1 * k), np.linspace(-1.0, 1.0, 10), 0.0, 80.0)
+
+
+def test_a_read_only_open_leaves_the_directory_as_it_found_it(tmp_path):
+    path = tmp_path / "p.db"
+    with PlaceDB(path) as db:
+        db.add(_wall_scan(0), name="a")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+    with PlaceDB(path, readonly=True) as db:
+        assert len(db) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+    with pytest.raises(PlaceDatabaseError, match="configuration differs"):
+        PlaceDB(path, sc.paper_config(), readonly=True)  # a refused open, too
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+
+
+def test_a_read_only_open_keeps_what_a_writer_commits_meanwhile(tmp_path):
+    path = tmp_path / "p.db"
+    with PlaceDB(path) as db:
+        db.add(_wall_scan(0), name="a")
+    reader = PlaceDB(path, readonly=True)
+    with PlaceDB(path) as writer:  # closes while the reader is open: its WAL stays
+        writer.add(_wall_scan(1), name="b")
+        with PlaceDB(path, readonly=True) as other:  # found the files: leaves them
+            assert len(other) == 2
+    assert (tmp_path / "p.db-wal").exists()
+    reader.close()  # the last one: the writer's place goes into the file, the WAL away
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+    with PlaceDB(path, readonly=True) as db:
+        assert sorted(db.store.names(db.ids).values()) == ["a", "b"]
