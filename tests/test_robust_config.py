@@ -18,7 +18,8 @@ from conftest import assert_clean_error
 from typer.testing import CliRunner
 
 from scanclique import cli
-from scanclique.errors import ConfigError
+from scanclique.config import MatchConfig, a_or_an
+from scanclique.errors import ConfigError, ScanCliqueError
 from scanclique.mapping import MapConfig
 from scanclique.mapping.config import (
     BackEndConfig,
@@ -26,6 +27,7 @@ from scanclique.mapping.config import (
     LoopConfig,
     OccupancyConfig,
 )
+from scanclique.match import match_scans
 from scanclique.slam import SlamConfig
 from scanclique.slam.association import AssociationConfig
 
@@ -415,3 +417,32 @@ def test_an_empty_slam_out_is_not_the_current_directory(tmp_path, monkeypatch):
 def test_for_sensor_takes_numbers_only(args, kw):
     with pytest.raises(ConfigError, match="SlamConfig"):
         SlamConfig.for_sensor(*args, **kw)
+
+
+# --- s14: "must be a AssociationConfig": the article before a vowel ---------------------
+@pytest.mark.parametrize(
+    "build, words",
+    [
+        (lambda: SlamConfig(association={}), "SlamConfig.association must be an AssociationConfig"),
+        (lambda: MapConfig(occupancy=1), "MapConfig.occupancy must be an OccupancyConfig"),
+        (
+            lambda: FrontEndConfig(odometry_noise=None),
+            "FrontEndConfig.odometry_noise must be an OdometryNoise",
+        ),
+        (lambda: MatchConfig(clique={}), "MatchConfig.clique must be a CliqueConfig"),
+        (lambda: match_scans(None, None), "match_scans: a must be a Scan"),
+    ],
+)
+def test_a_record_of_the_wrong_class_is_named_with_its_article(build, words):
+    with pytest.raises(ScanCliqueError) as info:
+        build()
+    assert words in str(info.value)
+
+
+def test_a_or_an():
+    assert [a_or_an(n) for n in ("AssociationConfig", "OdometryNoise", "Unicycle", "Scan")] == [
+        "an AssociationConfig",
+        "an OdometryNoise",
+        "a Unicycle",
+        "a Scan",
+    ]
