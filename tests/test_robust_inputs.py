@@ -30,6 +30,7 @@ from scanclique.errors import (
 )
 from scanclique.geometry import Pose2
 from scanclique.io import detect_format, write_scans_text
+from scanclique.io.carmen import read_carmen
 from scanclique.mapping.occupancy import occupancy_grid
 from scanclique.places import PlaceDB
 from scanclique.slam.run import run_slam
@@ -452,3 +453,17 @@ def test_a_read_only_open_keeps_what_a_writer_commits_meanwhile(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
     with PlaceDB(path, readonly=True) as db:
         assert sorted(db.store.names(db.ids).values()) == ["a", "b"]
+
+
+# ---------------------------------------------------------------------------------------
+# s14: a truncated bzip2 log was counted under "truncated gzip"
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "pack, key", [(gzip.compress, "truncated gzip"), (bz2.compress, "truncated bzip2")]
+)
+def test_a_truncated_stream_is_counted_under_its_format(tmp_path, pack, key):
+    p = tmp_path / "t.log.z"
+    p.write_bytes(pack(carmen_text(40))[:-30])
+    log = read_carmen(p, strict=False)  # the last line, cut, is malformed too
+    keys = {k for k in log.skipped if k.startswith("truncated")}
+    assert keys == {key} and log.skipped[key] == 1 and len(log.scans) < 40

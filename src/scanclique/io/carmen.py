@@ -1,4 +1,4 @@
-"""Reader for CARMEN log files (plain or gzip): laser messages become :class:`Scan` records.
+"""Reader for CARMEN log files (plain, gzip or bzip2): laser messages become :class:`Scan` records.
 
 Messages read (one per line, fields separated by white space)::
 
@@ -57,11 +57,12 @@ line and the field, with what was expected and what was found, e.g.
 ``intel.log:7: range[17]: FLASER expects a number, found 'abc'``. NaN and inf *ranges* are
 not errors (they are kept and masked by :class:`~scanclique.scan.Scan`); non-finite poses and
 timestamps are. Counts above ``max_beams`` are errors (a corrupt count would otherwise
-allocate absurdly). Binary data, undecodable bytes and truncated gzip files raise
-``ParseError`` too (see :func:`scanclique.io.text.read_lines`). With ``strict=False``
-malformed or undecodable lines are skipped, counted in :attr:`CarmenLog.skipped` under
-``"malformed:<TYPE>"`` / ``"undecodable"`` (a truncated gzip under ``"truncated gzip"``,
-keeping the part that could be read) and logged at warning level.
+allocate absurdly). Binary data, undecodable bytes and truncated gzip or bzip2 files
+raise ``ParseError`` too (see :func:`scanclique.io.text.read_lines`). With
+``strict=False`` malformed or undecodable lines are skipped, counted in
+:attr:`CarmenLog.skipped` under ``"malformed:<TYPE>"`` / ``"undecodable"`` (a truncated
+or corrupt compressed stream under ``"truncated gzip"`` or ``"truncated bzip2"``, keeping
+the part that could be read) and logged at warning level.
 
 Examples
 --------
@@ -186,8 +187,9 @@ class CarmenLog:
         PARAM name -> value (as logged, a string).
     skipped : Mapping[str, int]
         Lines not turned into anything, per reason: ``"unknown:<TYPE>"``,
-        ``"malformed:<TYPE>"``, ``"undecodable"``, ``"truncated gzip"`` (the last three only
-        with ``strict=False``). Comments and blank lines are not counted.
+        ``"malformed:<TYPE>"``, ``"undecodable"``, and ``"truncated gzip"`` or
+        ``"truncated bzip2"`` (1: the compressed stream could be read only in part); all
+        but the first only with ``strict=False``. Comments and blank lines are not counted.
     odom : ndarray, shape (M, 4)
         The ODOM messages in file order, columns ``timestamp, x, y, theta``.
     no_return : Mapping[str, float]
@@ -707,7 +709,7 @@ class _CarmenReader:
                 stopped = True
                 break
         if self.lines.truncated:
-            skipped["truncated gzip"] = 1
+            skipped[_truncated_key(self.lines.truncated)] = 1
         if self._probing:
             self._decide()
         if waiting:
@@ -727,6 +729,13 @@ class _CarmenReader:
 
 
 _NO_ODOM = np.zeros((0, 4))
+
+
+def _truncated_key(why: str) -> str:
+    """The :attr:`CarmenLog.skipped` key of a compressed stream read only in part, from
+    the line source's reason, which names the format as ``"<gzip|bzip2> stream"``
+    (``"truncated bzip2 stream: ..."``, ``"corrupt gzip stream (...)"``)."""
+    return "truncated bzip2" if "bzip2 stream" in why else "truncated gzip"
 
 
 def parse_carmen(
@@ -799,7 +808,7 @@ def read_carmen(
     max_beams: int = DEFAULT_MAX_BEAMS,
     max_range: float | None = None,
 ) -> CarmenLog:
-    """Read a CARMEN log (plain or gzip, detected by magic bytes).
+    """Read a CARMEN log (plain, gzip or bzip2, detected by magic bytes).
 
     Parameters
     ----------
@@ -808,7 +817,8 @@ def read_carmen(
     strict : bool
         If True (default) the first malformed line raises :class:`ParseError`. If False,
         malformed and undecodable lines are skipped, counted in :attr:`CarmenLog.skipped`
-        and logged at warning level; a truncated gzip keeps what could be read.
+        and logged at warning level; a truncated gzip or bzip2 stream keeps what could
+        be read.
     max_beams : int
         Largest accepted beam or remission count in one message.
     max_range : float, optional
@@ -828,7 +838,7 @@ def read_carmen(
     ------
     ParseError
         A malformed line (file, line, field, expected and found), binary or undecodable
-        data, a truncated or corrupt gzip stream.
+        data, a truncated or corrupt gzip or bzip2 stream.
     DataNotFoundError
         If there is no such file.
     """
