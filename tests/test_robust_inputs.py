@@ -467,3 +467,54 @@ def test_a_truncated_stream_is_counted_under_its_format(tmp_path, pack, key):
     log = read_carmen(p, strict=False)  # the last line, cut, is malformed too
     keys = {k for k in log.skipped if k.startswith("truncated")}
     assert keys == {key} and log.skipped[key] == 1 and len(log.scans) < 40
+
+
+# ---------------------------------------------------------------------------------------
+# s14: float("1_0") and int("1_0") are 10 (PEP 515): a field "1_0" was read as 10
+# ---------------------------------------------------------------------------------------
+_OK = flaser([1.0] * 4, 1.0)
+
+
+@pytest.mark.parametrize(
+    "line, field",
+    [
+        (_OK.replace("FLASER 4 1.0 1.0 1.0", "FLASER 4 1.0 1.0 1_0"), r"range\[2\]"),
+        (_OK.replace("FLASER 4", "FLASER 0_4"), "num_readings"),
+        (_OK.replace(" 0 0 0 0 0 0 ", " 0 0 0 1_0 0 0 "), "odom_x"),
+        (_OK.replace("1.0 host 1.0", "1_0.5 host 1.0"), "ipc_timestamp"),
+        ("ODOM 0 0 0 0 0 0 1_0 host 1.0\n", "timestamp"),
+        ("ROBOTLASER1 0 -1.5 3 1.5 80 0.1 0 2 1.0 1_0 0 0 0 0 0 0 0 0 0 0 0 0 1 h 1\n", "range"),
+    ],
+    ids=["range", "count", "odometry", "timestamp", "ODOM", "ROBOTLASER1"],
+)
+def test_an_underscore_in_a_carmen_number_is_refused(tmp_path, line, field):
+    p = tmp_path / "u.log"
+    p.write_text(_OK + line)
+    with pytest.raises(ParseError, match=rf"u\.log:2: {field}.*'[0-9._]*_[0-9._]*'"):
+        sc.read_scans(p)
+    assert len(sc.read_scans(p, strict=False)) == 1  # lenient: the line is skipped
+
+
+def test_underscores_outside_the_numbers_of_a_carmen_line_are_kept(tmp_path):
+    p = tmp_path / "host.log"
+    p.write_text("PARAM robot_front_laser_max 81.9 0.0 my_host 0.0\n" + _OK.replace("host", "a_b"))
+    assert sc.read_scans(p)[0].ranges.tolist() == [1.0] * 4
+
+
+def test_an_underscore_in_a_scan_text_or_dimacs_number_is_refused(tmp_path):
+    from scanclique.io.dimacs import read_dimacs
+
+    p = tmp_path / "u.txt"
+    p.write_text("SCAN 1.0 -1.0 0.5 0.0 80.0 3 1.0 2_0 3.0\n")
+    with pytest.raises(ParseError, match=r"u\.txt:1: range\[1\].*'2_0'"):
+        sc.read_scans(p)
+    p.write_text("SCAN 1.0 -1.0 0.5 0.0 80.0 1_0 1.0 2.0 3.0\n")
+    with pytest.raises(ParseError, match=r"u\.txt:1: n.*'1_0'"):
+        sc.read_scans(p)
+    for text, field in (("p edge 1_0 0\n", "N"), ("p edge 3 1\ne 1 1_0\n", "v")):
+        (tmp_path / "u.clq").write_text(text)
+        with pytest.raises(ParseError, match=rf"u\.clq:\d: {field}.*'1_0'"):
+            read_dimacs(tmp_path / "u.clq")
+    (tmp_path / "u.clq").write_text("p edge 3 1\nn 2 1_5\n")
+    with pytest.raises(ParseError, match=r"u\.clq:2: w.*'1_5'"):
+        read_dimacs(tmp_path / "u.clq")

@@ -579,27 +579,41 @@ def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
 # ---------------------------------------------------------------------------------------
 # Field parsing shared by the readers
 # ---------------------------------------------------------------------------------------
-def parse_float_fields(tokens: Sequence[str], start: int, stop: int, field_name, err) -> np.ndarray:
+def parse_float_fields(
+    tokens: Sequence[str], start: int, stop: int, field_name, err, *, no_underscore: bool = False
+) -> np.ndarray:
     """Parse ``tokens[start:stop]`` as float64 in one NumPy call.
 
-    ``nan``/``inf`` are accepted. On failure, the first offending token is located and
-    ``err(field_name(i), "expects a number, found 'abc'")`` is raised, ``i`` being the
-    token's index in ``tokens``.
+    ``nan``/``inf`` are accepted; an underscore is not (Python and NumPy read ``"1_0"`` as
+    10, PEP 515's digit grouping, which no log means). On failure, the first offending
+    token is located and ``err(field_name(i), "expects a number, found 'abc'")`` is
+    raised, ``i`` being the token's index in ``tokens``. ``no_underscore``: the caller
+    found no ``_`` in the whole line, which spares looking for one in the tokens (a
+    reader's hot path).
     """
+    fields = tokens[start:stop]
     try:
-        return np.array(tokens[start:stop], dtype=np.float64)
+        values = np.array(fields, dtype=np.float64)
     except ValueError:
-        for i in range(start, stop):
-            try:
-                float(tokens[i])
-            except ValueError:
-                raise err(field_name(i), f"expects a number, found {tokens[i]!r}") from None
-        raise err(None, "expects numbers") from None  # pragma: no cover
+        values = None
+    if values is not None and (no_underscore or "_" not in "".join(fields)):
+        return values
+    for i in range(start, stop):
+        try:
+            if "_" in tokens[i]:
+                raise ValueError(tokens[i])
+            float(tokens[i])
+        except ValueError:
+            raise err(field_name(i), f"expects a number, found {tokens[i]!r}") from None
+    raise err(None, "expects numbers")  # pragma: no cover
 
 
 def parse_count(token: str, field: str, limit: int, err) -> int:
-    """Parse a non-negative integer count no larger than ``limit``; ``err(field, msg)`` else."""
+    """Parse a non-negative integer count no larger than ``limit``; ``err(field, msg)`` else
+    (an underscore included: ``int("1_0")`` is 10)."""
     try:
+        if "_" in token:
+            raise ValueError(token)
         n = int(token)
     except ValueError:
         raise err(field, f"expects a non-negative integer, found {token!r}") from None
