@@ -518,3 +518,15 @@ def test_an_underscore_in_a_scan_text_or_dimacs_number_is_refused(tmp_path):
     (tmp_path / "u.clq").write_text("p edge 3 1\nn 2 1_5\n")
     with pytest.raises(ParseError, match=r"u\.clq:2: w.*'1_5'"):
         read_dimacs(tmp_path / "u.clq")
+
+
+# ---------------------------------------------------------------------------------------
+# s14: places add --start beyond the log said "added 0 places"
+# ---------------------------------------------------------------------------------------
+def test_places_add_with_a_start_beyond_the_log_is_an_error(tmp_path, drive_log):
+    db = tmp_path / "p.db"
+    r = invoke("places", "add", db, drive_log, "--start", 12)
+    assert_clean_error(r, "--start 12", "12 scans")
+    assert not db.exists()  # refused before the database is created
+    r = invoke("places", "add", db, drive_log, "--start", 11, "--json")
+    assert r.exit_code == 0 and '"added": 1' in r.stdout, r.output

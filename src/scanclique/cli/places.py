@@ -20,6 +20,8 @@ from . import (
     _check_out_file,
     _console,
     _err_console,
+    _escape,
+    _fail,
     _guard,
     _print_json,
     _table,
@@ -55,6 +57,20 @@ def _config(config, paper):
     return _guard(lambda: load_config(config, paper))
 
 
+def _check_start(source: str, start: int) -> None:
+    """Refuse a ``--start`` at or beyond the end of the log before the database is opened
+    (or created): one ``error:`` line, exit code 2, instead of "added 0 places". The log
+    read here stays in :func:`scanclique.datasets.load_log`'s cache, where ``run_add``
+    finds it (an empty log is left to ``run_add``, which says so)."""
+    from .. import datasets
+
+    n = len(_guard(lambda: datasets.load_log(source)))
+    if 0 < n <= start:
+        raise _fail(
+            _escape(f"--start {start} is beyond the log: {source} has {n} scans (0..{n - 1})")
+        )
+
+
 def _quiet(json_out: bool) -> bool:
     return json_out or not sys.stderr.isatty()
 
@@ -88,6 +104,8 @@ def add(
     from ..places.run import run_add
 
     cfg = _config(config, paper)
+    if start > 0:
+        _check_start(source, start)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
         task = bar.add_task("adding places", total=None)
         run = _guard(
