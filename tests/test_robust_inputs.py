@@ -530,3 +530,15 @@ def test_places_add_with_a_start_beyond_the_log_is_an_error(tmp_path, drive_log)
     assert not db.exists()  # refused before the database is created
     r = invoke("places", "add", db, drive_log, "--start", 11, "--json")
     assert r.exit_code == 0 and '"added": 1' in r.stdout, r.output
+
+
+# ---------------------------------------------------------------------------------------
+# s14: loops --out replaced an existing file without a word (map and slam --out say so)
+# ---------------------------------------------------------------------------------------
+def test_loops_says_it_replaces_an_existing_out_file(tmp_path, drive_log):
+    out = tmp_path / "loops.json"
+    out.write_text("an earlier run\n")
+    r = invoke("loops", drive_log, "--min-gap", 11, "--candidates", 1, "--out", out)
+    assert r.exit_code == 0, r.output
+    assert "note:" in r.stderr and f"{out} exists" in r.stderr.replace("\n", "")
+    assert out.read_text().startswith("{")

@@ -23,6 +23,7 @@ from . import (
     _escape,
     _fail,
     _guard,
+    _note,
     _print_json,
     _table,
 )
@@ -244,7 +245,10 @@ def loops(
     ] = 50,
     every: Annotated[int, typer.Option("--every", min=1, help="Search every n-th scan.")] = 1,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Write every verified pair as JSON here.")
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="Write every verified pair as JSON here (a file there is replaced)."
+        ),
     ] = None,
     config: ConfigOpt = None,
     paper: PaperOpt = False,
@@ -268,6 +272,8 @@ def loops(
     _guard(lambda: check_workers("--workers", workers, 0))  # before reading the log
     if out is not None:
         _check_out_file(out)  # before the search, not after it
+        if out.exists():  # replaced, and said so, as map and slam do with their --out
+            _note(f"{out} exists: the pairs written there replace it")
     from ..places.run import run_loops
 
     cfg = _config(config, paper)
