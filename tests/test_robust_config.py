@@ -30,6 +30,7 @@ from scanclique.mapping.config import (
 from scanclique.match import match_scans
 from scanclique.slam import SlamConfig
 from scanclique.slam.association import AssociationConfig
+from scanclique.uncertainty import OdometryNoise
 
 runner = CliRunner()
 NAN, INF = math.nan, math.inf
@@ -446,3 +447,18 @@ def test_a_or_an():
         "a Unicycle",
         "a Scan",
     ]
+
+
+# --- s14: OdometryNoise names the field at fault; scaled() checks its factor ------------
+@pytest.mark.parametrize("name", ["floor_metres", "floor_radians"])
+def test_a_zero_odometry_floor_is_named_alone(name):
+    with pytest.raises(ConfigError, match=rf"^OdometryNoise\.{name} must be a positive") as info:
+        OdometryNoise(**{name: 0.0})
+    other = {"floor_metres", "floor_radians"} - {name}
+    assert other.pop() not in str(info.value)
+
+
+@pytest.mark.parametrize("factor", ["2", None, True, -1.0, NAN, INF])
+def test_odometry_noise_scaled_refuses_a_bad_factor(factor):
+    with pytest.raises(ConfigError, match="OdometryNoise.scaled: factor must be a positive"):
+        OdometryNoise().scaled(factor)
