@@ -101,7 +101,12 @@ import numpy as np
 from ..errors import ConfigError, ParseError, ScanError
 from ..geometry import Pose2, wrap_angle
 from ..scan import Scan, beam_angles
-from .text import LineSource, parse_count, parse_float_fields
+from .text import (
+    LineSource,
+    parse_count,
+    parse_float_fields,
+    parse_float_fields_no_underscore,
+)
 
 __all__ = [
     "FLASER_MAX_RANGE",
@@ -363,21 +368,15 @@ class _Context:
         self.max_range = max_range
         self.line_no = 0
         self.kind = ""
-        #: the line holds no "_": its numbers need no check for one (parse_float_fields)
-        self.no_underscore = True
+        #: the parser of number fields: parse_float_fields, or its twin that looks for no
+        #: "_" in them when the line holds none (set per line)
+        self.floats = parse_float_fields
         self.params: dict[str, str] = {}
         self.odom: list[tuple[float, float, float, float]] = []
         self._angles: dict[int, np.ndarray] = {}
 
     def err(self, field: str | None, message: str) -> ParseError:
         return ParseError(self.path, self.line_no, f"{self.kind} {message}", field=field)
-
-    def floats(self, tok: list[str], start: int, stop: int, field_name) -> np.ndarray:
-        """``tok[start:stop]`` as float64 (:func:`~scanclique.io.text.parse_float_fields`:
-        ``"1_0"`` is refused like ``"abc"``); errors name the field ``field_name(i)``."""
-        return parse_float_fields(
-            tok, start, stop, field_name, self.err, no_underscore=self.no_underscore
-        )
 
     def flaser_angles(self, n: int) -> np.ndarray:
         a = self._angles.get(n)
@@ -437,7 +436,7 @@ def _parse_flaser(tok: list[str], ctx: _Context) -> _Pending:
     def name(i: int) -> str:
         return f"range[{i - 2}]" if i < last else _FLASER_TAIL[i - last]
 
-    v = ctx.floats(tok, 2, n + 9, name)
+    v = ctx.floats(tok, 2, n + 9, name, ctx.err)
     tail = v[n:].tolist()
     reference = _pose(tail[0:3], _FLASER_TAIL[0:3], ctx)
     odometry = _pose(tail[3:6], _FLASER_TAIL[3:6], ctx)
@@ -461,7 +460,7 @@ def _parse_laser_header(tok: list[str], ctx: _Context):
         raise ctx.err(
             None, f"expects at least 9 leading fields, found {len(tok)} (truncated line?)"
         )
-    header = ctx.floats(tok, 1, 8, lambda i: _LASER_HEADER[i - 1]).tolist()
+    header = ctx.floats(tok, 1, 8, lambda i: _LASER_HEADER[i - 1], ctx.err).tolist()
     _, start, _fov, res, max_range, _acc, _mode = header
     for value, field in ((start, "start_angle"), (res, "angular_res")):
         if not math.isfinite(value):
@@ -474,7 +473,7 @@ def _parse_laser_header(tok: list[str], ctx: _Context):
         raise ctx.err(
             None, f"expects {n} ranges and a remission count, found {len(tok) - 9} fields"
         )
-    ranges = ctx.floats(tok, 9, k, lambda i: f"range[{i - 9}]")
+    ranges = ctx.floats(tok, 9, k, lambda i: f"range[{i - 9}]", ctx.err)
     m = parse_count(tok[k], "num_remissions", ctx.max_beams, ctx.err)
     if not (math.isfinite(max_range) and max_range > 0):
         max_range = ctx.max_range
@@ -489,9 +488,11 @@ def _parse_robotlaser(tok: list[str], ctx: _Context) -> _Pending:
             None,
             f"with {n} ranges and {m} remissions expects {expected} fields, found {len(tok)}",
         )
-    ctx.floats(tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]")
+    ctx.floats(
+        tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]", ctx.err
+    )
     tail = ctx.floats(
-        tok, tail_start, tail_start + 12, lambda i: _ROBOTLASER_TAIL[i - tail_start]
+        tok, tail_start, tail_start + 12, lambda i: _ROBOTLASER_TAIL[i - tail_start], ctx.err
     ).tolist()
     laser_pose = _pose(tail[0:3], _ROBOTLASER_TAIL[0:3], ctx)
     _check_pose(tail[3:6], _ROBOTLASER_TAIL[3:6], ctx)  # the robot pose must be valid too
@@ -507,8 +508,10 @@ def _parse_rawlaser(tok: list[str], ctx: _Context) -> _Pending:
             None,
             f"with {n} ranges and {m} remissions expects {expected} fields, found {len(tok)}",
         )
-    ctx.floats(tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]")
-    t = float(ctx.floats(tok, tail_start, tail_start + 1, lambda i: "timestamp")[0])
+    ctx.floats(
+        tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]", ctx.err
+    )
+    t = float(ctx.floats(tok, tail_start, tail_start + 1, lambda i: "timestamp", ctx.err)[0])
     t = _timestamp(t, "timestamp", ctx)
     return _Pending(ctx.line_no, ctx.kind, ranges, angles, rmax, t, None, None, True)
 
@@ -516,7 +519,7 @@ def _parse_rawlaser(tok: list[str], ctx: _Context) -> _Pending:
 def _parse_odom(tok: list[str], ctx: _Context) -> None:
     if len(tok) != 10:
         raise ctx.err(None, f"expects 10 fields, found {len(tok)}")
-    v = ctx.floats(tok, 1, 8, lambda i: _ODOM_FIELDS[i - 1]).tolist()
+    v = ctx.floats(tok, 1, 8, lambda i: _ODOM_FIELDS[i - 1], ctx.err).tolist()
     _check_pose(v[0:3], _ODOM_FIELDS[0:3], ctx)
     t = _timestamp(v[6], "timestamp", ctx)
     ctx.odom.append((t, v[0], v[1], v[2]))
@@ -682,7 +685,8 @@ class _CarmenReader:
                     break
                 continue
             ctx.line_no, ctx.kind = line_no, kind
-            ctx.no_underscore = "_" not in line  # once per line: the numbers need no check
+            # "1_0" is no number: looked for once in the line, in its fields only if there
+            ctx.floats = parse_float_fields if "_" in line else parse_float_fields_no_underscore
             try:
                 record = parser(tok, ctx)
             except ParseError as exc:
