@@ -18,7 +18,8 @@ from conftest import assert_clean_error
 from typer.testing import CliRunner
 
 from scanclique import cli
-from scanclique.errors import ConfigError
+from scanclique.config import MatchConfig, a_or_an
+from scanclique.errors import ConfigError, ScanCliqueError
 from scanclique.mapping import MapConfig
 from scanclique.mapping.config import (
     BackEndConfig,
@@ -26,8 +27,10 @@ from scanclique.mapping.config import (
     LoopConfig,
     OccupancyConfig,
 )
+from scanclique.match import match_scans
 from scanclique.slam import SlamConfig
 from scanclique.slam.association import AssociationConfig
+from scanclique.uncertainty import OdometryNoise
 
 runner = CliRunner()
 NAN, INF = math.nan, math.inf
@@ -415,3 +418,47 @@ def test_an_empty_slam_out_is_not_the_current_directory(tmp_path, monkeypatch):
 def test_for_sensor_takes_numbers_only(args, kw):
     with pytest.raises(ConfigError, match="SlamConfig"):
         SlamConfig.for_sensor(*args, **kw)
+
+
+# --- s14: "must be a AssociationConfig": the article before a vowel ---------------------
+@pytest.mark.parametrize(
+    "build, words",
+    [
+        (lambda: SlamConfig(association={}), "SlamConfig.association must be an AssociationConfig"),
+        (lambda: MapConfig(occupancy=1), "MapConfig.occupancy must be an OccupancyConfig"),
+        (
+            lambda: FrontEndConfig(odometry_noise=None),
+            "FrontEndConfig.odometry_noise must be an OdometryNoise",
+        ),
+        (lambda: MatchConfig(clique={}), "MatchConfig.clique must be a CliqueConfig"),
+        (lambda: match_scans(None, None), "match_scans: a must be a Scan"),
+    ],
+)
+def test_a_record_of_the_wrong_class_is_named_with_its_article(build, words):
+    with pytest.raises(ScanCliqueError) as info:
+        build()
+    assert words in str(info.value)
+
+
+def test_a_or_an():
+    assert [a_or_an(n) for n in ("AssociationConfig", "OdometryNoise", "Unicycle", "Scan")] == [
+        "an AssociationConfig",
+        "an OdometryNoise",
+        "a Unicycle",
+        "a Scan",
+    ]
+
+
+# --- s14: OdometryNoise names the field at fault; scaled() checks its factor ------------
+@pytest.mark.parametrize("name", ["floor_metres", "floor_radians"])
+def test_a_zero_odometry_floor_is_named_alone(name):
+    with pytest.raises(ConfigError, match=rf"^OdometryNoise\.{name} must be a positive") as info:
+        OdometryNoise(**{name: 0.0})
+    other = {"floor_metres", "floor_radians"} - {name}
+    assert other.pop() not in str(info.value)
+
+
+@pytest.mark.parametrize("factor", ["2", None, True, -1.0, NAN, INF])
+def test_odometry_noise_scaled_refuses_a_bad_factor(factor):
+    with pytest.raises(ConfigError, match="OdometryNoise.scaled: factor must be a positive"):
+        OdometryNoise().scaled(factor)

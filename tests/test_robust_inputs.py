@@ -30,6 +30,7 @@ from scanclique.errors import (
 )
 from scanclique.geometry import Pose2
 from scanclique.io import detect_format, write_scans_text
+from scanclique.io.carmen import read_carmen
 from scanclique.mapping.occupancy import occupancy_grid
 from scanclique.places import PlaceDB
 from scanclique.slam.run import run_slam
@@ -416,3 +417,128 @@ def test_a_pose_beyond_any_frame_is_refused_with_its_line(tmp_path):
     with pytest.raises(ScanCliqueError, match="reference"):
         sc.Scan.from_ranges([1.0, 2.0], reference=Pose2(0.0, -2e9, 0.0))
     assert sc.Scan.from_ranges([1.0, 2.0], odometry=Pose2(5e6, 4e6, 0.0)).odometry.x == 5e6
+
+
+# ---------------------------------------------------------------------------------------
+# s14: a read-only place database left SQLite's -wal and -shm files behind
+# ---------------------------------------------------------------------------------------
+def _wall_scan(k: int) -> sc.Scan:
+    return sc.Scan(np.full(10, 2.0 + 0.1 * k), np.linspace(-1.0, 1.0, 10), 0.0, 80.0)
+
+
+def test_a_read_only_open_leaves_the_directory_as_it_found_it(tmp_path):
+    path = tmp_path / "p.db"
+    with PlaceDB(path) as db:
+        db.add(_wall_scan(0), name="a")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+    with PlaceDB(path, readonly=True) as db:
+        assert len(db) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+    with pytest.raises(PlaceDatabaseError, match="configuration differs"):
+        PlaceDB(path, sc.paper_config(), readonly=True)  # a refused open, too
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+
+
+def test_a_read_only_open_keeps_what_a_writer_commits_meanwhile(tmp_path):
+    path = tmp_path / "p.db"
+    with PlaceDB(path) as db:
+        db.add(_wall_scan(0), name="a")
+    reader = PlaceDB(path, readonly=True)
+    with PlaceDB(path) as writer:  # closes while the reader is open: its WAL stays
+        writer.add(_wall_scan(1), name="b")
+        with PlaceDB(path, readonly=True) as other:  # found the files: leaves them
+            assert len(other) == 2
+    assert (tmp_path / "p.db-wal").exists()
+    reader.close()  # the last one: the writer's place goes into the file, the WAL away
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.db"]
+    with PlaceDB(path, readonly=True) as db:
+        assert sorted(db.store.names(db.ids).values()) == ["a", "b"]
+
+
+# ---------------------------------------------------------------------------------------
+# s14: a truncated bzip2 log was counted under "truncated gzip"
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "pack, key", [(gzip.compress, "truncated gzip"), (bz2.compress, "truncated bzip2")]
+)
+def test_a_truncated_stream_is_counted_under_its_format(tmp_path, pack, key):
+    p = tmp_path / "t.log.z"
+    p.write_bytes(pack(carmen_text(40))[:-30])
+    log = read_carmen(p, strict=False)  # the last line, cut, is malformed too
+    keys = {k for k in log.skipped if k.startswith("truncated")}
+    assert keys == {key} and log.skipped[key] == 1 and len(log.scans) < 40
+
+
+# ---------------------------------------------------------------------------------------
+# s14: float("1_0") and int("1_0") are 10 (PEP 515): a field "1_0" was read as 10
+# ---------------------------------------------------------------------------------------
+_OK = flaser([1.0] * 4, 1.0)
+
+
+@pytest.mark.parametrize(
+    "line, field",
+    [
+        (_OK.replace("FLASER 4 1.0 1.0 1.0", "FLASER 4 1.0 1.0 1_0"), r"range\[2\]"),
+        (_OK.replace("FLASER 4", "FLASER 0_4"), "num_readings"),
+        (_OK.replace(" 0 0 0 0 0 0 ", " 0 0 0 1_0 0 0 "), "odom_x"),
+        (_OK.replace("1.0 host 1.0", "1_0.5 host 1.0"), "ipc_timestamp"),
+        ("ODOM 0 0 0 0 0 0 1_0 host 1.0\n", "timestamp"),
+        ("ROBOTLASER1 0 -1.5 3 1.5 80 0.1 0 2 1.0 1_0 0 0 0 0 0 0 0 0 0 0 0 0 1 h 1\n", "range"),
+    ],
+    ids=["range", "count", "odometry", "timestamp", "ODOM", "ROBOTLASER1"],
+)
+def test_an_underscore_in_a_carmen_number_is_refused(tmp_path, line, field):
+    p = tmp_path / "u.log"
+    p.write_text(_OK + line)
+    with pytest.raises(ParseError, match=rf"u\.log:2: {field}.*'[0-9._]*_[0-9._]*'"):
+        sc.read_scans(p)
+    assert len(sc.read_scans(p, strict=False)) == 1  # lenient: the line is skipped
+
+
+def test_underscores_outside_the_numbers_of_a_carmen_line_are_kept(tmp_path):
+    p = tmp_path / "host.log"
+    p.write_text("PARAM robot_front_laser_max 81.9 0.0 my_host 0.0\n" + _OK.replace("host", "a_b"))
+    assert sc.read_scans(p)[0].ranges.tolist() == [1.0] * 4
+
+
+def test_an_underscore_in_a_scan_text_or_dimacs_number_is_refused(tmp_path):
+    from scanclique.io.dimacs import read_dimacs
+
+    p = tmp_path / "u.txt"
+    p.write_text("SCAN 1.0 -1.0 0.5 0.0 80.0 3 1.0 2_0 3.0\n")
+    with pytest.raises(ParseError, match=r"u\.txt:1: range\[1\].*'2_0'"):
+        sc.read_scans(p)
+    p.write_text("SCAN 1.0 -1.0 0.5 0.0 80.0 1_0 1.0 2.0 3.0\n")
+    with pytest.raises(ParseError, match=r"u\.txt:1: n.*'1_0'"):
+        sc.read_scans(p)
+    for text, field in (("p edge 1_0 0\n", "N"), ("p edge 3 1\ne 1 1_0\n", "v")):
+        (tmp_path / "u.clq").write_text(text)
+        with pytest.raises(ParseError, match=rf"u\.clq:\d: {field}.*'1_0'"):
+            read_dimacs(tmp_path / "u.clq")
+    (tmp_path / "u.clq").write_text("p edge 3 1\nn 2 1_5\n")
+    with pytest.raises(ParseError, match=r"u\.clq:2: w.*'1_5'"):
+        read_dimacs(tmp_path / "u.clq")
+
+
+# ---------------------------------------------------------------------------------------
+# s14: places add --start beyond the log said "added 0 places"
+# ---------------------------------------------------------------------------------------
+def test_places_add_with_a_start_beyond_the_log_is_an_error(tmp_path, drive_log):
+    db = tmp_path / "p.db"
+    r = invoke("places", "add", db, drive_log, "--start", 12)
+    assert_clean_error(r, "--start 12", "12 scans")
+    assert not db.exists()  # refused before the database is created
+    r = invoke("places", "add", db, drive_log, "--start", 11, "--json")
+    assert r.exit_code == 0 and '"added": 1' in r.stdout, r.output
+
+
+# ---------------------------------------------------------------------------------------
+# s14: loops --out replaced an existing file without a word (map and slam --out say so)
+# ---------------------------------------------------------------------------------------
+def test_loops_says_it_replaces_an_existing_out_file(tmp_path, drive_log):
+    out = tmp_path / "loops.json"
+    out.write_text("an earlier run\n")
+    r = invoke("loops", drive_log, "--min-gap", 11, "--candidates", 1, "--out", out)
+    assert r.exit_code == 0, r.output
+    assert "note:" in r.stderr and f"{out} exists" in r.stderr.replace("\n", "")
+    assert out.read_text().startswith("{")

@@ -86,7 +86,9 @@ def _check_types(obj) -> None:
         if expected is None:
             section = _section_type(cls, f)
             if section is not None and not isinstance(v, section):
-                raise ConfigError(f"{where} must be a {section.__name__}, got {type(v).__name__}")
+                raise ConfigError(
+                    f"{where} must be {a_or_an(section.__name__)}, got {type(v).__name__}"
+                )
             continue
         wrong = not isinstance(v, expected) or (bool not in expected and isinstance(v, bool))
         if wrong:
@@ -98,6 +100,13 @@ def _check_types(obj) -> None:
 
 
 check_types = _check_types
+
+
+def a_or_an(name: str) -> str:
+    """``name`` after its indefinite article, for messages: ``"an AssociationConfig"``,
+    ``"a MatchConfig"`` (``an`` before a vowel letter but U, which the class names here
+    read as "you": ``"a Unicycle"``)."""
+    return f"{'an' if name[:1] in 'AEIOaeio' else 'a'} {name}"
 
 
 def _is_number(v) -> bool:
@@ -579,7 +588,8 @@ class MatchConfig:
             v = getattr(self, name)
             if not isinstance(v, cls):  # type: ignore[arg-type]
                 raise ConfigError(
-                    f"MatchConfig.{name} must be a {cls.__name__}, got {type(v).__name__}"  # type: ignore[union-attr]
+                    f"MatchConfig.{name} must be {a_or_an(cls.__name__)}, "  # type: ignore[union-attr]
+                    f"got {type(v).__name__}"
                 )
 
     def preparation(self) -> tuple:

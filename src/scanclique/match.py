@@ -20,7 +20,7 @@ import numpy as np
 from . import clique as _clique
 from ._kernels.codes import Option
 from ._lazy import kernel_module
-from .config import MatchConfig
+from .config import MatchConfig, a_or_an
 from .correspondence import CorrespondenceGraph, correspondence_graph
 from .errors import ConfigError, ScanError
 from .features import Features, extract_features
@@ -698,7 +698,7 @@ def _check_args(where: str, config, cls=Scan, **records) -> None:
         if not isinstance(r, cls):
             hint = " (from prepare_scan)" if cls is PreparedScan else ""
             raise ScanError(
-                f"{where}: {name} must be a {cls.__name__}{hint}, got {type(r).__name__}"
+                f"{where}: {name} must be {a_or_an(cls.__name__)}{hint}, got {type(r).__name__}"
             )
     if config is not None and not isinstance(config, MatchConfig):
         raise ConfigError(

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtri
 
-from .config import check_nonneg
-from .errors import ConfigError, ScanError
+from .config import check_nonneg, check_positive, require_positive
+from .errors import ScanError
 from .geometry import Pose2, wrap_angle
 
 __all__ = [
@@ -96,19 +96,13 @@ class OdometryNoise:
     floor_radians: float = math.radians(2.0)
 
     def __post_init__(self) -> None:
-        check_nonneg(
-            self, "per_metre", "per_radian", "rot_per_metre", "floor_metres", "floor_radians"
-        )
-        if self.floor_metres == 0 or self.floor_radians == 0:
-            raise ConfigError(
-                "OdometryNoise.floor_metres and floor_radians must be positive (a zero "
-                "covariance cannot be tested against)"
-            )
+        check_nonneg(self, "per_metre", "per_radian", "rot_per_metre")
+        # the floors keep the covariance invertible: a zero one cannot be tested against
+        check_positive(self, "floor_metres", "floor_radians")
 
     def scaled(self, factor: float) -> OdometryNoise:
         """Every term multiplied by ``factor`` (a worse or better odometer)."""
-        if not (math.isfinite(factor) and factor > 0):
-            raise ConfigError(f"OdometryNoise.scaled: factor must be > 0, got {factor!r}")
+        require_positive("OdometryNoise.scaled: ", factor=factor)
         return OdometryNoise(
             self.per_metre * factor,
             self.per_radian * factor,

@@ -20,7 +20,10 @@ from . import (
     _check_out_file,
     _console,
     _err_console,
+    _escape,
+    _fail,
     _guard,
+    _note,
     _print_json,
     _table,
 )
@@ -53,6 +56,20 @@ def _config(config, paper):
     from ..tools import load_config
 
     return _guard(lambda: load_config(config, paper))
+
+
+def _check_start(source: str, start: int) -> None:
+    """Refuse a ``--start`` at or beyond the end of the log before the database is opened
+    (or created): one ``error:`` line, exit code 2, instead of "added 0 places". The log
+    read here stays in :func:`scanclique.datasets.load_log`'s cache, where ``run_add``
+    finds it (an empty log is left to ``run_add``, which says so)."""
+    from .. import datasets
+
+    n = len(_guard(lambda: datasets.load_log(source)))
+    if 0 < n <= start:
+        raise _fail(
+            _escape(f"--start {start} is beyond the log: {source} has {n} scans (0..{n - 1})")
+        )
 
 
 def _quiet(json_out: bool) -> bool:
@@ -88,6 +105,8 @@ def add(
     from ..places.run import run_add
 
     cfg = _config(config, paper)
+    if start > 0:
+        _check_start(source, start)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
         task = bar.add_task("adding places", total=None)
         run = _guard(
@@ -226,7 +245,10 @@ def loops(
     ] = 50,
     every: Annotated[int, typer.Option("--every", min=1, help="Search every n-th scan.")] = 1,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Write every verified pair as JSON here.")
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="Write every verified pair as JSON here (a file there is replaced)."
+        ),
     ] = None,
     config: ConfigOpt = None,
     paper: PaperOpt = False,
@@ -250,6 +272,8 @@ def loops(
     _guard(lambda: check_workers("--workers", workers, 0))  # before reading the log
     if out is not None:
         _check_out_file(out)  # before the search, not after it
+        if out.exists():  # replaced, and said so, as map and slam do with their --out
+            _note(f"{out} exists: the pairs written there replace it")
     from ..places.run import run_loops
 
     cfg = _config(config, paper)

@@ -1,4 +1,4 @@
-"""Reader for CARMEN log files (plain or gzip): laser messages become :class:`Scan` records.
+"""Reader for CARMEN log files (plain, gzip or bzip2): laser messages become :class:`Scan` records.
 
 Messages read (one per line, fields separated by white space)::
 
@@ -57,11 +57,12 @@ line and the field, with what was expected and what was found, e.g.
 ``intel.log:7: range[17]: FLASER expects a number, found 'abc'``. NaN and inf *ranges* are
 not errors (they are kept and masked by :class:`~scanclique.scan.Scan`); non-finite poses and
 timestamps are. Counts above ``max_beams`` are errors (a corrupt count would otherwise
-allocate absurdly). Binary data, undecodable bytes and truncated gzip files raise
-``ParseError`` too (see :func:`scanclique.io.text.read_lines`). With ``strict=False``
-malformed or undecodable lines are skipped, counted in :attr:`CarmenLog.skipped` under
-``"malformed:<TYPE>"`` / ``"undecodable"`` (a truncated gzip under ``"truncated gzip"``,
-keeping the part that could be read) and logged at warning level.
+allocate absurdly). Binary data, undecodable bytes and truncated gzip or bzip2 files
+raise ``ParseError`` too (see :func:`scanclique.io.text.read_lines`). With
+``strict=False`` malformed or undecodable lines are skipped, counted in
+:attr:`CarmenLog.skipped` under ``"malformed:<TYPE>"`` / ``"undecodable"`` (a truncated
+or corrupt compressed stream under ``"truncated gzip"`` or ``"truncated bzip2"``, keeping
+the part that could be read) and logged at warning level.
 
 Examples
 --------
@@ -100,7 +101,12 @@ import numpy as np
 from ..errors import ConfigError, ParseError, ScanError
 from ..geometry import Pose2, wrap_angle
 from ..scan import Scan, beam_angles
-from .text import LineSource, parse_count, parse_float_fields
+from .text import (
+    LineSource,
+    parse_count,
+    parse_float_fields,
+    parse_float_fields_no_underscore,
+)
 
 __all__ = [
     "FLASER_MAX_RANGE",
@@ -186,8 +192,9 @@ class CarmenLog:
         PARAM name -> value (as logged, a string).
     skipped : Mapping[str, int]
         Lines not turned into anything, per reason: ``"unknown:<TYPE>"``,
-        ``"malformed:<TYPE>"``, ``"undecodable"``, ``"truncated gzip"`` (the last three only
-        with ``strict=False``). Comments and blank lines are not counted.
+        ``"malformed:<TYPE>"``, ``"undecodable"``, and ``"truncated gzip"`` or
+        ``"truncated bzip2"`` (1: the compressed stream could be read only in part); all
+        but the first only with ``strict=False``. Comments and blank lines are not counted.
     odom : ndarray, shape (M, 4)
         The ODOM messages in file order, columns ``timestamp, x, y, theta``.
     no_return : Mapping[str, float]
@@ -361,6 +368,9 @@ class _Context:
         self.max_range = max_range
         self.line_no = 0
         self.kind = ""
+        #: the parser of number fields: parse_float_fields, or its twin that looks for no
+        #: "_" in them when the line holds none (set per line)
+        self.floats = parse_float_fields
         self.params: dict[str, str] = {}
         self.odom: list[tuple[float, float, float, float]] = []
         self._angles: dict[int, np.ndarray] = {}
@@ -376,6 +386,8 @@ class _Context:
 
 
 def _is_number(token: str) -> bool:
+    if "_" in token:  # float("1_0") is 10
+        return False
     try:
         float(token)
     except ValueError:
@@ -424,7 +436,7 @@ def _parse_flaser(tok: list[str], ctx: _Context) -> _Pending:
     def name(i: int) -> str:
         return f"range[{i - 2}]" if i < last else _FLASER_TAIL[i - last]
 
-    v = parse_float_fields(tok, 2, n + 9, name, ctx.err)
+    v = ctx.floats(tok, 2, n + 9, name, ctx.err)
     tail = v[n:].tolist()
     reference = _pose(tail[0:3], _FLASER_TAIL[0:3], ctx)
     odometry = _pose(tail[3:6], _FLASER_TAIL[3:6], ctx)
@@ -448,7 +460,7 @@ def _parse_laser_header(tok: list[str], ctx: _Context):
         raise ctx.err(
             None, f"expects at least 9 leading fields, found {len(tok)} (truncated line?)"
         )
-    header = parse_float_fields(tok, 1, 8, lambda i: _LASER_HEADER[i - 1], ctx.err).tolist()
+    header = ctx.floats(tok, 1, 8, lambda i: _LASER_HEADER[i - 1], ctx.err).tolist()
     _, start, _fov, res, max_range, _acc, _mode = header
     for value, field in ((start, "start_angle"), (res, "angular_res")):
         if not math.isfinite(value):
@@ -461,7 +473,7 @@ def _parse_laser_header(tok: list[str], ctx: _Context):
         raise ctx.err(
             None, f"expects {n} ranges and a remission count, found {len(tok) - 9} fields"
         )
-    ranges = parse_float_fields(tok, 9, k, lambda i: f"range[{i - 9}]", ctx.err)
+    ranges = ctx.floats(tok, 9, k, lambda i: f"range[{i - 9}]", ctx.err)
     m = parse_count(tok[k], "num_remissions", ctx.max_beams, ctx.err)
     if not (math.isfinite(max_range) and max_range > 0):
         max_range = ctx.max_range
@@ -476,10 +488,10 @@ def _parse_robotlaser(tok: list[str], ctx: _Context) -> _Pending:
             None,
             f"with {n} ranges and {m} remissions expects {expected} fields, found {len(tok)}",
         )
-    parse_float_fields(
+    ctx.floats(
         tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]", ctx.err
     )
-    tail = parse_float_fields(
+    tail = ctx.floats(
         tok, tail_start, tail_start + 12, lambda i: _ROBOTLASER_TAIL[i - tail_start], ctx.err
     ).tolist()
     laser_pose = _pose(tail[0:3], _ROBOTLASER_TAIL[0:3], ctx)
@@ -496,12 +508,10 @@ def _parse_rawlaser(tok: list[str], ctx: _Context) -> _Pending:
             None,
             f"with {n} ranges and {m} remissions expects {expected} fields, found {len(tok)}",
         )
-    parse_float_fields(
+    ctx.floats(
         tok, tail_start - m, tail_start, lambda i: f"remission[{i - tail_start + m}]", ctx.err
     )
-    t = float(
-        parse_float_fields(tok, tail_start, tail_start + 1, lambda i: "timestamp", ctx.err)[0]
-    )
+    t = float(ctx.floats(tok, tail_start, tail_start + 1, lambda i: "timestamp", ctx.err)[0])
     t = _timestamp(t, "timestamp", ctx)
     return _Pending(ctx.line_no, ctx.kind, ranges, angles, rmax, t, None, None, True)
 
@@ -509,7 +519,7 @@ def _parse_rawlaser(tok: list[str], ctx: _Context) -> _Pending:
 def _parse_odom(tok: list[str], ctx: _Context) -> None:
     if len(tok) != 10:
         raise ctx.err(None, f"expects 10 fields, found {len(tok)}")
-    v = parse_float_fields(tok, 1, 8, lambda i: _ODOM_FIELDS[i - 1], ctx.err).tolist()
+    v = ctx.floats(tok, 1, 8, lambda i: _ODOM_FIELDS[i - 1], ctx.err).tolist()
     _check_pose(v[0:3], _ODOM_FIELDS[0:3], ctx)
     t = _timestamp(v[6], "timestamp", ctx)
     ctx.odom.append((t, v[0], v[1], v[2]))
@@ -675,6 +685,8 @@ class _CarmenReader:
                     break
                 continue
             ctx.line_no, ctx.kind = line_no, kind
+            # "1_0" is no number: looked for once in the line, in its fields only if there
+            ctx.floats = parse_float_fields if "_" in line else parse_float_fields_no_underscore
             try:
                 record = parser(tok, ctx)
             except ParseError as exc:
@@ -707,7 +719,7 @@ class _CarmenReader:
                 stopped = True
                 break
         if self.lines.truncated:
-            skipped["truncated gzip"] = 1
+            skipped[_truncated_key(self.lines.truncated)] = 1
         if self._probing:
             self._decide()
         if waiting:
@@ -727,6 +739,13 @@ class _CarmenReader:
 
 
 _NO_ODOM = np.zeros((0, 4))
+
+
+def _truncated_key(why: str) -> str:
+    """The :attr:`CarmenLog.skipped` key of a compressed stream read only in part, from
+    the line source's reason, which names the format as ``"<gzip|bzip2> stream"``
+    (``"truncated bzip2 stream: ..."``, ``"corrupt gzip stream (...)"``)."""
+    return "truncated bzip2" if "bzip2 stream" in why else "truncated gzip"
 
 
 def parse_carmen(
@@ -799,7 +818,7 @@ def read_carmen(
     max_beams: int = DEFAULT_MAX_BEAMS,
     max_range: float | None = None,
 ) -> CarmenLog:
-    """Read a CARMEN log (plain or gzip, detected by magic bytes).
+    """Read a CARMEN log (plain, gzip or bzip2, detected by magic bytes).
 
     Parameters
     ----------
@@ -808,7 +827,8 @@ def read_carmen(
     strict : bool
         If True (default) the first malformed line raises :class:`ParseError`. If False,
         malformed and undecodable lines are skipped, counted in :attr:`CarmenLog.skipped`
-        and logged at warning level; a truncated gzip keeps what could be read.
+        and logged at warning level; a truncated gzip or bzip2 stream keeps what could
+        be read.
     max_beams : int
         Largest accepted beam or remission count in one message.
     max_range : float, optional
@@ -828,7 +848,7 @@ def read_carmen(
     ------
     ParseError
         A malformed line (file, line, field, expected and found), binary or undecodable
-        data, a truncated or corrupt gzip stream.
+        data, a truncated or corrupt gzip or bzip2 stream.
     DataNotFoundError
         If there is no such file.
     """

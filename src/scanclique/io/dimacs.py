@@ -86,6 +86,8 @@ class DimacsGraph:
 
 def _int_field(path, lineno, tok, field):
     try:
+        if "_" in tok:  # int("1_0") is 10
+            raise ValueError(tok)
         return int(tok)
     except ValueError:
         raise ParseError(path, lineno, f"expected an integer, found {tok!r}", field) from None
@@ -195,6 +197,8 @@ def read_dimacs(path: str | os.PathLike, *, max_vertices: int | None = None) -> 
             if not 1 <= v <= n:
                 raise ParseError(path_s, lineno, f"vertex must be in 1..{n}, found {v}", "v")
             try:
+                if "_" in toks[2]:  # float("1_0") is 10
+                    raise ValueError(toks[2])
                 w = float(toks[2])
             except ValueError:
                 raise ParseError(

@@ -83,6 +83,7 @@ __all__ = [
     "is_gzip",
     "read_lines",
     "parse_float_fields",
+    "parse_float_fields_no_underscore",
     "parse_count",
     "read_scans_text",
     "parse_scans_text",
@@ -582,24 +583,45 @@ def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
 def parse_float_fields(tokens: Sequence[str], start: int, stop: int, field_name, err) -> np.ndarray:
     """Parse ``tokens[start:stop]`` as float64 in one NumPy call.
 
-    ``nan``/``inf`` are accepted. On failure, the first offending token is located and
-    ``err(field_name(i), "expects a number, found 'abc'")`` is raised, ``i`` being the
-    token's index in ``tokens``.
+    ``nan``/``inf`` are accepted; an underscore is not (Python and NumPy read ``"1_0"`` as
+    10, PEP 515's digit grouping, which no log means). On failure, the first offending
+    token is located and ``err(field_name(i), "expects a number, found 'abc'")`` is
+    raised, ``i`` being the token's index in ``tokens``.
     """
+    if "_" in "".join(tokens[start:stop]):
+        raise _bad_number(tokens, start, stop, field_name, err)
+    return parse_float_fields_no_underscore(tokens, start, stop, field_name, err)
+
+
+def parse_float_fields_no_underscore(
+    tokens: Sequence[str], start: int, stop: int, field_name, err
+) -> np.ndarray:
+    """:func:`parse_float_fields` of tokens the caller knows hold no ``_`` (it looked for
+    one in the whole line at once: a reader's hot path)."""
     try:
         return np.array(tokens[start:stop], dtype=np.float64)
     except ValueError:
-        for i in range(start, stop):
-            try:
-                float(tokens[i])
-            except ValueError:
-                raise err(field_name(i), f"expects a number, found {tokens[i]!r}") from None
-        raise err(None, "expects numbers") from None  # pragma: no cover
+        raise _bad_number(tokens, start, stop, field_name, err) from None
+
+
+def _bad_number(tokens: Sequence[str], start: int, stop: int, field_name, err):
+    """The error of the first token of ``tokens[start:stop]`` that is not a number."""
+    for i in range(start, stop):
+        try:
+            if "_" in tokens[i]:
+                raise ValueError(tokens[i])
+            float(tokens[i])
+        except ValueError:
+            return err(field_name(i), f"expects a number, found {tokens[i]!r}")
+    return err(None, "expects numbers")  # pragma: no cover
 
 
 def parse_count(token: str, field: str, limit: int, err) -> int:
-    """Parse a non-negative integer count no larger than ``limit``; ``err(field, msg)`` else."""
+    """Parse a non-negative integer count no larger than ``limit``; ``err(field, msg)`` else
+    (an underscore included: ``int("1_0")`` is 10)."""
     try:
+        if "_" in token:
+            raise ValueError(token)
         n = int(token)
     except ValueError:
         raise err(field, f"expects a non-negative integer, found {token!r}") from None

@@ -55,10 +55,13 @@ import json
 import logging
 import math
 import os
+import sqlite3
+import urllib.parse
 from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass
 from itertools import zip_longest
+from pathlib import Path
 
 import numpy as np
 
@@ -314,6 +317,41 @@ def _exclude_ids(exclude) -> np.ndarray | None:
     return np.array([_place_id(i) for i in exclude], dtype=np.int64)
 
 
+def _wal_files(path) -> tuple[Path, Path] | None:
+    """The ``-wal`` and ``-shm`` files SQLite keeps beside the database ``path`` in WAL
+    mode (beside the file a symbolic link points to, as :class:`.PlaceStore` opens it);
+    None for a ``path`` that is not one."""
+    if not isinstance(path, (str, os.PathLike)):
+        return None
+    where = os.fspath(Path(path).resolve())
+    return Path(f"{where}-wal"), Path(f"{where}-shm")
+
+
+def _release_wal(path) -> None:
+    """Let SQLite remove the ``-wal`` and ``-shm`` files of the database ``path`` if no
+    connection has it open any more: open it read-write (refusing writes), read, close.
+
+    This is SQLite's own way (https://sqlite.org/wal.html: the last connection to close
+    checkpoints the WAL, which writes into the database only what another process
+    committed since, and deletes both files; the only safe way to remove a WAL file is
+    to open the database and close it). While another connection has the database open
+    nothing happens; a file without write permission stays as it is (SQLite then opens
+    it read-only). Deleting the files directly could lose a writer's commits, so it is
+    never done."""
+    where = urllib.parse.quote(os.fspath(Path(path).resolve()), safe="/")  # as PlaceStore
+    try:
+        conn = sqlite3.connect(f"file:{where}?mode=rw", uri=True, isolation_level=None)
+    except sqlite3.Error:
+        return
+    try:
+        conn.execute("PRAGMA query_only = ON")
+        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+    except sqlite3.Error:
+        pass
+    finally:
+        conn.close()
+
+
 class PlaceDB:
     """A persistent database of places (paper §2: topological localisation).
 
@@ -327,7 +365,15 @@ class PlaceDB:
         from its own (its places were prepared with those). None: the stored one (the
         defaults for a new database).
     readonly : bool
-        Open an existing database for queries only.
+        Open an existing database for queries only. A reader of a WAL database needs
+        SQLite's ``-wal`` and ``-shm`` files beside it and creates them when they are
+        absent, and a read-only connection never removes them: when they were absent at
+        the open, :meth:`close` has SQLite remove them (:func:`_release_wal`), so the
+        directory is left as it was found, unless another connection still has the
+        database open then (the files are in use; the last to close removes them, if it
+        may write). Read-only queries never write the database; that release writes into
+        it only what another process committed to the WAL meanwhile, as any last
+        connection closing does.
     durable : bool
         Commit with ``synchronous=FULL`` (survive power loss, slower adds).
     min_score : float
@@ -414,13 +460,21 @@ class PlaceDB:
             "signature_size": str(SIGNATURE_SIZE),
             "scanclique_version": __version__,
         }
-        self.store = PlaceStore(path, meta, readonly=readonly, durable=durable)
+        # a reader creates the WAL's two files when they are absent: close() removes them
+        wal = _wal_files(path)
+        self._release = bool(readonly and wal and not (wal[0].exists() or wal[1].exists()))
+        try:
+            self.store = PlaceStore(path, meta, readonly=readonly, durable=durable)
+        except BaseException:
+            if self._release:
+                _release_wal(path)
+            raise
         self.path = self.store.path
         try:
             self.config = self._check_meta(given, config)
             self._upgrade_signatures()
         except BaseException:
-            self.store.close()
+            self.close()
             raise
         self.search = bool(search)
         self.seeded = int(seeded)
@@ -796,7 +850,12 @@ class PlaceDB:
         return out
 
     def close(self) -> None:
+        """Close the file; a read-only database also has SQLite remove the ``-wal`` and
+        ``-shm`` files its open created (see ``readonly``)."""
         self.store.close()
+        if self._release:
+            self._release = False
+            _release_wal(self.path)
 
     def __enter__(self) -> PlaceDB:
         return self
