@@ -542,3 +542,15 @@ def test_loops_says_it_replaces_an_existing_out_file(tmp_path, drive_log):
     assert r.exit_code == 0, r.output
     assert "note:" in r.stderr and f"{out} exists" in r.stderr.replace("\n", "")
     assert out.read_text().startswith("{")
+
+
+def test_loops_refuses_to_write_over_its_input_log(tmp_path, drive_log):
+    """`loops LOG --out LOG` would replace the log with the pairs: refused before the
+    search, the log intact (also through another path to the same file)."""
+    before = Path(drive_log).read_bytes()
+    link = tmp_path / "same-log.txt"
+    link.symlink_to(drive_log)
+    for out in (drive_log, link):
+        r = invoke("loops", drive_log, "--min-gap", 11, "--candidates", 1, "--out", out)
+        assert_clean_error(r, "is the input log", "overwritten")
+    assert Path(drive_log).read_bytes() == before

@@ -180,14 +180,30 @@ def _check_out_dir(path: str | os.PathLike, files: Sequence[str] = ()) -> None:
         raise _fail(_escape(f"{p}: cannot be created: {ancestor} is not writable"))
 
 
-def _check_out_file(path: str | os.PathLike, out_dir: str | os.PathLike | None = None) -> None:
+def _check_out_file(
+    path: str | os.PathLike,
+    out_dir: str | os.PathLike | None = None,
+    log: str | os.PathLike | None = None,
+) -> None:
     """Refuse an output file (``loops --out``, a new place database, ``--save-config``)
     before any work: one ``error:`` line, exit code 2. Its directory must exist (it is not
     created), unless it is ``out_dir``, the command's ``--out`` (checked by
-    :func:`_check_out_dir` and created by the run before the file is written)."""
+    :func:`_check_out_dir` and created by the run before the file is written). It must not
+    be the input ``log`` (a path or a registered name), which writing would destroy."""
     p = Path(path)
     if p.is_dir():
         raise _fail(_escape(f"{p}: is a directory, not a file"))
+    if log is not None and p.exists():
+        from ..datasets import resolve_log
+        from ..errors import ScanCliqueError
+
+        try:
+            source = resolve_log(log)
+            same = source.exists() and os.path.samefile(source, p)
+        except (ScanCliqueError, OSError):
+            same = False  # a log that cannot be found is said so by the reader
+        if same:
+            raise _fail(_escape(f"{p}: is the input log {log}; it would be overwritten"))
     parent = p.absolute().parent
     if out_dir is not None and os.path.abspath(parent) == os.path.abspath(out_dir):
         return

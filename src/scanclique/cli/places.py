@@ -271,7 +271,7 @@ def loops(
 
     _guard(lambda: check_workers("--workers", workers, 0))  # before reading the log
     if out is not None:
-        _check_out_file(out)  # before the search, not after it
+        _check_out_file(out, log=source)  # before the search, not after it
         if out.exists():  # replaced, and said so, as map and slam do with their --out
             _note(f"{out} exists: the pairs written there replace it")
     from ..places.run import run_loops
