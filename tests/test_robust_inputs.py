@@ -554,3 +554,20 @@ def test_loops_refuses_to_write_over_its_input_log(tmp_path, drive_log):
         r = invoke("loops", drive_log, "--min-gap", 11, "--candidates", 1, "--out", out)
         assert_clean_error(r, "is the input log", "overwritten")
     assert Path(drive_log).read_bytes() == before
+
+
+def test_an_underscore_in_a_victoria_park_or_relations_number_is_refused(tmp_path):
+    """`1_0` (which float() reads as 10) in a Victoria Park table or a relations file is
+    a ParseError naming the file, line and field, like `abc`."""
+    from scanclique.eval import read_relations
+
+    d = _vp(tmp_path / "vp", "0.5 10.0 1.0 0.3\n0.7 1_0.0 1.0 0.3\n")
+    with pytest.raises(ParseError, match="1_0.0") as ei:
+        slam.read_victoria_park(d)
+    assert ei.value.path.endswith("measurements.dat") and ei.value.line == 2
+    assert_clean_error(invoke("slam", d), "measurements.dat", "1_0.0")
+    rel = tmp_path / "r.relations"
+    rel.write_text("1.0 2.0 0.5 0.0 0 0 0 0.1\n1.0 2.0 0.5 0.0 0 0 0 1_0\n")
+    with pytest.raises(ParseError, match="1_0") as ei:
+        read_relations(rel)
+    assert ei.value.line == 2

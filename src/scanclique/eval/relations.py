@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import ParseError, ScanError
 from ..geometry import Pose2
+from ..io.text import plain_float
 
 __all__ = [
     "frame_mounting",
@@ -108,7 +109,7 @@ def read_relations(path: str | os.PathLike) -> list[Relation]:
         vals = []
         for name, f in zip(names, fields, strict=True):
             try:
-                v = float(f)
+                v = plain_float(f)
             except ValueError:
                 raise ParseError(
                     str(path), lineno, f"expected a number, found {f!r}", name

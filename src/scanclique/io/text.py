@@ -81,6 +81,7 @@ __all__ = [
     "GZIP_MAGIC",
     "TextLines",
     "is_gzip",
+    "plain_float",
     "read_lines",
     "parse_float_fields",
     "parse_float_fields_no_underscore",
@@ -604,13 +605,20 @@ def parse_float_fields_no_underscore(
         raise _bad_number(tokens, start, stop, field_name, err) from None
 
 
+def plain_float(token: str) -> float:
+    """``float(token)`` without PEP 515's digit grouping: ``"1_0"`` (which ``float`` reads
+    as 10, and no data file means) raises ValueError like ``"abc"``. For the readers that
+    parse one field at a time (Victoria Park tables, relations files)."""
+    if "_" in token:
+        raise ValueError(f"could not convert string to float: {token!r}")
+    return float(token)
+
+
 def _bad_number(tokens: Sequence[str], start: int, stop: int, field_name, err):
     """The error of the first token of ``tokens[start:stop]`` that is not a number."""
     for i in range(start, stop):
         try:
-            if "_" in tokens[i]:
-                raise ValueError(tokens[i])
-            float(tokens[i])
+            plain_float(tokens[i])
         except ValueError:
             return err(field_name(i), f"expects a number, found {tokens[i]!r}")
     return err(None, "expects numbers")  # pragma: no cover

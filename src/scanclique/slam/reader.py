@@ -27,6 +27,7 @@ import numpy as np
 
 from .._records import readonly as _ro
 from ..errors import ArgumentError, ConfigError, DataNotFoundError, ParseError
+from ..io.text import plain_float
 
 __all__ = [
     "Step",
@@ -209,7 +210,7 @@ def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
         vals = []
         for name, p in zip(columns, parts, strict=False):
             try:
-                v = float(p)
+                v = plain_float(p)
             except ValueError:
                 raise ParseError(str(path), lineno, f"not a number: {p!r}", field=name) from None
             if not math.isfinite(v):
