@@ -528,6 +528,10 @@ def test_places_add_with_a_start_beyond_the_log_is_an_error(tmp_path, drive_log)
     r = invoke("places", "add", db, drive_log, "--start", 12)
     assert_clean_error(r, "--start 12", "12 scans")
     assert not db.exists()  # refused before the database is created
+    for stop in (5, 3):  # nothing between --start and --stop: said, not "added 0 places"
+        r = invoke("places", "add", db, drive_log, "--start", 5, "--stop", stop)
+        assert_clean_error(r, f"--stop {stop}", "--start 5")
+        assert not db.exists()
     r = invoke("places", "add", db, drive_log, "--start", 11, "--json")
     assert r.exit_code == 0 and '"added": 1' in r.stdout, r.output
 

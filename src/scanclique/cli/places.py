@@ -105,6 +105,8 @@ def add(
     from ..places.run import run_add
 
     cfg = _config(config, paper)
+    if stop is not None and stop <= start:
+        raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
     if start > 0:
         _check_start(source, start)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
