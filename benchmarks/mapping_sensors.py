@@ -276,9 +276,6 @@ def main_real(logs: list[str], variants: list[str], odos: list[bool], out_arg) -
                 records.append(rec)
                 print(real_table([rec])[-1], flush=True)
     lines = real_table(records)
-    out = results_path(out_arg, f"mapping-sensors-real-{REAL_TAG}")
-    if out.suffix in (".md", ".json"):
-        out = out.with_suffix("")
     result = {
         "tag": REAL_TAG,
         "git": git_state(),
@@ -286,18 +283,24 @@ def main_real(logs: list[str], variants: list[str], odos: list[bool], out_arg) -
         "seconds": time.perf_counter() - t0,
         "records": records,
     }
-    out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
-    md = [
-        "# Mapping real logs with another scanner's limits (benchmarks/mapping_sensors.py --real)",
-        "",
+    about = (
         f"`map_scans` with its defaults on degraded scans of {', '.join(logs)}; the relation "
         "metric of `mapping.py` (robot frame, the laser's mounting taken into account). git "
         f"{(result['git']['commit'] or '?')[:7]}, {result['seconds']:.0f} s in all, load "
-        f"{result['machine'].get('load_average')}.",
-        "",
-        *lines,
-        "",
-    ]
+        f"{result['machine'].get('load_average')}."
+    )
+    title = "Mapping real logs with another scanner's limits (benchmarks/mapping_sensors.py --real)"
+    write_results(out_arg, f"mapping-sensors-real-{REAL_TAG}", result, title, about, lines, t0)
+
+
+def write_results(out_arg, stem: str, result: dict, title: str, about: str, lines, t0) -> None:
+    """``result`` as JSON and a Markdown page (``title``, ``about``, the table ``lines``)
+    at ``--out`` or ``benchmarks/results/<stem>``."""
+    out = results_path(out_arg, stem)
+    if out.suffix in (".md", ".json"):
+        out = out.with_suffix("")
+    out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    md = [f"# {title}", "", about, "", *lines, ""]
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     print(f"wrote {out.with_suffix('.json')} and .md in {time.perf_counter() - t0:.0f} s")
 
@@ -340,9 +343,6 @@ def main(argv=None) -> None:
                     flush=True,
                 )
     lines = table(records)
-    out = results_path(a.out, f"mapping-sensors-{TAG}")
-    if out.suffix in (".md", ".json"):
-        out = out.with_suffix("")
     result = {
         "tag": TAG,
         "git": git_state(),
@@ -352,20 +352,14 @@ def main(argv=None) -> None:
         "steps": a.steps,
         "records": records,
     }
-    out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
-    md = [
-        "# Mapping on other laser scanners (benchmarks/mapping_sensors.py)",
-        "",
+    about = (
         f"Simulated office drives ({a.steps} poses 0.25 m apart, seeds {a.seeds}), "
         "`map_scans` with and without odometry. git "
-        f"{(result['git']['commit'] or '?')[:7]}, {result['seconds']:.0f} s in all.",
-        "",
-        *lines,
-        "",
-    ]
-    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+        f"{(result['git']['commit'] or '?')[:7]}, {result['seconds']:.0f} s in all."
+    )
     print("\n".join(lines))
-    print(f"wrote {out.with_suffix('.json')} and .md in {time.perf_counter() - t0:.0f} s")
+    title = "Mapping on other laser scanners (benchmarks/mapping_sensors.py)"
+    write_results(a.out, f"mapping-sensors-{TAG}", result, title, about, lines, t0)
 
 
 if __name__ == "__main__":
