@@ -139,3 +139,32 @@ def test_conflict_fraction_tells_a_twin_room_from_the_same_room():
     # symmetric: the place's points in the query's free space count the same way
     assert conflict_fraction(c, a, truth.inverse()) > 0.03
     assert confidence(0.8, 10.0, 0.1, twin_room) < confidence(0.8, 10.0, 0.1, same_room)
+
+
+def test_a_clique_that_is_no_evidence_has_its_aliases_as_rivals(pair, monkeypatch):
+    """An accepted match whose clique's surprise is below ALIAS_SURPRISE gets the best of
+    its pose's quarter- and half-turn aliases as a rival (a short-range scanner's
+    half-turn aliases of 3 features scored above 0.9); a surprising clique does not pay
+    for the three ICP runs."""
+    import scanclique.places.verify as ver
+
+    _, a, b = pair
+    base = verify_pair(a, b, min_score=0.0, min_confidence=0.0)
+    assert base.verdict == ACCEPTED and base.surprise >= ver.ALIAS_SURPRISE
+    calls = []
+
+    def fake_alias(place, query, pose, cfg=None):
+        calls.append(pose)
+        return 0.97 * base.score, pose
+
+    monkeypatch.setattr(ver, "alias_score", fake_alias)
+    assert (
+        verify_pair(a, b, min_score=0.0, min_confidence=0.0).rival_score == base.rival_score
+        and not calls
+    )
+    monkeypatch.setattr(ver, "clique_surprise", lambda *args: ver.ALIAS_SURPRISE - 0.5)
+    v = verify_pair(a, b, min_score=0.0, min_confidence=0.0)
+    assert len(calls) == 1 and calls[0].distance_to(v.pose) == (0.0, 0.0)
+    assert v.rival_score == max(base.rival_score, 0.97 * base.score)
+    assert v.confidence == confidence(v.score, v.surprise, v.rival_score, v.conflict)
+    assert v.confidence < confidence(v.score, v.surprise, base.rival_score, v.conflict)
