@@ -748,7 +748,7 @@ def main(argv=None) -> None:
     if a.full:
         a.query_every, a.loops_every = 1, 1
     stages = set(a.stages.split(","))
-    out_json = results_path(a.out, f"places-{DATE}-s13.json")
+    out_json = results_path(a.out, f"places-{DATE}-s14.json")
     res = {
         "date": DATE,
         "args": vars(a),
