@@ -45,9 +45,10 @@ One command::
    ``--full``) serially, over 2 local worker processes, and over a local Dask cluster of
    2 worker processes: wall time, speedup, and whether the results are identical.
 
-Results: ``benchmarks/results/places-2026-12-04-s13.json`` / ``.md`` / ``.png`` (earlier
-sessions: ``places-2026-12-02-s9.*``, ``-s8.*``, ``places-2026-12-01*``); degraded
-scanners: ``places-degraded-2026-12-04-s14-<variant>.*``.
+Results: ``benchmarks/results/places-2026-12-04-s14.json`` / ``.md`` / ``.png`` (earlier
+sessions: ``places-2026-12-04-s13.*``, ``places-2026-12-02-s9.*``, ``-s8.*``,
+``places-2026-12-01*``); degraded scanners: ``places-degraded-2026-12-04-s14-<variant>.*``
+(``-range-5.6-alias-rival.*``: after :data:`scanclique.places.verify.ALIAS_SURPRISE`).
 """
 
 from __future__ import annotations
@@ -822,8 +823,14 @@ def main(argv=None) -> None:
     # stages not run this time are kept from the previous results file, with their commit
     if out_json.exists():
         old = json.loads(out_json.read_text())
-        for stage in ("recognition", "scale", "scale_out"):
-            if stage not in res and stage in old:
+        for stage in ("recognition", "calibration", "scale", "scale_out"):
+            if (
+                stage not in res
+                and stage in old
+                and (
+                    stage != "calibration" or "recognition" not in res  # it goes with those runs
+                )
+            ):
                 res[stage] = old[stage]
                 res.setdefault("carried_over", {})[stage] = old.get("carried_over", {}).get(
                     stage, old.get("git", {}).get("commit")
