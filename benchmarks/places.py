@@ -823,13 +823,13 @@ def main(argv=None) -> None:
     # stages not run this time are kept from the previous results file, with their commit
     if out_json.exists():
         old = json.loads(out_json.read_text())
+        ran = set(res)
         for stage in ("recognition", "calibration", "scale", "scale_out"):
+            # the calibration goes with the recognition it was fitted on
             if (
-                stage not in res
+                stage not in ran
                 and stage in old
-                and (
-                    stage != "calibration" or "recognition" not in res  # it goes with those runs
-                )
+                and (stage != "calibration" or "recognition" not in ran)
             ):
                 res[stage] = old[stage]
                 res.setdefault("carried_over", {})[stage] = old.get("carried_over", {}).get(
