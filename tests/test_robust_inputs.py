@@ -575,3 +575,46 @@ def test_an_underscore_in_a_victoria_park_or_relations_number_is_refused(tmp_pat
     with pytest.raises(ParseError, match="1_0") as ei:
         read_relations(rel)
     assert ei.value.line == 2
+
+
+@pytest.mark.parametrize(
+    "digits",
+    ["\u0661\u0660", "\uff11\uff10", "1\u00b2"],
+    ids=["arabic", "fullwidth", "superscript"],
+)
+def test_a_non_ascii_digit_in_a_number_is_refused(tmp_path, digits):
+    """float() and NumPy read Unicode digits ('١٠' is 10): no log means them. A number
+    field holding one is a ParseError naming the field, like 'abc', in every reader; text
+    that is not a number (a host name) may hold any character."""
+    from scanclique.eval import read_relations
+    from scanclique.io.dimacs import read_dimacs
+
+    p = tmp_path / "u.log"
+    p.write_text(_OK + _OK.replace("FLASER 4 1.0 1.0 1.0", f"FLASER 4 1.0 1.0 {digits}"))
+    with pytest.raises(ParseError, match=r"u\.log:2: range\[2\]"):
+        sc.read_scans(p)
+    p.write_text(_OK + f"ODOM 0 0 0 0 0 0 {digits} host 1.0\n")
+    with pytest.raises(ParseError, match=r"u\.log:2: timestamp"):
+        sc.read_scans(p)
+    t = tmp_path / "u.txt"
+    t.write_text(f"SCAN 1.0 -1.0 0.5 0.0 80.0 3 1.0 {digits} 3.0\n")
+    with pytest.raises(ParseError, match=r"u\.txt:1: range\[1\]"):
+        sc.read_scans(t)
+    (tmp_path / "u.clq").write_text(f"p edge 3 1\ne 1 {digits}\n")
+    with pytest.raises(ParseError, match="v"):
+        read_dimacs(tmp_path / "u.clq")
+    d = _vp(tmp_path / "vp", f"0.5 10.0 1.0 0.3\n0.7 {digits} 1.0 0.3\n")
+    with pytest.raises(ParseError) as ei:
+        slam.read_victoria_park(d)
+    assert ei.value.line == 2
+    rel = tmp_path / "r.relations"
+    rel.write_text(f"1.0 2.0 0.5 0.0 0 0 0 {digits}\n")
+    with pytest.raises(ParseError) as ei:
+        read_relations(rel)
+    assert ei.value.line == 1
+
+
+def test_a_non_ascii_host_name_in_a_carmen_line_is_kept(tmp_path):
+    p = tmp_path / "host.log"
+    p.write_text(_OK.replace("host", "h\u00f6st-\u0661"), encoding="utf-8")
+    assert sc.read_scans(p)[0].ranges.tolist() == [1.0] * 4

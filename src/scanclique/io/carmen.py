@@ -106,6 +106,8 @@ from .text import (
     parse_count,
     parse_float_fields,
     parse_float_fields_no_underscore,
+    plain_float,
+    plain_number,
 )
 
 __all__ = [
@@ -368,8 +370,8 @@ class _Context:
         self.max_range = max_range
         self.line_no = 0
         self.kind = ""
-        #: the parser of number fields: parse_float_fields, or its twin that looks for no
-        #: "_" in them when the line holds none (set per line)
+        #: the parser of number fields: parse_float_fields, or its twin that does not look
+        #: at them again when the line is plain_number text (set per line)
         self.floats = parse_float_fields
         self.params: dict[str, str] = {}
         self.odom: list[tuple[float, float, float, float]] = []
@@ -386,10 +388,8 @@ class _Context:
 
 
 def _is_number(token: str) -> bool:
-    if "_" in token:  # float("1_0") is 10
-        return False
     try:
-        float(token)
+        plain_float(token)
     except ValueError:
         return False
     return True
@@ -685,8 +685,10 @@ class _CarmenReader:
                     break
                 continue
             ctx.line_no, ctx.kind = line_no, kind
-            # "1_0" is no number: looked for once in the line, in its fields only if there
-            ctx.floats = parse_float_fields if "_" in line else parse_float_fields_no_underscore
+            # "1_0" and "١٢" are no numbers: the line looked at once, its fields only then
+            ctx.floats = (
+                parse_float_fields_no_underscore if plain_number(line) else parse_float_fields
+            )
             try:
                 record = parser(tok, ctx)
             except ParseError as exc:

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GraphError, ParseError
+from .text import plain_float, plain_number
 
 __all__ = ["DimacsGraph", "read_dimacs", "write_dimacs"]
 
@@ -86,7 +87,7 @@ class DimacsGraph:
 
 def _int_field(path, lineno, tok, field):
     try:
-        if "_" in tok:  # int("1_0") is 10
+        if not plain_number(tok):  # int("1_0") is 10, int("١٢") 12
             raise ValueError(tok)
         return int(tok)
     except ValueError:
@@ -197,9 +198,7 @@ def read_dimacs(path: str | os.PathLike, *, max_vertices: int | None = None) -> 
             if not 1 <= v <= n:
                 raise ParseError(path_s, lineno, f"vertex must be in 1..{n}, found {v}", "v")
             try:
-                if "_" in toks[2]:  # float("1_0") is 10
-                    raise ValueError(toks[2])
-                w = float(toks[2])
+                w = plain_float(toks[2])
             except ValueError:
                 raise ParseError(
                     path_s, lineno, f"expected a number, found {toks[2]!r}", "w"

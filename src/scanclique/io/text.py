@@ -81,6 +81,7 @@ __all__ = [
     "GZIP_MAGIC",
     "TextLines",
     "is_gzip",
+    "plain_number",
     "plain_float",
     "read_lines",
     "parse_float_fields",
@@ -584,12 +585,12 @@ def read_lines(path: _PathLike, *, strict: bool = True) -> TextLines:
 def parse_float_fields(tokens: Sequence[str], start: int, stop: int, field_name, err) -> np.ndarray:
     """Parse ``tokens[start:stop]`` as float64 in one NumPy call.
 
-    ``nan``/``inf`` are accepted; an underscore is not (Python and NumPy read ``"1_0"`` as
-    10, PEP 515's digit grouping, which no log means). On failure, the first offending
-    token is located and ``err(field_name(i), "expects a number, found 'abc'")`` is
-    raised, ``i`` being the token's index in ``tokens``.
+    ``nan``/``inf`` are accepted; an underscore or a non-ASCII digit is not
+    (:func:`plain_number`). On failure, the first offending token is located and
+    ``err(field_name(i), "expects a number, found 'abc'")`` is raised, ``i`` being the
+    token's index in ``tokens``.
     """
-    if "_" in "".join(tokens[start:stop]):
+    if not plain_number("".join(tokens[start:stop])):
         raise _bad_number(tokens, start, stop, field_name, err)
     return parse_float_fields_no_underscore(tokens, start, stop, field_name, err)
 
@@ -597,19 +598,26 @@ def parse_float_fields(tokens: Sequence[str], start: int, stop: int, field_name,
 def parse_float_fields_no_underscore(
     tokens: Sequence[str], start: int, stop: int, field_name, err
 ) -> np.ndarray:
-    """:func:`parse_float_fields` of tokens the caller knows hold no ``_`` (it looked for
-    one in the whole line at once: a reader's hot path)."""
+    """:func:`parse_float_fields` of tokens the caller knows to be :func:`plain_number`
+    text (it looked at the whole line at once: a reader's hot path)."""
     try:
         return np.array(tokens[start:stop], dtype=np.float64)
     except ValueError:
         raise _bad_number(tokens, start, stop, field_name, err) from None
 
 
+def plain_number(text: str) -> bool:
+    """Whether ``text`` can hold numbers only as data files write them: ASCII, without an
+    underscore. Python's ``float``/``int`` and NumPy also read PEP 515's digit grouping
+    (``"1_0"`` is 10) and any Unicode digit (``"١٢"`` is 12), which no log means."""
+    return "_" not in text and text.isascii()
+
+
 def plain_float(token: str) -> float:
-    """``float(token)`` without PEP 515's digit grouping: ``"1_0"`` (which ``float`` reads
-    as 10, and no data file means) raises ValueError like ``"abc"``. For the readers that
-    parse one field at a time (Victoria Park tables, relations files)."""
-    if "_" in token:
+    """``float(token)`` of :func:`plain_number` text only: ``"1_0"`` or ``"١٢"`` raises
+    ValueError like ``"abc"``. For the readers that parse one field at a time (Victoria
+    Park tables, relations files)."""
+    if not plain_number(token):
         raise ValueError(f"could not convert string to float: {token!r}")
     return float(token)
 
@@ -626,9 +634,9 @@ def _bad_number(tokens: Sequence[str], start: int, stop: int, field_name, err):
 
 def parse_count(token: str, field: str, limit: int, err) -> int:
     """Parse a non-negative integer count no larger than ``limit``; ``err(field, msg)`` else
-    (an underscore included: ``int("1_0")`` is 10)."""
+    (one that is not :func:`plain_number` text included: ``int("1_0")`` is 10)."""
     try:
-        if "_" in token:
+        if not plain_number(token):
             raise ValueError(token)
         n = int(token)
     except ValueError:
