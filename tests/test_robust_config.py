@@ -20,6 +20,7 @@ from typer.testing import CliRunner
 from scanclique import cli
 from scanclique.config import MatchConfig, a_or_an
 from scanclique.errors import ConfigError, ScanCliqueError
+from scanclique.io.config import loads_config
 from scanclique.mapping import MapConfig
 from scanclique.mapping.config import (
     BackEndConfig,
@@ -432,6 +433,10 @@ def test_for_sensor_takes_numbers_only(args, kw):
         ),
         (lambda: MatchConfig(clique={}), "MatchConfig.clique must be a CliqueConfig"),
         (lambda: match_scans(None, None), "match_scans: a must be a Scan"),
+        (
+            lambda: loads_config("", base=SlamConfig(), cls=AssociationConfig),
+            "base is a SlamConfig, not an AssociationConfig",
+        ),
     ],
 )
 def test_a_record_of_the_wrong_class_is_named_with_its_article(build, words):

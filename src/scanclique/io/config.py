@@ -43,7 +43,7 @@ import re
 import sys
 from pathlib import Path
 
-from ..config import MatchConfig, config_from_dict, config_to_dict
+from ..config import MatchConfig, a_or_an, config_from_dict, config_to_dict
 from ..errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -176,7 +176,9 @@ def _from_dict(data: dict, source: str, base, cls):
     if base is None:
         base = cls()
     elif not isinstance(base, cls):
-        raise ConfigError(f"{source}: base is a {type(base).__name__}, not a {cls.__name__}")
+        raise ConfigError(
+            f"{source}: base is {a_or_an(type(base).__name__)}, not {a_or_an(cls.__name__)}"
+        )
     checked = _check_tree(data, cls, source)
     try:
         return config_from_dict(_merge(config_to_dict(base), checked), cls)
