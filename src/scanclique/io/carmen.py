@@ -105,7 +105,7 @@ from .text import (
     LineSource,
     parse_count,
     parse_float_fields,
-    parse_float_fields_no_underscore,
+    parse_plain_float_fields,
     plain_float,
     plain_number,
 )
@@ -686,9 +686,7 @@ class _CarmenReader:
                 continue
             ctx.line_no, ctx.kind = line_no, kind
             # "1_0" and "١٢" are no numbers: the line looked at once, its fields only then
-            ctx.floats = (
-                parse_float_fields_no_underscore if plain_number(line) else parse_float_fields
-            )
+            ctx.floats = parse_plain_float_fields if plain_number(line) else parse_float_fields
             try:
                 record = parser(tok, ctx)
             except ParseError as exc:

@@ -85,7 +85,7 @@ __all__ = [
     "plain_float",
     "read_lines",
     "parse_float_fields",
-    "parse_float_fields_no_underscore",
+    "parse_plain_float_fields",
     "parse_count",
     "read_scans_text",
     "parse_scans_text",
@@ -592,10 +592,10 @@ def parse_float_fields(tokens: Sequence[str], start: int, stop: int, field_name,
     """
     if not plain_number("".join(tokens[start:stop])):
         raise _bad_number(tokens, start, stop, field_name, err)
-    return parse_float_fields_no_underscore(tokens, start, stop, field_name, err)
+    return parse_plain_float_fields(tokens, start, stop, field_name, err)
 
 
-def parse_float_fields_no_underscore(
+def parse_plain_float_fields(
     tokens: Sequence[str], start: int, stop: int, field_name, err
 ) -> np.ndarray:
     """:func:`parse_float_fields` of tokens the caller knows to be :func:`plain_number`
