@@ -255,10 +255,11 @@ class LoopConfig:
         batches (their newer keyframe that recent) anchor the new ones; a new closure
         must be pairwise consistent with each of them (0: each batch on its own).
     corroborate_batches : int
-        Without odometry, the candidates' radius and their verification's prior widen to
-        the front end's own uncertainty (its edges' covariances summed along the chain)
-        where it exceeds the path's drift model above: after a step placed by the
-        prediction, or along a corridor, the estimate may be metres off (the heading
+        The candidates' radius and their verification's prior widen to the front end's
+        own uncertainty (its edges' covariances summed along the chain) where it exceeds
+        the path's drift model above, with odometry or without: after a step placed by the
+        prediction or the odometry, along a corridor, or over matches of few features, the
+        estimate may be metres off (the heading
         widened to 40 degrees at most: a corridor seen the other way is a look-alike),
         and so does PCM's chain. An appearance closure that
         moves the estimate beyond the drift model's 99 % gate must then be corroborated

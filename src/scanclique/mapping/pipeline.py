@@ -213,10 +213,15 @@ class _Mapper:
         self.deferred: list = []  # (pending closure, batches waited) awaiting corroboration
         # summed variances of the keyframe chain's edges (largest of x-y, theta), so that the
         # loops know where the front end was unsure (an ICP step along a corridor, a step
-        # placed by the prediction); without odometry only. With it (measured, not taken):
-        # the corrected Intel log 0.1027 -> 0.0466 m, CSAIL 0.0364 -> 0.0369 m, but the
-        # odometry's noise model on a sharp turn it placed (25 degrees) let look-alike
-        # closures of simulated drives in (seeds 2 and 3 of 12 from 0.01 to 1.0 and 3.7 m)
+        # placed by the prediction or the odometry, matches of few features), with odometry
+        # as without it. Odometry runs used to leave them at 0 (da018b4: then seeds 2 and 3
+        # of 12 simulated drives went wrong through look-alikes; no longer, measured at
+        # 55fd58a+: the 12 drives identical); with them at 0 the drift model alone bounds
+        # the gates, and a front end that drifts faster (Intel with every second beam)
+        # loses its closures for good: 2.615 -> 0.0255 m (131 -> 762 closures); Intel as
+        # recorded 0.0149 -> 0.0147 m (1565 -> 1814, self precision 99.4 -> 99.8 %),
+        # fr079 0.0312 -> 0.0313 m, corrected Intel 0.0377 -> 0.0371 m, CSAIL 0.0364 ->
+        # 0.0362 m
         self.kf_var: list[tuple[float, float]] = []
         self.seconds = {k: 0.0 for k in ("prepare", "front_end", "loops", "pcm", "isam")}
         gtsam = _gtsam()
@@ -259,8 +264,7 @@ class _Mapper:
         at ``back_end.robust_scale`` was tuned with) in units of the closure's tightest
         sigma: a closure that corrects an error the front end knows it may have made (a
         step placed by the prediction, a corridor) is not taken for an outlier (PCM has
-        vetted it). Without odometry only (with it the front end's uncertainty is not
-        summed: ``kf_var`` stays 0 and the scale is ``back_end.robust_scale``). Measured
+        vetted it). With odometry as without it. Measured
         on the corrected logs without odometry (relation error mean): Intel 0.0621 m
         (0.0966 m with the kernel at 1), CSAIL 0.0777 m (0.0639 m); the whole front-end
         uncertainty instead of its excess: 0.0621 / 0.0772 m."""
@@ -300,8 +304,8 @@ class _Mapper:
         else:
             guess = self.estimate_of(kidx - 1) @ rel_prev
             path = self.kf_path[-1] + math.hypot(rel_prev.x, rel_prev.y)
-            vxy = float(np.linalg.eigvalsh(cov_prev[:2, :2])[-1]) if not self.odo else 0.0
-            vth = float(cov_prev[2, 2]) if not self.odo else 0.0
+            vxy = float(np.linalg.eigvalsh(cov_prev[:2, :2])[-1])
+            vth = float(cov_prev[2, 2])
             self.kf_var.append((self.kf_var[-1][0] + vxy, self.kf_var[-1][1] + vth))
             self.kf_edges.append((kidx - 1, kidx, rel_prev, cov_prev, "chain"))
             self._add_isam_edge(kidx - 1, kidx, rel_prev, cov_prev, False)
@@ -475,7 +479,7 @@ class _Mapper:
             # place is rarely seen twice alike
             big = [
                 k for k in keep
-                if not self.odo and self.lc.corroborate_batches > 0
+                if self.lc.corroborate_batches > 0
                 and self.pending[k][4] == "appearance" and self.beyond_drift(*cl[k])
             ]  # fmt: skip
             # corroborated: another one from an earlier place at least ``separation``
