@@ -94,7 +94,7 @@ from scanclique.eval import (  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
 from scanclique.mapping import MapConfig, map_scans  # noqa: E402
 
-DATE = "2026-12-03"
+DATE = "2026-12-04"
 ROWS = ("odometry", "chain", "full", "full-no-sigma-gate", "full-2-workers", "no-odometry", "paper")
 LOGS = ("fr079-raw", "intel-raw")
 
@@ -694,7 +694,7 @@ def main(argv=None) -> int:
     stem = (
         Path(args.out)
         if args.out
-        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s11"
+        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s15"
     )
     git_at_start = git_state()
     warm = _warm_up()

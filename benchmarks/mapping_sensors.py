@@ -73,7 +73,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import git_state, machine, results_path  # noqa: E402
 
 TAG = "2026-12-02-s10"
-REAL_TAG = "2026-12-04-s14"
+REAL_TAG = "2026-12-04-s15"
 
 PROFILES = {
     "carmen": dict(
