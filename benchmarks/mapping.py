@@ -281,7 +281,7 @@ def judge_by_trajectory(closures, scans, traj, chained, bridge: float = 0.5) -> 
     sigma_ref deg) or None per closure]}``."""
     poses, comp, rotation_sigma = traj
     ts = np.array([s.timestamp for s in scans])
-    rk = np.array(sorted(poses))
+    rk = np.array(sorted(poses), dtype=np.int64)  # empty when no relation joins (--limit)
     rt = ts[rk]
     order = np.argsort(rt, kind="stable")
     rk, rt = rk[order], rt[order]
@@ -729,6 +729,7 @@ def main(argv=None) -> int:
             r = run_row(name, row, scans, rels, mounting, t_read, traj)
             r["mounting"] = None if mounting is None else mounting.as_array().tolist()
             r["limit"] = args.limit
+            r["commit"] = git_at_start.get("commit")
             results.append(r)
             previous.pop((name, row), None)
             print("\n".join(table([r])[2:]), flush=True)
@@ -745,6 +746,7 @@ def main(argv=None) -> int:
     for name in filter(None, args.reference.split(",")):
         for use_odo in REFERENCE_LOGS.get(name, (None,)):
             r = run_reference(name, use_odo)
+            r["commit"] = git_at_start.get("commit")
             results.append(r)
             previous.pop((name, r["row"]), None)
             print("\n".join(table([r])[2:]), flush=True)
@@ -769,11 +771,11 @@ def main(argv=None) -> int:
     ratios = []
     for name in LOGS:
         by = {r["row"]: r for r in allres if r["log"] == name and "metrics" in r}
-        if "odometry" in by and "full" in by:
+        if "odometry" in by and "full" in by and _means(by["odometry"], by["full"]):
             o, f = by["odometry"]["metrics"]["all"], by["full"]["metrics"]["all"]
             ratios.append(f"{name}: full / raw odometry translation error = "
                           f"{f['translation_mean'] / o['translation_mean']:.4f}")  # fmt: skip
-        if "chain" in by and "full" in by:
+        if "chain" in by and "full" in by and _means(by["chain"], by["full"]):
             c, f = by["chain"]["metrics"]["all"], by["full"]["metrics"]["all"]
             ratios.append(f"{name}: full / chained translation error = "
                           f"{f['translation_mean'] / c['translation_mean']:.3f}")  # fmt: skip
@@ -812,6 +814,8 @@ def main(argv=None) -> int:
     md = [
         "# Mapping benchmark " + DATE,
         "",
+        _provenance(allres),
+        "",
         *lines,
         "",
         *(f"- {x}" for x in ratios),
@@ -832,6 +836,22 @@ def main(argv=None) -> int:
     stem.with_suffix(".md").write_text("\n".join(md) + "\n")
     print(f"wrote {js} and {stem.with_suffix('.md')}")
     return 0
+
+
+def _means(base: dict, row: dict) -> bool:
+    """Whether both rows have a relation error to compare (none when no relation joins
+    the scans mapped, as with a small ``--limit``) and ``base``'s is not 0."""
+    a, b = (r["metrics"]["all"]["translation_mean"] for r in (base, row))
+    return a is not None and b is not None and a > 0
+
+
+def _provenance(rows: list[dict]) -> str:
+    """Which commit measured which rows (a run keeps the rows of the same date's file that
+    it does not measure itself, so one file may hold several commits' rows)."""
+    by: dict[str, list[str]] = {}
+    for r in rows:
+        by.setdefault((r.get("commit") or "unknown commit")[:7], []).append(f"{r['log']} {r['row']}")
+    return "Rows by commit: " + "; ".join(f"{c}: {', '.join(v)}" for c, v in by.items()) + "."
 
 
 if __name__ == "__main__":
