@@ -8,6 +8,7 @@ import importlib.metadata
 import os
 import platform
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +83,17 @@ def git_state() -> dict:
     return {
         "commit": git("rev-parse", "HEAD"),
         "modified": [] if not status else [ln[3:] for ln in status.splitlines()],
+    }
+
+
+def provenance(t0: float) -> dict:
+    """What a results file says of its run: the checkout (:func:`git_state`), the machine
+    with its load (:func:`machine`) and the seconds since ``t0`` (``time.perf_counter()``
+    at the start)."""
+    return {
+        "git": git_state(),
+        "machine": machine(detailed=True),
+        "seconds": time.perf_counter() - t0,
     }
 
 

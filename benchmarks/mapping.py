@@ -850,7 +850,8 @@ def _provenance(rows: list[dict]) -> str:
     it does not measure itself, so one file may hold several commits' rows)."""
     by: dict[str, list[str]] = {}
     for r in rows:
-        by.setdefault((r.get("commit") or "unknown commit")[:7], []).append(f"{r['log']} {r['row']}")
+        commit = (r.get("commit") or "unknown commit")[:7]
+        by.setdefault(commit, []).append(f"{r['log']} {r['row']}")
     return "Rows by commit: " + "; ".join(f"{c}: {', '.join(v)}" for c, v in by.items()) + "."
 
 

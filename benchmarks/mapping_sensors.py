@@ -70,7 +70,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import git_state, machine, results_path  # noqa: E402
+from common import provenance, results_path  # noqa: E402
 
 TAG = "2026-12-02-s10"
 REAL_TAG = "2026-12-04-s15"
@@ -276,13 +276,7 @@ def main_real(logs: list[str], variants: list[str], odos: list[bool], out_arg) -
                 records.append(rec)
                 print(real_table([rec])[-1], flush=True)
     lines = real_table(records)
-    result = {
-        "tag": REAL_TAG,
-        "git": git_state(),
-        "machine": machine(detailed=True),
-        "seconds": time.perf_counter() - t0,
-        "records": records,
-    }
+    result = {"tag": REAL_TAG, **provenance(t0), "records": records}
     about = (
         f"`map_scans` with its defaults on degraded scans of {', '.join(logs)}; the relation "
         "metric of `mapping.py` (robot frame, the laser's mounting taken into account). git "
@@ -345,9 +339,7 @@ def main(argv=None) -> None:
     lines = table(records)
     result = {
         "tag": TAG,
-        "git": git_state(),
-        "machine": machine(),
-        "seconds": time.perf_counter() - t0,
+        **provenance(t0),
         "profiles": PROFILES,
         "steps": a.steps,
         "records": records,

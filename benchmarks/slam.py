@@ -42,7 +42,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import RESULTS, git_state, machine  # noqa: E402
+from common import RESULTS, provenance  # noqa: E402
 
 DATE = "2026-12-02"
 TAG = "2026-12-02-s9"
@@ -381,9 +381,7 @@ def main(argv=None):
         r.pop("_plot", None)
     result = {
         "date": DATE,
-        "git": git_state(),
-        "machine": machine(detailed=True),
-        "seconds": time.perf_counter() - t0,
+        **provenance(t0),
         "victoria_park": vp,
         "nees": nees,
         "nees_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in sims],
