@@ -632,10 +632,10 @@ def test_candidates_reach_as_far_as_the_front_end_may_have_drifted():
     assert candidates(3, xy, cum, np.inf, lc, front_sigma=front) == [0]
 
 
-def _line_mapper(n=40, jump_at=20, jump=5.0, big_cov=True, **loops):
+def _line_mapper(n=40, jump_at=20, jump=5.0, big_cov=True, loose_xy=0.35, **loops):
     """A mapper over ``n`` keyframes 1 m apart on a line whose chain (front end) jumps
     ``jump`` m too far at keyframe ``jump_at``, an edge placed by the prediction (large
-    covariance when ``big_cov``); the truth has no jump."""
+    covariance when ``big_cov``: ``loose_xy`` m); the truth has no jump."""
     import dataclasses
 
     from scanclique.mapping.pipeline import _Mapper
@@ -647,7 +647,7 @@ def _line_mapper(n=40, jump_at=20, jump=5.0, big_cov=True, **loops):
     scans = [Scan(np.full(11, 5.0), angles, source=f"line:{k}") for k in range(n)]
     m = _Mapper(scans, False, cfg)
     tight = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
-    loose = np.diag([0.35**2, 0.35**2, math.radians(60.0) ** 2])
+    loose = np.diag([loose_xy**2, loose_xy**2, math.radians(60.0) ** 2])
     m.chain[0] = Pose2.identity()
     m.add_keyframe(0, None, None, None)
     for k in range(1, n):
@@ -681,6 +681,35 @@ def test_front_std_and_the_robust_scale_of_a_closure():
     # PCM's chain between two keyframes across it is as unsure
     _, S = m.chain_rel(10, 30)
     assert math.sqrt(S[2, 2]) >= math.radians(60.0)
+
+
+def test_the_prior_of_a_local_match_a_loop_and_an_appearance_candidate():
+    from scanclique.mapping.loops import drift_std
+
+    m, truth = _line_mapper(jump=0.0, loose_xy=1.0)  # keyframe 20 placed by the prediction
+    lc = m.lc
+    # a local neighbour: the well-known chain, 2 m back
+    assert m.prior_sigma(36, 38, True, "estimate") == pytest.approx(
+        (0.05 + 0.02 * 2.0, math.radians(1.0) + math.radians(0.5) * 2.0)
+    )
+    # a loop candidate where the chain was sure: the drift model; by appearance, twice it
+    d = drift_std(3.0, lc)
+    assert m.prior_sigma(36, 39, False, "estimate") == pytest.approx(d)
+    assert m.prior_sigma(36, 39, False, "appearance") == pytest.approx((2 * d[0], 2 * d[1]))
+    # across the unsure step: at least the front end's own uncertainty (twice, by
+    # appearance), the heading capped at 40 degrees
+    f = m.front_std(10, 38)
+    s_est, s_app = (
+        m.prior_sigma(10, 38, False, "estimate"),
+        m.prior_sigma(10, 38, False, "appearance"),
+    )
+    assert s_est[0] == pytest.approx(f[0]) and s_app[0] == pytest.approx(2 * f[0])
+    assert f[0] > 1.0
+    assert s_app[1] == pytest.approx(math.radians(40.0))
+    # a closure since restarts it: the loops' uncertainty counts from its later keyframe
+    m.pending = [_closure(truth, 25, 35, "estimate")]
+    m.flush()
+    assert m.last_closure_kf == 35 and m.prior_sigma(10, 38, False, "appearance")[0] < 2.0
 
 
 def test_a_lone_appearance_closure_across_a_jump_waits_for_a_second_one():

@@ -351,26 +351,7 @@ class _Mapper:
         tasks, meta = [], []
         for i, local, source in jobs:
             est_i = self.estimate_of(i)
-            drift = cum[kidx] - cum[i]
-            if not local:
-                drift = min(drift, cum[kidx] - self.last_closure_path)
-            sigma = _loops.drift_std(drift, lc)
-            if local:
-                sigma = (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
-            if source == "appearance":
-                # beyond the estimate's radius, but not anywhere: twice the drift the
-                # estimate may have accumulated (a 6-sigma bound), so that a look-alike
-                # place of a symmetric building (a corridor seen the other way, a twin
-                # room metres away) is refused when the estimate is known to be good
-                sigma = (2.0 * sigma[0], min(2.0 * sigma[1], math.radians(40.0)))
-            if not local:
-                # where the front end itself was unsure (its edges' covariances: a step
-                # placed by the prediction, a corridor), the estimate may be off by as much;
-                # twice that for appearance, the look-alike guard on the heading kept
-                k = 2.0 if source == "appearance" else 1.0
-                f = self.front_std(i, kidx)
-                f = (k * f[0], min(k * f[1], math.radians(40.0)))
-                sigma = (max(sigma[0], f[0]), max(sigma[1], f[1]))
+            sigma = self.prior_sigma(i, kidx, local, source)
             tasks.append(
                 (self.kf[i], self.kf[kidx], est_i, est_j, sigma, local, source == "appearance")
             )
@@ -380,6 +361,35 @@ class _Mapper:
             prepared[self.kf[kidx]] = self.kf_prep[kidx]
             self.batch.append((kidx, meta, self.verifier.submit(tasks, prepared)))
         self.seconds["loops"] += time.perf_counter() - t
+
+    def prior_sigma(self, i: int, kidx: int, local: bool, source: str) -> tuple[float, float]:
+        """``(sigma_xy m, sigma_theta rad)`` of the prior with which keyframe ``kidx`` is
+        verified against the earlier keyframe ``i``: a local neighbour (``local``) by the
+        well-known chain; a loop candidate (``source`` ``"estimate"`` or ``"appearance"``)
+        by the drift the estimate may have accumulated since the last closure, widened to
+        the front end's own uncertainty there (:meth:`front_std`); an appearance candidate
+        by twice both."""
+        lc = self.lc
+        cum = self.kf_path
+        drift = cum[kidx] - cum[i]
+        if not local:
+            drift = min(drift, cum[kidx] - self.last_closure_path)
+        sigma = _loops.drift_std(drift, lc)
+        if local:
+            return (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
+        if source == "appearance":
+            # beyond the estimate's radius, but not anywhere: twice the drift the
+            # estimate may have accumulated (a 6-sigma bound), so that a look-alike
+            # place of a symmetric building (a corridor seen the other way, a twin
+            # room metres away) is refused when the estimate is known to be good
+            sigma = (2.0 * sigma[0], min(2.0 * sigma[1], math.radians(40.0)))
+        # where the front end itself was unsure (its edges' covariances: a step
+        # placed by the prediction, a corridor), the estimate may be off by as much;
+        # twice that for appearance, the look-alike guard on the heading kept
+        k = 2.0 if source == "appearance" else 1.0
+        f = self.front_std(i, kidx)
+        f = (k * f[0], min(k * f[1], math.radians(40.0)))
+        return max(sigma[0], f[0]), max(sigma[1], f[1])
 
     def front_std_to(self, b: int) -> np.ndarray:
         """:meth:`front_std`'s ``sigma_xy`` of every keyframe ``a <= b`` to ``b``, at once."""
