@@ -246,13 +246,19 @@ class _Mapper:
     def estimate_of(self, kf_index: int) -> Pose2:
         return Pose2.from_array(self.est_xy[kf_index])
 
+    def drift_sigma(self, i: int, j: int) -> tuple[float, float]:
+        """``(sigma_xy m, sigma_theta rad)`` the estimate of keyframe ``j`` may have drifted
+        from keyframe ``i < j`` by the loops' drift model
+        (:func:`~scanclique.mapping.loops.drift_std`), over the path between them or since
+        the last closure, whichever is shorter."""
+        cum = self.kf_path
+        return _loops.drift_std(min(cum[j] - cum[i], cum[j] - self.last_closure_path), self.lc)
+
     def beyond_drift(self, i: int, j: int, Z: Pose2, P: np.ndarray) -> bool:
         """Whether closure ``i``-``j`` (pose ``Z``, covariance ``P``) lies outside the 99 %
         gate of the current estimate with the path's drift model alone
         (:func:`~scanclique.mapping.loops.drift_std`)."""
-        cum = self.kf_path
-        drift = min(cum[j] - cum[i], cum[j] - self.last_closure_path)
-        s_xy, s_th = _loops.drift_std(drift, self.lc)
+        s_xy, s_th = self.drift_sigma(i, j)
         est = self.estimate_of(i).inverse() @ self.estimate_of(j)
         return mahalanobis_sq(Z, P, est, _cov_xy_rot(s_xy, s_th)) > GATE_99
 
@@ -369,14 +375,10 @@ class _Mapper:
         by the drift the estimate may have accumulated since the last closure, widened to
         the front end's own uncertainty there (:meth:`front_std`); an appearance candidate
         by twice both."""
-        lc = self.lc
-        cum = self.kf_path
-        drift = cum[kidx] - cum[i]
-        if not local:
-            drift = min(drift, cum[kidx] - self.last_closure_path)
-        sigma = _loops.drift_std(drift, lc)
         if local:
+            drift = self.kf_path[kidx] - self.kf_path[i]
             return (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
+        sigma = self.drift_sigma(i, kidx)
         if source == "appearance":
             # beyond the estimate's radius, but not anywhere: twice the drift the
             # estimate may have accumulated (a 6-sigma bound), so that a look-alike
