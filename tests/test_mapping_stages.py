@@ -706,10 +706,64 @@ def test_the_prior_of_a_local_match_a_loop_and_an_appearance_candidate():
     assert s_est[0] == pytest.approx(f[0]) and s_app[0] == pytest.approx(2 * f[0])
     assert f[0] > 1.0
     assert s_app[1] == pytest.approx(math.radians(40.0))
-    # a closure since restarts it: the loops' uncertainty counts from its later keyframe
+    # a closure that does not bypass the unsure step leaves it in the prior: the path
+    # from 38 to 10 still crosses keyframe 20 (a short loop after a corridor's slide)
     m.pending = [_closure(truth, 25, 35, "estimate")]
     m.flush()
-    assert m.last_closure_kf == 35 and m.prior_sigma(10, 38, False, "appearance")[0] < 2.0
+    assert m.prior_sigma(10, 38, False, "appearance")[0] > 2.0
+    # one across it does: the most certain path goes through the closure
+    m.pending = [_closure(truth, 12, 36, "estimate")]
+    m.flush()
+    assert m.prior_sigma(10, 38, False, "appearance")[0] < 2.0
+    assert m.front_std(10, 38)[0] < m.front_std(10, 38, chain=True)[0] / 5
+
+
+def test_most_certain_paths_against_brute_force():
+    # every simple path of small random graphs (parallel edges too), costed as the mapper
+    # costs a path: summed translation variance plus the summed heading variance on a
+    # third of the squared length
+    from itertools import permutations, product
+
+    from scanclique.mapping._kernels import most_certain_paths
+
+    def cost(t):
+        return t[0] + t[1] * t[2] ** 2 / 3
+
+    rng = np.random.default_rng(7)
+    for trial in range(40):
+        n = int(rng.integers(2, 7))
+        edges = [(k, k + 1) for k in range(n - 1)]  # a chain, as the mapper's
+        edges += [tuple(sorted(rng.choice(n, 2, replace=False))) for _ in range(rng.integers(0, 4))]
+        m = len(edges)
+        a = np.array([e[0] for e in edges], np.int64)
+        b = np.array([e[1] for e in edges], np.int64)
+        additive = trial % 2 == 0  # without heading variance the cost is a sum: exact
+        vxy = rng.uniform(0, 0.1, m)
+        vth = np.zeros(m) if additive else rng.uniform(0, 0.01, m)
+        ln = rng.uniform(0, 3, m)
+        src = int(rng.integers(n))
+        got = most_certain_paths(n, a, b, vxy, vth, ln, m, src)
+        assert np.all(got[src] == 0)
+        for dst in range(n):
+            if dst == src:
+                continue
+            best = np.inf
+            for k in range(n - 1):
+                for mid in permutations([v for v in range(n) if v not in (src, dst)], k):
+                    nodes = (src, *mid, dst)
+                    hops = [
+                        [e for e in range(m) if {a[e], b[e]} == {u, v}]
+                        for u, v in zip(nodes[:-1], nodes[1:], strict=True)
+                    ]
+                    for choice in product(*hops):
+                        idx = list(choice)
+                        best = min(best, cost((vxy[idx].sum(), vth[idx].sum(), ln[idx].sum())))
+            # a real path: never cheaper than the best; exact when the cost is a sum (the
+            # greedy search may miss the best by the heading's lever arm otherwise, which
+            # is why the mapper also takes the chain when that is more certain)
+            assert cost(got[dst]) >= best - 1e-12
+            if additive:
+                assert cost(got[dst]) == pytest.approx(best, abs=1e-12)
 
 
 def test_a_lone_appearance_closure_across_a_jump_waits_for_a_second_one():
