@@ -718,6 +718,27 @@ def test_the_prior_of_a_local_match_a_loop_and_an_appearance_candidate():
     assert m.front_std(10, 38)[0] < m.front_std(10, 38, chain=True)[0] / 5
 
 
+def test_the_drift_path_runs_through_the_closures_on_the_way():
+    from scanclique.mapping.loops import drift_std
+
+    # keyframes 1 m apart on a line; a closure of 0 m between 25 and 35 (as if the line
+    # folded back there), then the drift of keyframe 38's estimate from keyframe 10
+    P = np.diag([0.02**2, 0.02**2, math.radians(0.3) ** 2])
+    for odo in (False, True):
+        m, _truth = _line_mapper(jump=0.0)
+        m.odo = odo
+        assert m.drift_path(38)[10] == pytest.approx(28.0)  # no closure yet: the chain
+        m.pending = [(25, 35, Pose2.identity(), P, "estimate", 0.8, "")]
+        m.flush()
+        assert [c.verdict for c in m.closures] == ["accepted"]
+        # without odometry: 3 m back to 35, the closure, 15 m from 25 to 10; with it, the
+        # path since the last closure (3 m), as if that closure had tied 10 down too
+        assert m.drift_path(38)[10] == pytest.approx(3.0 if odo else 18.0)
+        assert m.drift_sigma(10, 38) == pytest.approx(drift_std(3.0 if odo else 18.0, m.lc))
+        # keyframes after the closure: the chain either way
+        assert m.drift_path(38)[36] == pytest.approx(2.0)
+
+
 def test_most_certain_paths_against_brute_force():
     # every simple path of small random graphs (parallel edges too), costed as the mapper
     # costs a path: summed translation variance plus the summed heading variance on a

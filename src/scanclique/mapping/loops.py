@@ -114,13 +114,16 @@ def candidates(
         Estimated keyframe positions (map frame).
     cum_path : ndarray (>= j + 1,)
         Path length travelled up to each keyframe (m).
-    since_closure : float
-        Path travelled since the last accepted closure (m); ``inf`` before the first.
+    since_closure : float or ndarray (>= j,)
+        Path travelled since the last accepted closure (m; ``inf`` before the first), or
+        per keyframe the path over which the estimate may have drifted from it (the
+        mapper's ``drift_path``); the chain's path is used where shorter.
     """
     far = np.flatnonzero(cum_path[j] - cum_path[:j] >= cfg.min_path)
     if far.size == 0:
         return []
-    drift = np.minimum(cum_path[j] - cum_path[far], since_closure)
+    since = np.asarray(since_closure)[far] if np.ndim(since_closure) else since_closure
+    drift = np.minimum(cum_path[j] - cum_path[far], since)
     radius = np.minimum(cfg.radius + cfg.growth * drift, cfg.max_radius)
     if front_sigma is not None:
         radius = np.maximum(radius, 3.0 * front_sigma[far])
