@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._lazy import kernel_module
 from .._records import readonly
 from .._workers import check_workers
 from ..errors import ArgumentError, ConfigError, ScanError
@@ -55,6 +56,8 @@ from .frontend import (
 from .loops import LoopClosure
 from .parallel import Verifier
 from .pcm import pcm_select
+
+_K = kernel_module("scanclique.mapping._kernels")
 
 __all__ = ["Edge", "MapResult", "map_scans"]
 
@@ -452,10 +455,8 @@ class _Mapper:
         Computed again only when the graph has grown."""
         key = (b, len(self.kf), self.graph.m)
         if self._paths is None or self._paths[0] != key:
-            from ._kernels import most_certain_paths
-
             g = self.graph
-            paths = most_certain_paths(
+            paths = _K.most_certain_paths(
                 len(self.kf), g.a, g.b, g.var_xy, g.var_theta, g.length, g.m, b
             )
             self._paths = (key, paths)
