@@ -277,6 +277,12 @@ class _Mapper:
         self.seconds["prepare"] += time.perf_counter() - t
         return p
 
+    def add_edge(self, a: int, b: int, Z: Pose2, P: np.ndarray, kind: str) -> None:
+        """Edge ``a - b`` (``"chain"``, ``"local"`` or ``"loop"``) of the keyframe graph, as
+        the batch back end takes it (``kf_edges``) and as the loops' paths do (``graph``)."""
+        self.kf_edges.append((a, b, Z, P, kind))
+        self.graph.add(a, b, Z, P)
+
     def estimate_of(self, kf_index: int) -> Pose2:
         return Pose2.from_array(self.est_xy[kf_index])
 
@@ -284,11 +290,12 @@ class _Mapper:
         """``(sigma_xy m, sigma_theta rad)`` the estimate of keyframe ``j`` may have drifted
         from keyframe ``i < j`` by the loops' drift model
         (:func:`~scanclique.mapping.loops.drift_std`) over :meth:`drift_path`."""
-        return _loops.drift_std(self.drift_path(j)[i], self.lc)
+        return _loops.drift_std(float(self.drift_path(j, i)), self.lc)
 
-    def drift_path(self, j: int) -> np.ndarray:
-        """The path (m) over which the estimate of keyframe ``j`` may have drifted from each
-        keyframe ``i <= j``, ``(j + 1,)``: the chain's path between them or, when shorter,
+    def drift_path(self, j: int, i: int | None = None):
+        """The path (m) over which the estimate of keyframe ``j`` may have drifted from
+        keyframe ``i`` (a float), or from each keyframe ``i <= j`` when ``i`` is None
+        (``(j + 1,)``): the chain's path between them or, when shorter,
         with odometry the path since the last accepted closure, and without it the length
         of the most certain path of the keyframe graph (:meth:`paths_from`, closures
         counting their own short length).
@@ -301,11 +308,12 @@ class _Mapper:
         look-alike closures (Intel as recorded 0.0147 -> 0.0148 m, with a 5.6 m range
         0.0205 -> 0.0227 m, twice as many closures off by more than 0.2 m or 1 degree), so
         there the last closure restarts the path, as before session 17."""
-        cum = np.asarray(self.kf_path[: j + 1])
-        chain = cum[j] - cum
+        which = slice(0, j + 1) if i is None else i
+        to = self.kf_path[j]
+        chain = to - (np.asarray(self.kf_path[: j + 1]) if i is None else self.kf_path[i])
         if self.odo:
-            return np.minimum(chain, cum[j] - self.last_closure_path)
-        return np.minimum(chain, self.paths_from(j)[: j + 1, 2])
+            return np.minimum(chain, to - self.last_closure_path)
+        return np.minimum(chain, self.paths_from(j)[which, 2])
 
     def beyond_drift(self, i: int, j: int, Z: Pose2, P: np.ndarray) -> bool:
         """Whether closure ``i``-``j`` (pose ``Z``, covariance ``P``) lies outside the 99 %
@@ -366,8 +374,7 @@ class _Mapper:
             vxy = float(np.linalg.eigvalsh(cov_prev[:2, :2])[-1])
             vth = float(cov_prev[2, 2])
             self.kf_var.append((self.kf_var[-1][0] + vxy, self.kf_var[-1][1] + vth))
-            self.kf_edges.append((kidx - 1, kidx, rel_prev, cov_prev, "chain"))
-            self.graph.add(kidx - 1, kidx, rel_prev, cov_prev)
+            self.add_edge(kidx - 1, kidx, rel_prev, cov_prev, "chain")
             self._add_isam_edge(kidx - 1, kidx, rel_prev, cov_prev, False)
         self.new_values.insert(kidx, gtsam.Pose2(guess.x, guess.y, guess.theta))
         self.kf.append(j)
@@ -540,8 +547,7 @@ class _Mapper:
                         LoopClosure(self.kf[i], self.kf[kidx], pose, cov, verdict, True, True,
                                     source, score, reason)
                     )  # fmt: skip
-                    self.kf_edges.append((i, kidx, pose, cov, "local"))
-                    self.graph.add(i, kidx, pose, cov)
+                    self.add_edge(i, kidx, pose, cov, "local")
                     self._add_isam_edge(i, kidx, pose, cov, False)
                 else:
                     self.pending.append((i, kidx, pose, cov, source, score, reason))
@@ -595,8 +601,7 @@ class _Mapper:
                 )  # fmt: skip
                 if ok:
                     self.anchors.append((i, j, Z, P))
-                    self.kf_edges.append((i, j, Z, P, "loop"))
-                    self.graph.add(i, j, Z, P)
+                    self.add_edge(i, j, Z, P, "loop")
                     self.loop_scale[(i, j)] = self.robust_scale(i, j, P)
                     self._add_isam_edge(i, j, Z, P, True, self.loop_scale[(i, j)])
                     self.last_closure_path = max(self.last_closure_path, self.kf_path[j])
