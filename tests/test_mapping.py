@@ -255,3 +255,39 @@ def test_sharp_turn_must_be_a_positive_angle(bad):
     with pytest.raises(ConfigError, match="sharp_turn"):
         FrontEndConfig(sharp_turn=bad)
     assert FrontEndConfig(sharp_turn=4.0).sharp_turn == 4.0  # beyond pi: off
+
+
+def test_a_loosely_placed_scan_is_a_keyframe_and_the_next_prediction_inherits_it(monkeypatch):
+    """Without odometry: a scan the front end places unsure by more than a keyframe's
+    spacing (here made so by hand: 0.5 m along x) becomes a keyframe, which the back end
+    can move, and the motion model's part of it reaches the next prediction (capped at the
+    robot's speed); a scan placed as surely as its neighbours does neither."""
+    import dataclasses
+
+    import scanclique.mapping.pipeline as pl
+
+    rng = np.random.default_rng(3)
+    world = office_world(rng)
+    scans = simulate_trajectory(rng, world, 14, step=0.08, n_beams=361)
+    plain = map_scans(scans, use_odometry=False)
+    J = next(j for j in range(5, 12) if j not in plain.keyframes and j - 1 not in plain.keyframes)
+    assert plain.placed_by[J] in ("match", "icp")
+    real, carried = pl.associate_by_scans, {}
+
+    def spy(*args, **kw):
+        step = real(*args, **kw)
+        j = len(carried) + 1  # one call per scan after the first
+        carried[j] = args[8]
+        if j == J:
+            loose = np.diag([0.5**2, 0.0])
+            cov = step.covariance.copy()
+            cov[:2, :2] += loose
+            step = dataclasses.replace(step, covariance=cov, loose=loose)
+        return step
+
+    monkeypatch.setattr(pl, "associate_by_scans", spy)
+    r = map_scans(scans, use_odometry=False)
+    assert J in r.keyframes and J not in plain.keyframes
+    assert not np.any(carried[J])  # nothing loose before it
+    top = np.linalg.eigvalsh(carried[J + 1])[-1]
+    assert 0.0 < top <= 0.12**2  # inherited, capped at the robot's speed (0.08 m per scan)

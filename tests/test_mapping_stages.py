@@ -583,6 +583,65 @@ def test_soften_only_along_a_corridor_and_only_by_the_disagreement():
     assert soften(ra, rb, Pose2(0.3, 0.0, 0.0), cov, Pose2(1.3, 0.0, 0.0), fe) is cov
 
 
+def test_soften_adds_what_the_prediction_inherited_along_the_corridor():
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import soften
+    from scanclique.match import prepare_scan
+
+    fe = FrontEndConfig()
+    cov = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    a, b = _corridor_pair()
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    # the step agrees with a prediction that earlier loose steps made unsure by 0.7 m
+    # along the corridor (x) and 0.4 m across it: only the part along it is added
+    carried = np.diag([0.7**2, 0.4**2])
+    c = soften(pa, pb, Pose2(0.5, 0.0, 0.0), cov, Pose2(0.5, 0.0, 0.0), fe, carried)
+    assert c[0, 0] == pytest.approx(cov[0, 0] + 0.7**2, rel=0.02)
+    assert c[1, 1] == pytest.approx(cov[1, 1], abs=2e-3)
+    # with the disagreement on top
+    c = soften(pa, pb, Pose2(0.5, 0.0, 0.0), cov, Pose2(1.1, 0.0, 0.0), fe, carried)
+    assert c[0, 0] == pytest.approx(cov[0, 0] + 0.6**2 + 0.7**2, rel=0.02)
+
+
+def test_the_velocity_model_caps_an_inherited_velocity_at_the_robots_speed():
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import VelocityModel
+
+    vm = VelocityModel(FrontEndConfig())
+    position, velocity = np.diag([0.3**2, 0.0]), np.diag([2.0**2, 0.5**2])
+    # no step measured yet: the robot's speed is unknown, only the position counts
+    assert np.array_equal(vm.carried(position, velocity), position)
+    for step in np.linspace(0.05, 0.25, 21):  # steps of 5 to 25 cm per scan
+        vm.observe(None, None, (None, None, None), Pose2.identity(), Pose2(step, 0, 0), 1)
+    cap = float(np.quantile(np.linspace(0.05, 0.25, 21), 0.9)) ** 2
+    c = vm.carried(position, velocity)
+    assert c[0, 0] == pytest.approx(0.3**2 + cap) and c[1, 1] == pytest.approx(cap / 16)
+    # a velocity already within the robot's speed is kept as it is
+    small = np.diag([0.01**2, 0.0])
+    assert np.allclose(vm.carried(position, small), position + small)
+
+
+def test_associate_by_scans_reports_what_the_prediction_decided_along_a_corridor():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import associate_by_scans
+    from scanclique.match import prepare_scan
+
+    fe, mc, floor = FrontEndConfig(), MatchConfig(), (0.01, math.radians(0.25))
+    a, b = _corridor_pair()  # bare walls: the scans leave x free
+    pa, pb = prepare_scan(a), prepare_scan(b)
+    pred, pred_cov = Pose2(0.5, 0.0, 0.0), np.diag([0.1**2, 0.1**2, math.radians(2.0) ** 2])
+    plain = associate_by_scans(pa, pb, pred, pred_cov, mc, fe, floor, 1.35)
+    carried = np.diag([0.8**2, 0.0])
+    step = associate_by_scans(pa, pb, pred, pred_cov, mc, fe, floor, 1.35, carried)
+    assert plain.kind == step.kind == "icp" and plain.loose is not None
+    # along the corridor: the prediction's variance, and with what it inherited
+    assert plain.loose[0, 0] == pytest.approx(0.1**2, rel=0.05)
+    assert step.loose[0, 0] == pytest.approx(0.1**2 + 0.8**2, rel=0.05)
+    assert step.covariance[0, 0] == pytest.approx(plain.covariance[0, 0] + 0.8**2, rel=0.02)
+    assert abs(step.pose.x - 0.5) < 1e-3  # the position along it is the prediction's
+
+
 def _turn_pair(turn_deg=100.0, seed=4):
     """Two scans of an office room 0.25 m apart, the second turned by ``turn_deg``."""
     from scanclique.sim import office_world, simulate_scan

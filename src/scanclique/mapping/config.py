@@ -42,7 +42,11 @@ class FrontEndConfig:
     ----------
     keyframe_distance, keyframe_angle : float
         A scan this far (m) or turned this much (rad) from the keyframe becomes the next
-        keyframe.
+        keyframe. Without odometry, so does a scan whose translation relative to the
+        keyframe is unsure by more than ``keyframe_distance`` (1 sigma, largest axis: a
+        corridor, look-alike poses), so that the back end and the loops can move it; and
+        a step the motion model placed that unsurely passes its looseness on to the next
+        prediction (:meth:`~scanclique.mapping.frontend.VelocityModel.carried`).
     odometry_noise : OdometryNoise
         Error model of the wheel odometry (the prior of the §7 gate, and the covariance of
         an odometry edge when a match fails): twice the validation's default, which covers

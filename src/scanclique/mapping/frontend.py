@@ -79,7 +79,11 @@ class Step:
     its ``(x, y, theta)``; ``kind`` is ``"match"``, ``"odometry"`` or
     ``"constant_velocity"``; ``verdict`` the §7 verdict of the match (or why there was
     none); ``score`` the match's raw-scan agreement (NaN without a match); ``reason`` in
-    words when the scan was not placed by a match."""
+    words when the scan was not placed by a match. ``loose`` (without odometry): the
+    ``(2, 2)`` part of ``covariance``'s translation block that the motion model added
+    along a direction the raw scans fix loosely (:func:`soften`, a corridor's axis), in
+    the earlier scan's frame; None when it added nothing. The next prediction inherits it
+    (:meth:`VelocityModel.carried`)."""
 
     pose: Pose2
     covariance: np.ndarray
@@ -87,6 +91,7 @@ class Step:
     verdict: str
     score: float
     reason: str | None = None
+    loose: np.ndarray | None = None
 
 
 def floored(P: np.ndarray | None, sigma_m: float, sigma_rad: float) -> np.ndarray:
@@ -530,6 +535,20 @@ class VelocityModel:
             return self.fe.guess_sigma_radians
         return min(self.turns.quantile(0.95), self.fe.guess_sigma_radians)
 
+    def carried(self, position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """The ``(2, 2)`` translation variance (m²) a constant-velocity prediction inherits
+        from the loose steps before it (:attr:`Step.loose`): ``position``, that of the
+        last scan relative to the keyframe the prediction is relative to, plus
+        ``velocity``, that of the last motion (the last two scans' loose parts), scaled
+        down so that its largest eigenvalue is at most the squared 90th percentile of the
+        per-scan steps (the robot's speed is unknown along a loose direction, not
+        unbounded). Both in the same frame; the result in it too."""
+        if not self.steps.total:
+            return position
+        cap = self.steps.quantile(0.9) ** 2
+        top = float(np.linalg.eigvalsh(velocity)[-1])
+        return position + (velocity if top <= cap else velocity * (cap / top))
+
     def max_translation(self, span: int) -> float | None:
         if self.steps.total < self.fe.jump_min_path:
             return None
@@ -538,7 +557,13 @@ class VelocityModel:
 
 
 def soften(
-    pk: PreparedScan, pj: PreparedScan, pose: Pose2, cov: np.ndarray, prior: Pose2, fe
+    pk: PreparedScan,
+    pj: PreparedScan,
+    pose: Pose2,
+    cov: np.ndarray,
+    prior: Pose2,
+    fe,
+    carried: np.ndarray | None = None,
 ) -> np.ndarray:
     """``cov`` of a step ``pose`` (maps scan ``j`` into ``k``) made as unsure, along the
     direction the raw scans fix least, as ``pose`` and the motion model's ``prior``
@@ -547,14 +572,20 @@ def soften(
     and whose raw-scan score favours the pose of most overlap, standing still). Without
     odometry nothing else tells where along a corridor the robot went; an edge as sure as
     its features or its ICP would keep the loops from putting it right. Where the two
-    agree (a dense log, a steady walk) the edge is left as it is."""
+    agree (a dense log, a steady walk) the edge is left as it is, unless the prior is
+    itself unsure along that direction: ``carried`` (``(2, 2)``, k's frame, m²), the
+    variance the prior inherited from earlier steps placed this way
+    (:meth:`VelocityModel.carried`), is added along it too, since agreeing with a
+    prediction that the previous loose steps made proves nothing (a corridor driven at
+    1 m per scan that ICP and the prediction both call standing still)."""
     weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
     if weak is None or weak[1] >= fe.soft_constraint:
         return cov
     e = weak[0]
     d = float(e @ [pose.x - prior.x, pose.y - prior.y])
+    var = d * d + (0.0 if carried is None else float(e @ carried @ e))
     cov = cov.copy()
-    cov[:2, :2] += d * d * np.outer(e, e)
+    cov[:2, :2] += var * np.outer(e, e)
     return cov
 
 
@@ -657,6 +688,7 @@ def associate_by_scans(
     fe,
     sigma_floor: tuple[float, float],
     max_translation: float | None = None,
+    carried: np.ndarray | None = None,
 ) -> Step:
     """Without odometry (the paper's setting): place scan ``j`` relative to keyframe ``k``
     by the scans' own evidence, the constant-velocity prediction ``pred`` (maps ``j`` into
@@ -677,6 +709,11 @@ def associate_by_scans(
        :func:`weak_direction` below ``fe.icp_min_constraint``), the component along it is
        the prediction's, with its variance.
 
+    ``carried`` (``(2, 2)``, k's frame, or None): the translation variance the prediction
+    inherited from loose steps before it (:meth:`VelocityModel.carried`); it is added to
+    the prediction's variance along a loose direction in 1 to 3 (:func:`soften`), and the
+    step reports what the motion model added as :attr:`Step.loose`.
+
     Returns a Step of kind ``"match"`` (1) or ``"icp"`` (2), or ``"rejected"`` with the
     reason (the caller places the scan by the prediction).
     """
@@ -688,7 +725,11 @@ def associate_by_scans(
         return max_translation is None or math.hypot(p.x, p.y) <= max_translation
 
     def softened(pose: Pose2, cov: np.ndarray) -> np.ndarray:
-        return soften(pk, pj, pose, cov, pred, fe) if known else cov
+        return soften(pk, pj, pose, cov, pred, fe, carried) if known else cov
+
+    def loose(before: np.ndarray, after: np.ndarray) -> np.ndarray | None:
+        added = after[:2, :2] - before[:2, :2]
+        return added if np.any(added) else None
 
     def expected_turn(p: Pose2) -> bool:
         return not known or abs(pose_difference(p, pred)[2]) <= math.sqrt(GATE_99 * pred_cov[2, 2])
@@ -697,7 +738,8 @@ def associate_by_scans(
     if v.accepted and v.pose is not None and plausible(v.pose) and expected_turn(v.pose):
         cov = floored(v.covariance if v.covariance is not None else m.covariance, *sigma_floor)
         pose = refine_pose(pk, pj, v.pose, fe)
-        return Step(pose, softened(pose, cov), MATCH, v.verdict, float(m.score))
+        soft = softened(pose, cov)
+        return Step(pose, soft, MATCH, v.verdict, float(m.score), loose=loose(cov, soft))
     why = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
     found = [
         f for f in scan_candidates(pk, pj, m, pred, fe, config)
@@ -721,9 +763,14 @@ def associate_by_scans(
         cov = np.diag([fe.icp_gate * sigma_floor[0]] * 2 + [fe.icp_gate * sigma_floor[1]]) ** 2
     cov = floored(cov, 2 * sigma_floor[0], 2 * sigma_floor[1])
     cov[:2, :2] += spread
+    before = cov
     if axis is not None:
-        pose, cov = _prior_along(pose, cov, axis, pred, pred_cov)
+        prior_cov = pred_cov.copy()
+        if carried is not None:
+            prior_cov[:2, :2] += carried
+        pose, cov = _prior_along(pose, cov, axis, pred, prior_cov)
         score = float(pose_score(pk, pj, pose, config))
     else:
         cov = softened(pose, cov)
-    return Step(pose, cov, ICP, "scans", score, f"{v.verdict}: {why}; placed by the raw scans")
+    return Step(pose, cov, ICP, "scans", score, f"{v.verdict}: {why}; placed by the raw scans",
+                loose(before, cov))  # fmt: skip

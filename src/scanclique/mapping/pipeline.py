@@ -628,6 +628,9 @@ class _Mapper:
         self.add_keyframe(0, p0, None, None)
         world_prev2: Pose2 | None = None
         world_prev = Pose2.identity()  # chain pose of the previous scan
+        # without odometry: the translation variance (world frame, m²) the motion model,
+        # not the scans, gave the last two scans (Step.loose), which the prediction inherits
+        loose_prev2 = loose_prev = np.zeros((2, 2))
         for j in range(1, n):
             k = self.kf[-1]
             pk = self.kf_prep[-1]
@@ -647,11 +650,20 @@ class _Mapper:
                 noise = fe.velocity_noise
                 path = None
                 kind = CONSTANT_VELOCITY
+            carried_w = None
+            if kind == CONSTANT_VELOCITY:
+                # the last scan's own looseness counts when the prediction runs through it
+                # relative to the same keyframe; the last motion's always
+                at_k = self.kf_of[j - 1] == k and j - 1 != k
+                carried_w = self.motion.carried(
+                    loose_prev if at_k else np.zeros((2, 2)), loose_prev + loose_prev2
+                )
             if kind == CONSTANT_VELOCITY and fe.icp_fallback:
                 rel_pred, pred_cov = odometry_prior(prior_a, prior_b, noise)
                 step = associate_by_scans(
                     pk, pj, rel_pred, None if world_prev2 is None else pred_cov,
                     self.cfg.match, fe, self.floor, self.motion.max_translation(j - k),
+                    _rotated(carried_w, -chain_k.theta),
                 )  # fmt: skip
                 if step.kind == ICP:
                     self.reasons[j] = step.reason or ""
@@ -717,13 +729,19 @@ class _Mapper:
                     a, b = world_prev, self.motion.predict(world_prev2, world_prev, times)
                     noise = fe.velocity_noise
                 fb = prior_step(a, b, noise, kind, step.reason or "", step.verdict, step.score)
+                if kind == CONSTANT_VELOCITY and carried_w is not None:
+                    # placed by the prediction alone: it is as unsure as the prediction,
+                    # inherited looseness included, and all of its translation is the motion's
+                    c = fb.covariance.copy()
+                    c[:2, :2] += _rotated(carried_w, -a.theta)
+                    fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason, c[:2, :2])
                 s_th = self.motion.heading_sigma()
                 if not self.odo and fb.covariance[2, 2] < s_th**2:
                     # without odometry, a scan the raw scans could not place may have turned
                     # as the prediction has proved to miss (a sharp turn before a wall)
                     c = fb.covariance.copy()
                     c[2, 2] = s_th**2
-                    fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason)
+                    fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason, fb.loose)
                 # edge from j-1; expressed from keyframe k for the keyframe chain
                 rel_prev = self.rel_to_kf[j - 1] if self.kf_of[j - 1] == k else Pose2.identity()
                 cov_prev = np.zeros((3, 3))
@@ -743,6 +761,16 @@ class _Mapper:
             moved = math.hypot(rel.x, rel.y) >= fe.keyframe_distance or abs(rel.theta) >= (
                 fe.keyframe_angle
             )
+            if (
+                kind == CONSTANT_VELOCITY
+                and step.kind in (MATCH, ICP)
+                and np.linalg.eigvalsh(cov[:2, :2])[-1] >= fe.keyframe_distance**2
+            ):
+                # without odometry, a scan the raw scans place only to within more than a
+                # keyframe's spacing (a corridor, look-alike poses) is a keyframe of its own:
+                # a scan kept relative to a keyframe is where the front end put it for good,
+                # a keyframe is where the back end and the loops put it
+                moved = True
             if moved or step.kind not in (MATCH, ICP) or j == n - 1:
                 lb = self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"]
                 self.add_keyframe(j, pj, rel, cov)
@@ -752,6 +780,14 @@ class _Mapper:
                 self.kf_of[j] = j
                 self.rel_to_kf[j] = Pose2.identity()
             world_prev2, world_prev = world_prev, self.chain[j]
+            loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
+            if loose is not None and np.linalg.eigvalsh(loose)[-1] >= fe.keyframe_distance**2:
+                # the motion model placed it, unsure by more than a keyframe's spacing: the
+                # next prediction inherits that (below it, the next match measures afresh)
+                frame = self.chain[j - 1] if step.kind not in (MATCH, ICP) else chain_k
+                loose_prev2, loose_prev = loose_prev, _rotated(loose, frame.theta)
+            else:
+                loose_prev2, loose_prev = loose_prev, np.zeros((2, 2))
             if progress is not None and (j % 50 == 0 or j == n - 1):
                 progress(j + 1, n, sum(1 for c in self.closures if c.accepted and not c.local))
         self.flush(final=True)
@@ -784,6 +820,17 @@ class _Mapper:
             else:
                 poses.append(kf_pose[self.kf_of[j]] @ self.rel_to_kf[j])
         return poses
+
+
+def _rotated(cov: np.ndarray | None, theta: float) -> np.ndarray | None:
+    """A ``(2, 2)`` covariance expressed in a frame turned by ``-theta`` (``R cov R^T``,
+    ``R`` the rotation by ``theta``): from a scan's frame to the world's with that scan's
+    heading, back with its negative."""
+    if cov is None:
+        return None
+    c, s = math.cos(theta), math.sin(theta)
+    R = np.array([[c, -s], [s, c]])
+    return R @ cov @ R.T
 
 
 def _ts(scans: Sequence[Scan], j: int) -> float | None:
