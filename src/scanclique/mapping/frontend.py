@@ -81,8 +81,9 @@ class Step:
     none); ``score`` the match's raw-scan agreement (NaN without a match); ``reason`` in
     words when the scan was not placed by a match. ``loose`` (without odometry): the
     ``(2, 2)`` part of ``covariance``'s translation block that the motion model added
-    along a direction the raw scans fix loosely (:func:`soften`, a corridor's axis), in
-    the earlier scan's frame; None when it added nothing. The next prediction inherits it
+    along a direction the raw scans fix loosely (:func:`soften`, a corridor's axis), or
+    all of it for a scan placed by the prediction alone, in the earlier scan's frame; None
+    when it added nothing. The next prediction inherits it
     (:meth:`VelocityModel.carried`)."""
 
     pose: Pose2

@@ -30,7 +30,7 @@ from .._lazy import kernel_module
 from .._records import readonly
 from .._workers import check_workers
 from ..errors import ArgumentError, ConfigError, ScanError
-from ..geometry import Pose2
+from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
 from ..scan import Scan
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
@@ -783,7 +783,8 @@ class _Mapper:
             loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
             if loose is not None and np.linalg.eigvalsh(loose)[-1] >= fe.keyframe_distance**2:
                 # the motion model placed it, unsure by more than a keyframe's spacing: the
-                # next prediction inherits that (below it, the next match measures afresh)
+                # next prediction inherits that (less is left to the next match: passing all
+                # of it on loosened the dense logs' corridors, measured in session 18)
                 frame = self.chain[j - 1] if step.kind not in (MATCH, ICP) else chain_k
                 loose_prev2, loose_prev = loose_prev, _rotated(loose, frame.theta)
             else:
@@ -828,8 +829,7 @@ def _rotated(cov: np.ndarray | None, theta: float) -> np.ndarray | None:
     heading, back with its negative."""
     if cov is None:
         return None
-    c, s = math.cos(theta), math.sin(theta)
-    R = np.array([[c, -s], [s, c]])
+    R = rotation_matrix(theta)
     return R @ cov @ R.T
 
 
