@@ -558,6 +558,35 @@ def test_choose_by_scans_weighs_the_raw_scans_against_the_motion():
     assert axis is x
 
 
+def test_a_turned_candidate_is_judged_against_the_predicted_step_swung_by_its_turn():
+    from scanclique.config import MatchConfig
+    from scanclique.mapping.config import FrontEndConfig
+    from scanclique.mapping.frontend import choose_by_scans, surprise, swung
+
+    fe, mc = FrontEndConfig(), MatchConfig()
+    start, pred = Pose2(0.2, 0.0, 0.0), Pose2(0.45, 0.0, 0.0)  # 0.25 m straight on
+    cov = np.diag([0.2**2, 0.2**2, math.radians(10.0) ** 2])
+    # turned 90 degrees, then the step: on the swung step's end, surprised by the turn only
+    turned = Pose2(0.2, 0.25, math.pi / 2)
+    near = swung(turned, pred, start)
+    assert near.distance_to(turned)[0] < 1e-9 and near.theta == pytest.approx(math.pi / 2)
+    turn_only = fe.turn_cost * (math.pi / 2) / math.radians(10.0)
+    assert surprise(turned, pred, cov, fe, start) == pytest.approx(turn_only)
+    assert surprise(turned, pred, cov, fe) > turn_only + fe.shift_cost  # 0.35 m = 1.8 sigma
+    # halfway through the turn: the arc's middle
+    mid = swung(Pose2(0.3, 0.3, math.pi / 2), pred, start)
+    assert math.hypot(mid.x - 0.2, mid.y) == pytest.approx(0.25)
+    # no unexpected turn, or no start: the prediction itself
+    assert swung(Pose2(0.6, 0.1, 0.0), pred, start) is pred
+    assert swung(turned, pred, None) is pred
+    # two candidates at the turned heading, the right one scoring a little better: judged
+    # from the straight prediction the one nearer it wins; from the swung step the right one
+    slid = Pose2(0.45, 0.1, math.pi / 2)
+    cands = [(turned, 0.44), (slid, 0.43)]
+    assert choose_by_scans(cands, pred, cov, fe, mc)[0] is slid
+    assert choose_by_scans(cands, pred, cov, fe, mc, start=start)[0] is turned
+
+
 def test_soften_only_along_a_corridor_and_only_by_the_disagreement():
     from scanclique.mapping.config import FrontEndConfig
     from scanclique.mapping.frontend import soften

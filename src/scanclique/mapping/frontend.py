@@ -615,16 +615,49 @@ def scan_candidates(
     return found + [(h, float(pose_score(pk, pj, h, config))) for h in hyps]
 
 
-def surprise(pose: Pose2, pred: Pose2, pred_cov: np.ndarray, fe) -> float:
+def swung(pose: Pose2, pred: Pose2, start: Pose2 | None) -> Pose2:
+    """The prediction ``pred`` nearest ``pose`` among those its step could have taken had
+    the robot made the turn by which ``pose`` departs from it (``d``) at any moment of the
+    step: the predicted step from ``start`` (where it begins, the previous scan; all three
+    in one frame) swung about ``start`` by an angle between 0 and ``d``
+    (:data:`ARC_SAMPLES` of them), its heading turned as much. ``pred`` itself without
+    ``start`` or without an unexpected turn."""
+    if start is None:
+        return pred
+    d = pose_difference(pose, pred)[2]
+    if d == 0.0:
+        return pred
+    v = np.array([pred.x - start.x, pred.y - start.y])
+    best, out = math.inf, pred
+    for a in np.linspace(0.0, d, ARC_SAMPLES):
+        c, s_ = math.cos(a), math.sin(a)
+        x, y = start.x + c * v[0] - s_ * v[1], start.y + s_ * v[0] + c * v[1]
+        e = math.hypot(pose.x - x, pose.y - y)
+        if e < best:
+            best, out = e, Pose2(x, y, pred.theta + float(a))
+    return out
+
+
+#: the predicted steps :func:`swung` tries (both ends included)
+ARC_SAMPLES = 9
+
+
+def surprise(
+    pose: Pose2, pred: Pose2, pred_cov: np.ndarray, fe, start: Pose2 | None = None
+) -> float:
     """The raw-scan score a pose must pay for departing from the prediction ``pred``:
     ``fe.shift_cost`` per standard deviation of translation and ``fe.turn_cost`` per
     standard deviation of heading (``pred_cov``). A robot's heading is much less
     predictable than its translation (it turns in place, or sharply before a wall), so a
-    sigma of unexpected turn costs less than a sigma of unexpected shift."""
+    sigma of unexpected turn costs less than a sigma of unexpected shift. With ``start``
+    (where the predicted step begins) the shift is measured from the predicted step swung
+    by the pose's unexpected turn (:func:`swung`): a robot that turned more than predicted
+    may also have moved in a direction the prediction did not expect."""
     e = pose_difference(pose, pred)
-    return fe.shift_cost * math.hypot(e[0], e[1]) / math.sqrt(pred_cov[0, 0]) + (
-        fe.turn_cost * abs(e[2]) / math.sqrt(pred_cov[2, 2])
-    )
+    near = swung(pose, pred, start)
+    return fe.shift_cost * math.hypot(pose.x - near.x, pose.y - near.y) / math.sqrt(
+        pred_cov[0, 0]
+    ) + (fe.turn_cost * abs(e[2]) / math.sqrt(pred_cov[2, 2]))
 
 
 def _same_heading(p: Pose2, q: Pose2, config: MatchConfig) -> bool:
@@ -638,6 +671,7 @@ def choose_by_scans(
     fe,
     config: MatchConfig,
     weak_at=None,
+    start: Pose2 | None = None,
 ) -> tuple[Pose2, float, np.ndarray, np.ndarray | None] | str:
     """The candidate (pose, raw-scan score) the scans and the motion agree on best: the
     highest raw-scan score less its :func:`surprise` (the score alone when ``pred_cov`` is
@@ -649,12 +683,12 @@ def choose_by_scans(
     tell a turn from a look-alike). ``weak_at(pose)``, when given, returns the unit vector
     along which the raw scans leave ``pose`` free (a corridor's axis, which the caller
     takes from the prediction) or None: poses that differ only along it are one; it is
-    returned last."""
+    returned last. ``start``: where the predicted step begins (:func:`surprise`)."""
     if not candidates:
         return "no candidate"
 
     def value(f):
-        return f[1] if pred_cov is None else f[1] - surprise(f[0], pred, pred_cov, fe)
+        return f[1] if pred_cov is None else f[1] - surprise(f[0], pred, pred_cov, fe, start)
 
     ranked = sorted(((p, sc, value((p, sc))) for p, sc in candidates), key=lambda f: -f[2])
     pose, score, best = ranked[0]
@@ -690,6 +724,7 @@ def associate_by_scans(
     sigma_floor: tuple[float, float],
     max_translation: float | None = None,
     carried: np.ndarray | None = None,
+    start: Pose2 | None = None,
 ) -> Step:
     """Without odometry (the paper's setting): place scan ``j`` relative to keyframe ``k``
     by the scans' own evidence, the constant-velocity prediction ``pred`` (maps ``j`` into
@@ -710,6 +745,10 @@ def associate_by_scans(
        :func:`weak_direction` below ``fe.icp_min_constraint``), the component along it is
        the prediction's, with its variance.
 
+    ``start`` (k's frame, or None): where the predicted step begins (the previous scan);
+    a candidate that turned more than predicted is judged against the predicted step
+    swung by its turn (:func:`swung`), in the competition of 2 and as the prior of 3.
+
     ``carried`` (``(2, 2)``, k's frame, or None): the translation variance the prediction
     inherited from loose steps before it (:meth:`VelocityModel.carried`); it is added to
     the prediction's variance along a loose direction in 1 to 3 (:func:`soften`), and the
@@ -726,7 +765,7 @@ def associate_by_scans(
         return max_translation is None or math.hypot(p.x, p.y) <= max_translation
 
     def softened(pose: Pose2, cov: np.ndarray) -> np.ndarray:
-        return soften(pk, pj, pose, cov, pred, fe, carried) if known else cov
+        return soften(pk, pj, pose, cov, swung(pose, pred, start), fe, carried) if known else cov
 
     def loose(before: np.ndarray, after: np.ndarray) -> np.ndarray | None:
         added = after[:2, :2] - before[:2, :2]
@@ -755,7 +794,7 @@ def associate_by_scans(
         weak = weak_direction(pk.cloud, pts, pose, 0.1) if known else None
         return weak[0] if weak is not None and weak[1] < fe.icp_min_constraint else None
 
-    chosen = choose_by_scans(found, pred, pred_cov, fe, config, axis_at)
+    chosen = choose_by_scans(found, pred, pred_cov, fe, config, axis_at, start)
     if isinstance(chosen, str):
         return Step(pred, np.eye(3), "rejected", "ambiguous", float(m.score), f"{why}; {chosen}")
     pose, score, spread, axis = chosen
@@ -769,7 +808,7 @@ def associate_by_scans(
         prior_cov = pred_cov.copy()
         if carried is not None:
             prior_cov[:2, :2] += carried
-        pose, cov = _prior_along(pose, cov, axis, pred, prior_cov)
+        pose, cov = _prior_along(pose, cov, axis, swung(pose, pred, start), prior_cov)
         score = float(pose_score(pk, pj, pose, config))
     else:
         cov = softened(pose, cov)

@@ -664,6 +664,7 @@ class _Mapper:
                     pk, pj, rel_pred, None if world_prev2 is None else pred_cov,
                     self.cfg.match, fe, self.floor, self.motion.max_translation(j - k),
                     _rotated(carried_w, -chain_k.theta),
+                    chain_k.inverse() @ world_prev,
                 )  # fmt: skip
                 if step.kind == ICP:
                     self.reasons[j] = step.reason or ""
