@@ -636,18 +636,32 @@ def test_the_velocity_model_caps_an_inherited_velocity_at_the_robots_speed():
     from scanclique.mapping.config import FrontEndConfig
     from scanclique.mapping.frontend import VelocityModel
 
-    vm = VelocityModel(FrontEndConfig())
+    fe = FrontEndConfig()
+    vm = VelocityModel(fe)
+    # the last two scans loose by these (the last one 0.3 m along x): the last motion
+    # (their sum) 2 m along x and 0.5 m across
     position, velocity = np.diag([0.3**2, 0.0]), np.diag([2.0**2, 0.5**2])
+    vm.placed(velocity - position)
+    vm.placed(position)
     # no step measured yet: the robot's speed is unknown, only the position counts
-    assert np.array_equal(vm.carried(position, velocity), position)
+    assert np.array_equal(vm.carried(True), position)
     for step in np.linspace(0.05, 0.25, 21):  # steps of 5 to 25 cm per scan
         vm.observe(None, None, (None, None, None), Pose2.identity(), Pose2(step, 0, 0), 1)
     cap = float(np.quantile(np.linspace(0.05, 0.25, 21), 0.9)) ** 2
-    c = vm.carried(position, velocity)
+    c = vm.carried(True)
     assert c[0, 0] == pytest.approx(0.3**2 + cap) and c[1, 1] == pytest.approx(cap / 16)
-    # a velocity already within the robot's speed is kept as it is
-    small = np.diag([0.01**2, 0.0])
-    assert np.allclose(vm.carried(position, small), position + small)
+    # the last scan relative to another keyframe: the motion only
+    assert vm.carried(False)[0, 0] == pytest.approx(cap)
+    # a faster robot (0.5 to 1 m per scan): a velocity within its speed is kept as it is
+    fast = VelocityModel(fe)
+    for step in np.linspace(0.5, 1.0, 21):
+        fast.observe(None, None, (None, None, None), Pose2.identity(), Pose2(step, 0, 0), 1)
+    small = np.diag([0.32**2, 0.0])
+    fast.placed(small)
+    assert np.allclose(fast.carried(True), small + small)
+    # looseness below the keyframe spacing is not passed on
+    fast.placed(np.diag([(fe.keyframe_distance * 0.9) ** 2, 0.0]))
+    assert np.allclose(fast.carried(True), small)  # the older scan's, in the last motion
 
 
 def test_associate_by_scans_reports_what_the_prediction_decided_along_a_corridor():

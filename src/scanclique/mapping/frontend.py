@@ -509,6 +509,8 @@ class VelocityModel:
         self.steps = SortedHistory()  # per-scan translation of scan-placed steps (m)
         self.errors = [0.0, 0.0]  # summed translation errors: per second, per scan
         self.turns = SortedHistory()  # heading errors of the prediction used (rad)
+        # Step.loose of the last two scans (world frame, m²), the older first
+        self.loose = (np.zeros((2, 2)), np.zeros((2, 2)))
 
     def predict(self, prev2, prev, times=(None, None, None), by_time=None) -> Pose2:
         """Predicted pose (world frame) of the next scan from the last two, ``prev2`` and
@@ -536,16 +538,28 @@ class VelocityModel:
             return self.fe.guess_sigma_radians
         return min(self.turns.quantile(0.95), self.fe.guess_sigma_radians)
 
-    def carried(self, position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """The ``(2, 2)`` translation variance (m²) a constant-velocity prediction inherits
-        from the loose steps before it (:attr:`Step.loose`): ``position``, that of the
-        last scan relative to the keyframe the prediction is relative to, plus
-        ``velocity``, that of the last motion (the last two scans' loose parts), scaled
-        down so that its largest eigenvalue is at most the squared 90th percentile of the
-        per-scan steps (the robot's speed is unknown along a loose direction, not
-        unbounded). Both in the same frame; the result in it too."""
+    def placed(self, loose: np.ndarray | None) -> None:
+        """Record the :attr:`Step.loose` of the scan just placed (world frame, m², or None).
+        Only looseness beyond the keyframe spacing (largest eigenvalue at least
+        ``fe.keyframe_distance ** 2``) is kept for the next prediction: less is left to the
+        next match (passing all of it on loosened the dense logs' corridors, measured in
+        session 18)."""
+        keep = loose is not None and np.linalg.eigvalsh(loose)[-1] >= self.fe.keyframe_distance**2
+        self.loose = (self.loose[1], loose if keep else np.zeros((2, 2)))
+
+    def carried(self, through_last: bool) -> np.ndarray:
+        """The ``(2, 2)`` translation variance (m², world frame) a constant-velocity
+        prediction inherits from the loose steps before it (:meth:`placed`): that of the
+        last scan when the prediction runs through it (``through_last``: it lies relative
+        to the same keyframe as the predicted one), plus that of the last motion (the last
+        two scans' looseness), scaled down so that its largest eigenvalue is at most the
+        squared 90th percentile of the per-scan steps (the robot's speed is unknown along a
+        loose direction, not unbounded)."""
+        older, last = self.loose
+        position = last if through_last else np.zeros((2, 2))
         if not self.steps.total:
             return position
+        velocity = last + older
         cap = self.steps.quantile(0.9) ** 2
         top = float(np.linalg.eigvalsh(velocity)[-1])
         return position + (velocity if top <= cap else velocity * (cap / top))

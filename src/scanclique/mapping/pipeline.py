@@ -628,9 +628,6 @@ class _Mapper:
         self.add_keyframe(0, p0, None, None)
         world_prev2: Pose2 | None = None
         world_prev = Pose2.identity()  # chain pose of the previous scan
-        # without odometry: the translation variance (world frame, m²) the motion model,
-        # not the scans, gave the last two scans (Step.loose), which the prediction inherits
-        loose_prev2 = loose_prev = np.zeros((2, 2))
         for j in range(1, n):
             k = self.kf[-1]
             pk = self.kf_prep[-1]
@@ -652,12 +649,8 @@ class _Mapper:
                 kind = CONSTANT_VELOCITY
             carried_w = None
             if kind == CONSTANT_VELOCITY:
-                # the last scan's own looseness counts when the prediction runs through it
-                # relative to the same keyframe; the last motion's always
-                at_k = self.kf_of[j - 1] == k and j - 1 != k
-                carried_w = self.motion.carried(
-                    loose_prev if at_k else np.zeros((2, 2)), loose_prev + loose_prev2
-                )
+                # the previous scan's own looseness counts when it lies relative to k too
+                carried_w = self.motion.carried(self.kf_of[j - 1] == k and j - 1 != k)
             if kind == CONSTANT_VELOCITY and fe.icp_fallback:
                 rel_pred, pred_cov = odometry_prior(prior_a, prior_b, noise)
                 step = associate_by_scans(
@@ -781,15 +774,10 @@ class _Mapper:
                 self.kf_of[j] = j
                 self.rel_to_kf[j] = Pose2.identity()
             world_prev2, world_prev = world_prev, self.chain[j]
+            # what the motion model, not the scans, gave this scan, for the next prediction
             loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
-            if loose is not None and np.linalg.eigvalsh(loose)[-1] >= fe.keyframe_distance**2:
-                # the motion model placed it, unsure by more than a keyframe's spacing: the
-                # next prediction inherits that (less is left to the next match: passing all
-                # of it on loosened the dense logs' corridors, measured in session 18)
-                frame = self.chain[j - 1] if step.kind not in (MATCH, ICP) else chain_k
-                loose_prev2, loose_prev = loose_prev, _rotated(loose, frame.theta)
-            else:
-                loose_prev2, loose_prev = loose_prev, np.zeros((2, 2))
+            frame = self.chain[j - 1] if step.kind not in (MATCH, ICP) else chain_k
+            self.motion.placed(_rotated(loose, frame.theta))
             if progress is not None and (j % 50 == 0 or j == n - 1):
                 progress(j + 1, n, sum(1 for c in self.closures if c.accepted and not c.local))
         self.flush(final=True)
