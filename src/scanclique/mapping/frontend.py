@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import MatchConfig
-from ..geometry import Pose2
+from ..geometry import Pose2, rotation_matrix
 from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
 from ..refine import icp_covariance, icp_point_to_line, weak_direction
 from ..scan import Scan
@@ -644,8 +644,7 @@ def swung(pose: Pose2, pred: Pose2, start: Pose2 | None) -> Pose2:
     v = np.array([pred.x - start.x, pred.y - start.y])
     best, out = math.inf, pred
     for a in np.linspace(0.0, d, ARC_SAMPLES):
-        c, s_ = math.cos(a), math.sin(a)
-        x, y = start.x + c * v[0] - s_ * v[1], start.y + s_ * v[0] + c * v[1]
+        x, y = np.array([start.x, start.y]) + rotation_matrix(float(a)) @ v
         e = math.hypot(pose.x - x, pose.y - y)
         if e < best:
             best, out = e, Pose2(x, y, pred.theta + float(a))

@@ -33,6 +33,7 @@ from ..errors import ArgumentError, ConfigError, ScanError
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
 from ..scan import Scan
+from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
 from . import loops as _loops
 from .backend import PoseGraph, _gtsam, tangent_covariance, tangent_covariances
@@ -758,7 +759,7 @@ class _Mapper:
             if (
                 kind == CONSTANT_VELOCITY
                 and step.kind in (MATCH, ICP)
-                and np.linalg.eigvalsh(cov[:2, :2])[-1] >= fe.keyframe_distance**2
+                and constellation_std(cov)[0] >= fe.keyframe_distance
             ):
                 # without odometry, a scan the raw scans place only to within more than a
                 # keyframe's spacing (a corridor, look-alike poses) is a keyframe of its own:
