@@ -203,3 +203,30 @@ def test_a_hard_query_escalates_to_more_candidates(tmp_path, worlds, monkeypatch
         hits = db.query(worlds[0][3], k=2, exclude=[own])
         assert not any(h.verdict == ACCEPTED and h.confidence >= 0.99 for h in hits)
         assert len(calls) == 5 and len(set(calls)) == 5 and len(hits) <= 2
+
+
+def test_verify_one_place_as_a_query_verifies_a_candidate(tmp_path, worlds):
+    """PlaceDB.verify gives a stored place's verdict without the prefilter: the same
+    verdict, pose and confidence as the query gives that place as a candidate; an
+    unknown or non-integer id is a named error."""
+    from scanclique.errors import ArgumentError, PlaceDatabaseError
+
+    traj = worlds[0]
+    with PlaceDB(tmp_path / "v.db") as db:
+        ids = [db.add(traj[k]) for k in (0, 2, 4)]
+        other = db.add(worlds[1][0])
+        q = traj[3]
+        v = db.verify(ids[1], q)
+        assert v.verdict == ACCEPTED
+        t_err, r_err = (traj[2].reference @ v.pose).distance_to(q.reference)
+        assert t_err < 0.1 and r_err < 0.02
+        hit = next(h for h in db.query(q, k=4, candidates=4) if h.place_id == ids[1])
+        assert (hit.verdict, hit.score, hit.confidence) == (v.verdict, v.score, v.confidence)
+        assert hit.pose.distance_to(v.pose) == (0.0, 0.0)
+        # another office's place: not accepted (the validation may accept it, the
+        # confidence does not)
+        assert db.verify(other, q).verdict != ACCEPTED
+        with pytest.raises(PlaceDatabaseError, match="no place with id 99"):
+            db.verify(99, q)
+        with pytest.raises(ArgumentError, match="integer"):
+            db.verify("1", q)

@@ -802,6 +802,27 @@ class PlaceDB:
         )
         return hits[: int(k)]
 
+    def verify(self, place_id: int, scan: Scan | PreparedScan) -> Verification:
+        """The verdict on one stored place for ``scan``, as :meth:`query` gives it to a
+        candidate of the prefilter: the clique matcher and the validation
+        (:func:`.verify.verify_pair` with the database's ``min_score``, ``min_features``,
+        ``search`` and ``aliases``), an accepted match below ``min_confidence``
+        ``ambiguous``; without the prefilter and without the second path from the
+        triangles' pose. ``pose`` maps the query's points into the place's frame.
+
+        For checking a known hypothesis ("is this the place I think it is?"), and for
+        measuring what the verification can recognise when the prefilter is bypassed
+        (``benchmarks/places.py --ceiling``).
+
+        Raises
+        ------
+        PlaceDatabaseError
+            No place has that id.
+        """
+        self.refresh()
+        p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
+        return below_confidence(self._verify_clique(_place_id(place_id), p), self.min_confidence)
+
     def _verify_clique(self, pid: int, p: PreparedScan) -> Verification:
         """The clique matcher's verdict on one candidate, its accepted pose checked
         against its aliases when ``aliases``."""
