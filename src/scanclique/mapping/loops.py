@@ -158,7 +158,10 @@ def appearance_candidates(
     far = np.flatnonzero(cum_path[j] - cum_path[:j] >= cfg.min_path)
     if far.size == 0:
         return []
-    d = ((signatures[far] - signatures[j]) ** 2).sum(axis=1)
+    # the path grows along the keyframes, so ``far`` is mostly their first ones: a view
+    # then, not a copy
+    rows = slice(0, far.size) if far[-1] == far.size - 1 else far
+    d = ((signatures[rows] - signatures[j]) ** 2).sum(axis=1)
     return far[np.argsort(d, kind="stable")[:k]].tolist()
 
 
