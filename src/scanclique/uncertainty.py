@@ -155,9 +155,10 @@ def check_covariance(P, name: str) -> np.ndarray:
         raise ScanError(f"{name} must be a 3x3 covariance matrix, got {P!r}") from None
     if a.shape != (3, 3):
         raise ScanError(f"{name} must be a 3x3 covariance matrix, got shape {a.shape}")
-    if np.isnan(a).any() or (np.isinf(a) & (a < 0)).any():
+    # one test for the usual all-finite matrix (called per match and per PCM pair)
+    if not np.isfinite(a).all() and (np.isnan(a).any() or (np.isinf(a) & (a < 0)).any()):
         raise ScanError(f"{name} holds NaN or -inf")
-    if (np.diag(a) < 0).any():
+    if a[0, 0] < 0 or a[1, 1] < 0 or a[2, 2] < 0:
         raise ScanError(f"{name} has a negative variance: {np.diag(a).tolist()}")
     return a
 
