@@ -161,44 +161,15 @@ def _chain_sigma_xy(var_xy, var_theta, path):
     return np.sqrt(np.maximum(var_xy + var_theta * path * path / 3.0, 0.0))
 
 
-class _GraphEdges:
-    """The keyframe graph's edges as growing arrays: both ends, the translation variance
-    (largest eigenvalue of the covariance's x-y block, m²), the heading variance (rad²)
-    and the translation's length (m) of each; ``m`` edges in use."""
-
-    def __init__(self, capacity: int = 1024) -> None:
-        self.m = 0
-        self.a = np.zeros(capacity, np.int64)
-        self.b = np.zeros(capacity, np.int64)
-        self.var_xy = np.zeros(capacity)
-        self.var_theta = np.zeros(capacity)
-        self.length = np.zeros(capacity)
-
-    def add(self, a: int, b: int, Z: Pose2, P: np.ndarray) -> None:
-        """Edge ``a - b`` of relative pose ``Z`` and covariance ``P`` (3, 3)."""
-        if self.m == len(self.a):
-            for name in ("a", "b", "var_xy", "var_theta", "length"):
-                arr = getattr(self, name)
-                setattr(self, name, np.concatenate([arr, np.zeros_like(arr)]))
-        k = self.m
-        self.a[k], self.b[k] = a, b
-        self.var_xy[k] = max(float(np.linalg.eigvalsh(P[:2, :2])[-1]), 0.0)
-        self.var_theta[k] = max(float(P[2, 2]), 0.0)
-        self.length[k] = math.hypot(Z.x, Z.y)
-        self.m += 1
-
-
 class _Rows:
-    """A growing float64 array of rows (``width`` values each, or scalars when None):
-    amortised O(1) appends, the capacity doubling; :attr:`array` is the rows so far (a
-    view). For the keyframes' values that every loop search reads whole, which a list
-    would have to convert to an array each time (quadratic over a log: 2.3 s of
-    fr079's 46 s)."""
+    """A growing array of rows (``width`` values each, or scalars when None): amortised
+    O(1) appends, the capacity doubling; :attr:`array` is the rows so far (a view). For
+    the keyframes' values that every loop search reads whole, which a list would have
+    to convert to an array each time (quadratic over a log: 2.3 s of fr079's 46 s)."""
 
-    def __init__(self, width: int | None = None, capacity: int = 1024) -> None:
-        self.width = width
+    def __init__(self, width: int | None = None, dtype=float, capacity: int = 1024) -> None:
         self.n = 0
-        self._a = np.zeros((capacity,) if width is None else (capacity, width))
+        self._a = np.zeros((capacity,) if width is None else (capacity, width), dtype)
 
     def append(self, row) -> None:
         if self.n == len(self._a):
@@ -209,15 +180,34 @@ class _Rows:
     def __len__(self) -> int:
         return self.n
 
-    def __bool__(self) -> bool:
-        return self.n > 0
-
     @property
     def array(self) -> np.ndarray:
         return self._a[: self.n]
 
     def __getitem__(self, k):
         return self.array[k]
+
+
+class _GraphEdges:
+    """The keyframe graph's edges as growing arrays: both ends, the translation variance
+    (largest eigenvalue of the covariance's x-y block, m²), the heading variance (rad²)
+    and the translation's length (m) of each; ``m`` edges."""
+
+    def __init__(self) -> None:
+        self.a, self.b = _Rows(dtype=np.int64), _Rows(dtype=np.int64)
+        self.var_xy, self.var_theta, self.length = _Rows(), _Rows(), _Rows()
+
+    @property
+    def m(self) -> int:
+        return len(self.a)
+
+    def add(self, a: int, b: int, Z: Pose2, P: np.ndarray) -> None:
+        """Edge ``a - b`` of relative pose ``Z`` and covariance ``P`` (3, 3)."""
+        self.a.append(a)
+        self.b.append(b)
+        self.var_xy.append(max(float(np.linalg.eigvalsh(P[:2, :2])[-1]), 0.0))
+        self.var_theta.append(max(float(P[2, 2]), 0.0))
+        self.length.append(math.hypot(Z.x, Z.y))
 
 
 def _tally(items) -> dict:
@@ -499,7 +489,14 @@ class _Mapper:
         if self._paths is None or self._paths[0] != key:
             g = self.graph
             paths = _K.most_certain_paths(
-                len(self.kf), g.a, g.b, g.var_xy, g.var_theta, g.length, g.m, b
+                len(self.kf),
+                g.a.array,
+                g.b.array,
+                g.var_xy.array,
+                g.var_theta.array,
+                g.length.array,
+                g.m,
+                b,
             )
             self._paths = (key, paths)
         return self._paths[1]

@@ -819,7 +819,6 @@ class PlaceDB:
         PlaceDatabaseError
             No place has that id.
         """
-        self.refresh()
         p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
         return below_confidence(self._verify_clique(_place_id(place_id), p), self.min_confidence)
 
