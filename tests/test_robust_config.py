@@ -97,6 +97,7 @@ BAD_FIELDS = [
     (SlamConfig, "tentative_scans", 0),
     (SlamConfig, "update_iterations", 0),
     (SlamConfig, "control_bias_sigma", -1.0),
+    (SlamConfig, "speed_scale_sigma", -0.05),
     (SlamConfig, "bearing_bias_sigma", NAN),
     (SlamConfig, "initial_sigma", (1.0, 2.0)),  # negative dimensions (ValueError) before
     (SlamConfig, "initial_sigma", (0.1, 0.1, NAN)),
@@ -137,6 +138,7 @@ GOOD_FIELDS = [  # the documented meanings of the edge values
     (SlamConfig, "initial_sigma", (0.0, 0.0, 0.0)),  # a known start
     (SlamConfig, "sigma_xy_rate", 0.0),
     (SlamConfig, "control_bias_sigma", 0.1),
+    (SlamConfig, "speed_scale_sigma", None),  # the speed as logged
     (SlamConfig, "tentative_update", "landmark"),
     (AssociationConfig, "attribute_sigma", None),
     (AssociationConfig, "attribute_sigma", (0.1, 0.0)),

@@ -3,6 +3,7 @@ outputs and the ``scanclique slam`` command on a small simulated data directory.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -199,6 +200,29 @@ def test_steering_bias_is_estimated(park):
     assert abs(b + offset) < 3 * sb and sb < 0.005
     plain = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=CFG)
     assert plain.control_bias is None
+
+    def rmse(res):
+        return np.sqrt(np.mean(np.sum((res.poses[:, :2] - park.poses[:, :2]) ** 2, 1)))
+
+    assert rmse(r) < rmse(plain)
+
+
+def test_speed_scale_is_estimated(park):
+    """A wheel radius 5 % off (every logged speed times 0.95): the filter estimates the
+    speed's relative error (1 / 0.95 - 1) within three of its standard deviations and
+    tracks the vehicle better than the filter that takes the speed as logged."""
+    factor = 0.95
+    steps = [
+        s if s.control is None else slam.Step(s.time, s.control * (factor, 1.0), s.observations)
+        for s in park.steps
+    ]
+    r = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=CFG)
+    assert CFG.speed_scale_sigma is not None  # on by default
+    sc, ssc = r.speed_scale
+    assert abs(sc - (1.0 / factor - 1.0)) < 3 * ssc and ssc < 0.01
+    plain_cfg = dataclasses.replace(CFG, speed_scale_sigma=None)
+    plain = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=plain_cfg)
+    assert plain.speed_scale is None
 
     def rmse(res):
         return np.sqrt(np.mean(np.sum((res.poses[:, :2] - park.poses[:, :2]) ** 2, 1)))

@@ -168,6 +168,9 @@ def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0, warn:
     m["ambiguous steps"] = (int(result.ambiguous.sum()), "")
     m["observation steps"] = (len(result.observation_times), "")
     m["clutter per scan"] = (clutter, "")
+    if result.speed_scale is not None:  # the filter's estimate of the speed's scale error
+        m["speed scale error"] = (100.0 * result.speed_scale[0], "%")
+        m["speed scale error, 1 sigma"] = (100.0 * result.speed_scale[1], "%")
     m["run time (CPU)"] = (result.cpu_seconds, "s")
     m["run time (wall)"] = (result.seconds, "s")
     return g, m, align

@@ -9,8 +9,10 @@ nonlinear least squares (GTSAM, Levenberg-Marquardt):
   GTSAM's range-bearing factors, measured from a pose's origin, apply directly;
 - a prior on the first step's pose: the filter's initial pose and ``initial_sigma``
   (moved to the first observation by the controls, as in the filter);
-- between consecutive observation steps, an odometry factor: the controls integrated with
-  the motion model from the identity, with the filter's control and additive process noise
+- between consecutive observation steps, an odometry factor: the controls (corrected by
+  the filter's final estimates of its calibration states, the speed's scale and the
+  second control's bias, when it had them) integrated with the motion model from the
+  identity, with the filter's control and additive process noise
   propagated alongside (the same noise model as the filter's prediction), moved to the
   sensor frame through the adjoint of the sensor's mounting;
 - per observation that the filter paired with a landmark of the final map (or that
@@ -148,6 +150,12 @@ def smooth(
     c0 = time.process_time()
     cfg = config or result.config
     times, held, dts = held_controls(steps)
+    # the controls as the filter ended up reading them: its calibration states' final
+    # estimates applied (the speed's relative error, the second control's bias)
+    if result.speed_scale is not None:
+        held[:, 0] *= 1.0 + result.speed_scale[0]
+    if result.control_bias is not None:
+        held[:, 1] += result.control_bias[0]
     qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     if len(obs_steps) != len(result.associations):
