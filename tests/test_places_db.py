@@ -230,3 +230,45 @@ def test_verify_one_place_as_a_query_verifies_a_candidate(tmp_path, worlds):
             db.verify(99, q)
         with pytest.raises(ArgumentError, match="integer"):
             db.verify("1", q)
+
+
+def test_bad_scans_are_refused_naming_the_method(tmp_path, worlds):
+    """A non-scan gets a ScanError naming the PlaceDB method the user called (not an
+    inner function), and a scan prepared with another configuration a ConfigError: its
+    features and signature are not comparable with the stored places' (the prefilter
+    alone used to rank with it silently)."""
+    import dataclasses
+
+    from scanclique.config import MatchConfig
+    from scanclique.errors import ScanError
+    from scanclique.match import prepare_scan
+
+    traj = worlds[0]
+    with PlaceDB(tmp_path / "p.db") as db:
+        for k in (0, 2, 4):
+            db.add(traj[k])
+        for where, call in (
+            ("add", lambda s: db.add(s)),
+            ("query", lambda s: db.query(s)),
+            ("verify", lambda s: db.verify(1, s)),
+            ("candidates", lambda s: db.candidates(s)),
+        ):
+            for bad in ("scan", None, [1.0, 2.0]):
+                with pytest.raises(ScanError, match=rf"^PlaceDB\.{where}: scan must be a Scan"):
+                    call(bad)
+        cfg = MatchConfig()
+        other = dataclasses.replace(cfg, features=dataclasses.replace(cfg.features, lines=False))
+        p = prepare_scan(traj[3], other)
+        for where, call in (
+            ("query", lambda: db.query(p)),
+            ("verify", lambda: db.verify(1, p)),
+            ("candidates", lambda: db.candidates(p)),
+        ):
+            with pytest.raises(ConfigError, match=rf"^PlaceDB\.{where}: .*features differ"):
+                call()
+        # prepared alike (not the same object): taken as it is, same answers as the scan
+        same = prepare_scan(traj[3], MatchConfig())
+        assert [h.place_id for h in db.query(same, k=2)] == [
+            h.place_id for h in db.query(traj[3], k=2)
+        ]
+        assert db.verify(2, same).verdict == db.verify(2, traj[3]).verdict

@@ -604,6 +604,13 @@ class MatchConfig:
             self.refine.sample_points,
         )
 
+    def preparation_differences(self, other: MatchConfig) -> tuple[str, ...]:
+        """Names of the parts of :meth:`preparation` in which ``other`` differs (empty:
+        scans prepared under either can be matched under the other)."""
+        names = ("clustering", "features", "correspondence", "refine.sample_points")
+        pairs = zip(names, self.preparation(), other.preparation(), strict=True)
+        return tuple(n for n, x, y in pairs if x != y)
+
 
 def paper_config() -> MatchConfig:
     """The paper's exact behaviour: §4 features (no corners, untyped points), §6 tolerances,

@@ -710,19 +710,14 @@ def _check_prepared(pa, pb, config) -> MatchConfig:
     _check_args("match_prepared", config, PreparedScan, pa=pa, pb=pb)
     cfg = config if config is not None else pa.config
     for name, p in (("pa", pa), ("pb", pb)):
-        if p.config is not cfg and p.config.preparation() != cfg.preparation():
+        differ = () if p.config is cfg else p.config.preparation_differences(cfg)
+        if differ:
             raise ConfigError(
                 f"match_prepared: {name} was prepared with another configuration "
-                f"({_differs(p.config, cfg)} differ); prepare both scans with the "
+                f"({', '.join(differ)} differ); prepare both scans with the "
                 "configuration you match with"
             )
     return cfg
-
-
-def _differs(a: MatchConfig, b: MatchConfig) -> str:
-    names = ("clustering", "features", "correspondence", "refine.sample_points")
-    pairs = zip(names, a.preparation(), b.preparation(), strict=True)
-    return ", ".join(n for n, x, y in pairs if x != y)
 
 
 def match_prepared(

@@ -67,7 +67,7 @@ import numpy as np
 
 from .. import __version__
 from ..config import MatchConfig, config_from_dict, config_to_dict, require_count
-from ..errors import ArgumentError, ConfigError, PlaceDatabaseError
+from ..errors import ArgumentError, ConfigError, PlaceDatabaseError, ScanError
 from ..geometry import Pose2
 from ..match import PreparedScan, prepare_scan
 from ..scan import Scan
@@ -551,6 +551,33 @@ class PlaceDB:
         """The scan prepared with the database's configuration."""
         return prepare_scan(scan, self.config)
 
+    def _prepared(self, where: str, scan: Scan | PreparedScan) -> PreparedScan:
+        """``scan`` prepared with the database's configuration; a :class:`PreparedScan`
+        as it is, when it was prepared with a configuration that prepares scans alike.
+
+        Raises a :class:`ScanError` for anything else, and a :class:`ConfigError` for a
+        scan prepared otherwise (its features and signature would not be comparable with
+        the stored places'), each naming the method ``where`` the user called."""
+        if isinstance(scan, PreparedScan):
+            differ = (
+                ()
+                if scan.config is self.config
+                else scan.config.preparation_differences(self.config)
+            )
+            if differ:
+                raise ConfigError(
+                    f"PlaceDB.{where}: the scan was prepared with another configuration than "
+                    f"the database's ({', '.join(differ)} differ); give the Scan, or prepare "
+                    "it with PlaceDB.prepare"
+                )
+            return scan
+        if not isinstance(scan, Scan):
+            raise ScanError(
+                f"PlaceDB.{where}: scan must be a Scan or a PreparedScan (from "
+                f"PlaceDB.prepare), got {type(scan).__name__}"
+            )
+        return self.prepare(scan)
+
     def add(self, scan: Scan, name: str | None = None) -> int:
         """Store ``scan`` as a new place, with its features and signature, in one
         transaction; returns the place id.
@@ -561,6 +588,8 @@ class PlaceDB:
             ``name`` is already used (names are unique; None is allowed any number of
             times).
         """
+        if not isinstance(scan, Scan):
+            raise ScanError(f"PlaceDB.add: scan must be a Scan, got {type(scan).__name__}")
         p = self.prepare(scan)
         sig = scan_signature(p)
         arrays = feature_arrays(p)
@@ -621,7 +650,7 @@ class PlaceDB:
         n = _whole("n", n, 0)
         exclude = _exclude_ids(exclude)
         self.refresh()
-        p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
+        p = self._prepared("candidates", scan)
         ids, dist, _, _ = self._candidates(p, n, exclude)
         return ids, dist
 
@@ -722,7 +751,11 @@ class PlaceDB:
         Raises
         ------
         ConfigError
-            ``k`` or ``candidates`` is not an integer >= 0.
+            ``k`` or ``candidates`` is not an integer >= 0, or ``scan`` is a
+            :class:`PreparedScan` prepared with a configuration that prepares scans
+            otherwise than the database's.
+        ScanError
+            ``scan`` is neither a :class:`Scan` nor a :class:`PreparedScan`.
         ArgumentError
             ``exclude`` is not an iterable of integers (a string, say).
         """
@@ -730,7 +763,7 @@ class PlaceDB:
         candidates = 0 if candidates is None else _whole("candidates", candidates, 0)
         exclude = _exclude_ids(exclude)
         self.refresh()
-        p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
+        p = self._prepared("query", scan)
         n = max(k, candidates)
         ids, dist, votes, poses = self._candidates(p, n + self.escalate, exclude, self.seeded)
         missing = [int(i) for i in ids if int(i) not in self._names]
@@ -818,8 +851,10 @@ class PlaceDB:
         ------
         PlaceDatabaseError
             No place has that id.
+        ScanError, ConfigError
+            As for :meth:`query`.
         """
-        p = scan if isinstance(scan, PreparedScan) else self.prepare(scan)
+        p = self._prepared("verify", scan)
         return below_confidence(self._verify_clique(_place_id(place_id), p), self.min_confidence)
 
     def _verify_clique(self, pid: int, p: PreparedScan) -> Verification:
