@@ -266,6 +266,19 @@ def test_run_map_and_command(tmp_path):
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
     assert out["counts"]["scans"] == 15
+    assert "covariances" not in out["files"]
+    # --covariances: covariances.csv, one row per scan, and the sigmas in the report
+    res = CliRunner().invoke(
+        app, ["map", str(bag), "--out", str(tmp_path / "cov"), "--json", "--covariances"]
+    )
+    assert res.exit_code == 0, res.output
+    rows = np.loadtxt(tmp_path / "cov" / "covariances.csv", delimiter=",", skiprows=1)
+    assert rows.shape == (15, 8) and (rows[:, 0] == np.arange(15)).all()
+    assert (rows[1:, 2] > 0).all() and (rows[1:, 5] > 0).all() and (rows[1:, 7] > 0).all()
+    sig = json.loads((tmp_path / "cov" / "report.json").read_text())["pose_sigmas"]
+    assert sig["position_m"] == pytest.approx(
+        max(np.linalg.eigvalsh([[r[2], r[3]], [r[3], r[5]]])[-1] for r in rows) ** 0.5
+    )
     # --workers 2: the same trajectory file, byte for byte
     res = CliRunner().invoke(
         app, ["map", str(bag), "--out", str(tmp_path / "cli2"), "--json", "--workers", "2"]
@@ -958,3 +971,64 @@ def test_a_match_slid_along_a_corridor_yields_to_the_odometry(log_path):
     assert step.kind == "rejected" and step.pose.distance_to(ref)[0] > 0.5  # near standstill
     alt = icp_fallback(pk, pj, [rel, step.pose], [(rel, cov)], fe, match)
     assert alt is not None and alt.pose.distance_to(ref)[0] < 0.1
+
+
+# -- pose covariances from the marginals -------------------------------------------------
+def test_marginal_covariances_of_a_chain_compose_its_edges():
+    """Two edges in a chain, the first turning a quarter: the second node's marginal is
+    the first-order composition of the two edges' covariances (map-frame axes, the
+    convention of ``compose_covariance``), the first node's is its edge's."""
+    pytest.importorskip("gtsam")
+    from scanclique.mapping.backend import PoseGraph
+    from scanclique.uncertainty import compose_covariance
+
+    Z1, P1 = Pose2(1.0, 0.5, math.radians(90.0)), np.diag([0.01, 0.04, 0.001])
+    Z2 = Pose2(2.0, -0.3, math.radians(30.0))
+    P2 = np.array([[0.02, 0.003, 0.001], [0.003, 0.005, 0.0], [0.001, 0.0, 0.002]])
+    g = PoseGraph()
+    with pytest.raises(RuntimeError, match="optimize"):
+        g.covariances()
+    for k, p in enumerate((Pose2.identity(), Z1, Z1 @ Z2)):
+        g.add_node(k, p)
+    g.add_edge(0, 1, Z1, P1)
+    g.add_edge(1, 2, Z2, P2)
+    g.optimize()
+    C = g.covariances()
+    np.testing.assert_allclose(C[0], np.zeros((3, 3)), atol=1e-10)
+    np.testing.assert_allclose(C[1], P1, atol=1e-9)
+    np.testing.assert_allclose(C[2], compose_covariance(Z1, P1, Z2, P2), atol=1e-9)
+
+
+def test_map_scans_gives_each_scans_covariance_when_asked():
+    """On a simulated drive: none by default; when asked, one symmetric positive
+    semi-definite covariance per scan, zero at scan 0, growing along a chain without
+    loops, and covering the truth (every scan within the chi-square 99 % bound: the front
+    end's covariances are floored, so they are conservative on a simulated scanner)."""
+    import dataclasses
+
+    from scanclique.mapping import map_scans
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(11)
+    scans = simulate_trajectory(rng, office_world(rng, length=16.0), 30, step=0.25, n_beams=361)
+    cfg = MapConfig()
+    chain = dataclasses.replace(
+        cfg,
+        loops=dataclasses.replace(cfg.loops, enabled=False),
+        back_end=dataclasses.replace(cfg.back_end, covariances=True),
+    )
+    assert map_scans(scans[:3]).covariances is None
+    r = map_scans(scans, config=chain)
+    C = np.array(r.covariances)
+    assert C.shape == (len(scans), 3, 3)
+    np.testing.assert_allclose(C, C.transpose(0, 2, 1), atol=1e-15)
+    assert (np.linalg.eigvalsh(C)[:, 0] >= -1e-12).all()
+    np.testing.assert_allclose(C[0], np.zeros((3, 3)), atol=1e-10)
+    kf = list(r.keyframes)
+    var_xy = np.trace(C[kf][:, :2, :2], axis1=1, axis2=2)
+    assert (np.diff(var_xy) > 0).all() and (np.diff(C[kf][:, 2, 2]) >= 0).all()
+    r0 = scans[0].reference.inverse()
+    for p, c, s in zip(r.poses[1:], C[1:], scans[1:], strict=True):
+        t = r0 @ s.reference
+        e = np.array([p.x - t.x, p.y - t.y, math.remainder(p.theta - t.theta, 2 * math.pi)])
+        assert e @ np.linalg.solve(c, e) < 11.34

@@ -64,12 +64,20 @@ def map_cmd(
             "forked processes beside this one (the map is the same as with 1).",
         ),
     ] = 1,
+    covariances: Annotated[
+        bool,
+        typer.Option(
+            "--covariances",
+            help="Also write covariances.csv: every scan's pose covariance, from the "
+            "marginals of the optimised graph (the same as back_end.covariances = true).",
+        ),
+    ] = False,
     config: AppConfigOpt = None,
     save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Map a log: trajectory.tum, graph.g2o, map.pgm + map.yaml (ROS map_server),
-    report.json (and map.png with --plot) in OUT.
+    report.json (map.png with --plot, covariances.csv with --covariances) in OUT.
 
     **Examples**
 
@@ -78,6 +86,7 @@ def map_cmd(
     scanclique map intel-raw --out runs/intel --no-odometry
     scanclique map my.bag --topic /scan --out runs/mine --plot
     scanclique map fr079-raw --out runs/fr079 --workers 2
+    scanclique map intel --out runs/intel --covariances
     scanclique config --for map > map.toml      # every key of MapConfig, to edit
     scanclique map intel --out runs/intel -c map.toml --save-config runs/used.toml
     ```
@@ -88,10 +97,14 @@ def map_cmd(
     _guard(lambda: check_workers("--workers", workers))  # before reading the log
     from ..mapping.run import output_names
 
-    _check_out_dir(out, output_names(plot))  # before the run, not after it
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out
     cfg = _read_app_config(config, MapConfig())
+    if covariances and not cfg.back_end.covariances:
+        import dataclasses
+
+        cfg = dataclasses.replace(cfg, back_end=dataclasses.replace(cfg.back_end, covariances=True))
+    _check_out_dir(out, output_names(plot, cfg.back_end.covariances))  # before the run
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from ..mapping.run import run_map

@@ -20,7 +20,13 @@ import numpy as np
 
 from ..geometry import Pose2
 
-__all__ = ["tangent_covariance", "tangent_covariances", "optimize", "PoseGraph"]
+__all__ = [
+    "tangent_covariance",
+    "tangent_covariances",
+    "map_frame_covariances",
+    "optimize",
+    "PoseGraph",
+]
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +83,18 @@ def tangent_covariances(thetas: np.ndarray, P: np.ndarray) -> np.ndarray:
     return (V * w[:, None, :]) @ V.transpose(0, 2, 1)
 
 
+def map_frame_covariances(thetas: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`tangent_covariances`: covariances ``Q`` (m, 3, 3) in the
+    tangent spaces of poses of headings ``thetas`` (m,) (GTSAM's convention for a Pose2's
+    marginal, a right perturbation ``x Exp(xi)``) as covariances of the poses' ``(x, y,
+    theta)`` in the parent (map) frame's axes: ``J^T Q J`` with ``J = diag(R(theta)^T, 1)``."""
+    c, s = np.cos(thetas), np.sin(thetas)
+    J = np.zeros((len(thetas), 3, 3))
+    J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, s, -s, c, 1.0
+    P = J.transpose(0, 2, 1) @ np.asarray(Q, dtype=float) @ J
+    return 0.5 * (P + P.transpose(0, 2, 1))
+
+
 class PoseGraph:
     """A growing pose graph: nodes with initial guesses, between edges, batch solve.
 
@@ -99,6 +117,7 @@ class PoseGraph:
         self.values = gtsam.Values()
         self.n_edges = 0
         self._anchored = False
+        self.result = None
 
     def add_node(self, key: int, guess: Pose2) -> None:
         """Node ``key`` with initial guess ``guess``; the first node added is anchored."""
@@ -141,9 +160,27 @@ class PoseGraph:
         params.setRelativeErrorTol(1e-6)
         params.setAbsoluteErrorTol(1e-6)
         result = gtsam.LevenbergMarquardtOptimizer(self.graph, self.values, params).optimize()
+        self.result = result
         keys = list(gtsam.KeyVector(result.keys()))
         arr = gtsam.utilities.extractPose2(result)
         return {int(k): Pose2(a[0], a[1], a[2]) for k, a in zip(keys, arr, strict=True)}
+
+    def covariances(self) -> dict[int, np.ndarray]:
+        """Covariance ``(3, 3)`` of every node's ``(x, y, theta)`` (map-frame axes; m, rad)
+        from the marginals of the graph linearised at the last :meth:`optimize` result
+        (GTSAM ``Marginals``; robust edges with the weights they have there), relative
+        to the anchored first node. A first-order (Laplace) estimate: as good as the edges'
+        covariances."""
+        gtsam = self._g
+        result = self.result
+        if result is None:
+            raise RuntimeError("PoseGraph.covariances: optimize() first")
+        marginals = gtsam.Marginals(self.graph, result)
+        keys = [int(k) for k in gtsam.KeyVector(result.keys())]
+        arr = gtsam.utilities.extractPose2(result)
+        Q = np.array([marginals.marginalCovariance(k) for k in keys])
+        P = map_frame_covariances(np.asarray(arr)[:, 2], Q)
+        return dict(zip(keys, P, strict=True))
 
     def error(self, poses: dict[int, Pose2] | None = None) -> float:
         """The graph's total error at ``poses`` (default: the initial guesses)."""

@@ -332,11 +332,15 @@ class BackEndConfig:
     of defence after PCM; without odometry, a closure across a stretch where the front end
     was less sure than the loops' drift model gets a scale that large
     (:meth:`scanclique.mapping.pipeline._Mapper.robust_scale`). ``max_iterations`` of
-    Levenberg–Marquardt."""
+    Levenberg–Marquardt. ``covariances``: also give every scan's pose covariance, from
+    the marginals of the optimised keyframe graph (:attr:`MapResult.covariances
+    <scanclique.mapping.MapResult.covariances>`; off by default, it costs a
+    factorisation and a marginal per keyframe)."""
 
     robust: str = "cauchy"
     robust_scale: float = 1.0
     max_iterations: int = 100
+    covariances: bool = False
 
     def __post_init__(self) -> None:
         _check_types(self)

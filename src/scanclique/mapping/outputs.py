@@ -11,7 +11,10 @@
 * ``map.png`` — the occupancy probabilities with the trajectory and the accepted loop
   closures drawn (matplotlib, imported lazily);
 * ``report.json`` — the configuration used, counts, times, closures with their verdicts,
-  and any metrics passed in.
+  and any metrics passed in;
+* ``covariances.csv`` — when asked, each scan's pose covariance (``index timestamp`` and
+  the upper triangle ``xx xy xt yy yt tt`` of the covariance of ``(x, y, theta)`` in the
+  map frame's axes; m², m·rad, rad²), one row per scan with a pose.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ __all__ = [
     "OCCUPIED_THRESH",
     "FREE_THRESH",
     "write_tum",
+    "write_covariances",
     "write_g2o",
     "write_map",
     "write_png",
@@ -58,6 +62,24 @@ def write_tum(path: str | Path, poses: Sequence[Pose2 | None], timestamps) -> in
         )
     Path(path).write_text("\n".join(lines) + ("\n" if lines else ""))
     return len(lines)
+
+
+def write_covariances(
+    path: str | Path, poses: Sequence[Pose2 | None], covariances, timestamps
+) -> int:
+    """Write each scan's pose covariance as CSV (see the module docstring); scans without
+    a pose are left out. Returns the rows written. Timestamps default to the scan index
+    when missing."""
+    lines = ["index,timestamp,xx,xy,xt,yy,yt,tt"]
+    for k, (p, C) in enumerate(zip(poses, covariances, strict=True)):
+        if p is None or C is None:
+            continue
+        t = timestamps[k] if timestamps[k] is not None else float(k)
+        C = np.asarray(C, dtype=float)
+        tri = (C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2])
+        lines.append(f"{k},{t:.6f}," + ",".join(f"{v:.9e}" for v in tri))
+    Path(path).write_text("\n".join(lines) + "\n")
+    return len(lines) - 1
 
 
 def write_g2o(path: str | Path, poses: Sequence[Pose2 | None], edges) -> tuple[int, int]:

@@ -115,8 +115,17 @@ class MapResult:
     used_odometry : bool
     seconds : dict
         Wall time per stage (``prepare``, ``front_end``, ``loops``, ``pcm``, ``isam``,
-        ``optimize``, ``total``).
+        ``optimize``, ``covariances`` when asked, ``total``).
     config : MapConfig
+    covariances : tuple of (3, 3) ndarray, or None
+        When asked (:attr:`BackEndConfig.covariances
+        <scanclique.mapping.config.BackEndConfig.covariances>`), one per scan: the
+        covariance of its pose's ``(x, y, theta)`` (m, rad; map-frame axes) relative to
+        scan 0, whose own is about zero (the anchor's prior, sigma 1e-6 m). A keyframe's
+        is its marginal in the optimised graph; a scan between keyframes adds its match
+        to its keyframe, to first order
+        (:func:`~scanclique.uncertainty.compose_covariance`, taking the two as
+        independent). None when not asked.
     """
 
     poses: tuple
@@ -129,6 +138,7 @@ class MapResult:
     used_odometry: bool
     seconds: dict
     config: MapConfig = field(repr=False, default_factory=MapConfig)
+    covariances: tuple | None = field(repr=False, default=None)
 
     @property
     def accepted_closures(self) -> tuple:
@@ -257,6 +267,7 @@ class _Mapper:
         self.kf_sig: _Rows | None = None  # (keyframes, signature size) when signatures exist
         self.kf_of: list[int] = [0] * n  # the keyframe each scan's edge hangs from
         self.rel_to_kf: list[Pose2] = [Pose2.identity()] * n
+        self.cov_to_kf: list[np.ndarray | None] = [None] * n  # None: a keyframe
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
         self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
@@ -780,6 +791,7 @@ class _Mapper:
             self.chain[j] = chain_k @ rel
             self.kf_of[j] = base
             self.rel_to_kf[j] = rel
+            self.cov_to_kf[j] = cov
             if step.kind in (MATCH, ICP):
                 self.edges.append(Edge(k, j, rel, cov, step.kind))
                 if not self.odo:
@@ -805,6 +817,7 @@ class _Mapper:
                 )
                 self.kf_of[j] = j
                 self.rel_to_kf[j] = Pose2.identity()
+                self.cov_to_kf[j] = None
             world_prev2, world_prev = world_prev, self.chain[j]
             # what the motion model, not the scans, gave this scan, for the next prediction
             loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
@@ -816,7 +829,9 @@ class _Mapper:
         self.seconds["front_end"] = time.perf_counter() - t_fe - loops_before
 
     # -- step 5: the batch back end -----------------------------------------------------
-    def optimize(self) -> list[Pose2]:
+    def optimize(self) -> tuple[list[Pose2], list[np.ndarray] | None]:
+        """The batch back end: every scan's pose, and with
+        :attr:`BackEndConfig.covariances` every scan's covariance (else None)."""
         be = self.cfg.back_end
         g = PoseGraph()
         for kidx in range(len(self.kf)):
@@ -841,7 +856,24 @@ class _Mapper:
                 poses.append(kf_pose[j])
             else:
                 poses.append(kf_pose[self.kf_of[j]] @ self.rel_to_kf[j])
-        return poses
+        if not be.covariances:
+            return poses, None
+        t = time.perf_counter()
+        marg = g.covariances()
+        kf_cov = {self.kf[k]: marg[k] for k in range(len(self.kf))}
+        covs = []
+        for j in range(len(self.scans)):
+            if j in kf_cov:
+                covs.append(kf_cov[j])
+            else:
+                base = self.kf_of[j]
+                covs.append(
+                    compose_covariance(
+                        kf_pose[base], kf_cov[base], self.rel_to_kf[j], self.cov_to_kf[j]
+                    )
+                )
+        self.seconds["covariances"] = time.perf_counter() - t
+        return poses, covs
 
 
 def _rotated(cov: np.ndarray | None, theta: float) -> np.ndarray | None:
@@ -936,9 +968,9 @@ def map_scans(
     finally:
         m.verifier.close()
     t = time.perf_counter()
-    poses = m.optimize()
+    poses, covs = m.optimize()
     seconds = dict(m.seconds)
-    seconds["optimize"] = time.perf_counter() - t
+    seconds["optimize"] = time.perf_counter() - t - seconds.get("covariances", 0.0)
     # every edge of the keyframe graph, in scan indices, for the outputs
     kf_edges = [
         Edge(m.kf[i], m.kf[j], Z, P, kind if kind != "chain" else "keyframe")
@@ -957,4 +989,5 @@ def map_scans(
         used_odometry=bool(use_odometry),
         seconds=seconds,
         config=cfg,
+        covariances=None if covs is None else tuple(covs),
     )

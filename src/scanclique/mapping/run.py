@@ -14,13 +14,23 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .. import datasets
 from ..errors import ScanCliqueError
 from ..scan import Scan
 from .config import MapConfig
 from .pipeline import MapResult, map_scans
 
-__all__ = ["MapRun", "load_map_log", "output_names", "relation_summary", "run_map", "is_bag"]
+__all__ = [
+    "MapRun",
+    "load_map_log",
+    "output_names",
+    "pose_sigmas",
+    "relation_summary",
+    "run_map",
+    "is_bag",
+]
 
 log = logging.getLogger(__name__)
 
@@ -112,17 +122,41 @@ class MapRun:
                 ("relation error (rotation)",
                  f"{a['rotation_mean']:.3f} ± {a['rotation_std']:.3f}", "deg"),
             ]  # fmt: skip
+        covs = self.result.covariances
+        if covs is not None:
+            sig = pose_sigmas(covs)
+            if sig is not None:
+                rows += [
+                    ("largest position sigma", f"{sig[0]:.4f}", "m"),
+                    ("largest heading sigma", f"{sig[1]:.3f}", "deg"),
+                ]
         for k, v in self.files.items():
             rows.append((k, str(v), "file"))
         return rows
 
 
-def output_names(plot: bool = True) -> tuple[str, ...]:
+def pose_sigmas(covariances) -> tuple[float, float] | None:
+    """The largest position standard deviation (m; the larger axis of a scan's xy
+    covariance) and heading standard deviation (deg) over the scans; None for none."""
+    C = [np.asarray(c, dtype=float) for c in covariances if c is not None]
+    if not C:
+        return None
+    A = np.array(C)
+    xy = np.linalg.eigvalsh(A[:, :2, :2])[:, -1]
+    return (
+        float(np.sqrt(max(xy.max(), 0.0))),
+        math.degrees(math.sqrt(max(float(A[:, 2, 2].max()), 0.0))),
+    )
+
+
+def output_names(plot: bool = True, covariances: bool = False) -> tuple[str, ...]:
     """The names of the files :func:`run_map` writes into its ``out`` directory (the
     ``map`` command checks them before the run: a directory in the way of one failed
     only when the results were written)."""
-    return ("trajectory.tum", "graph.g2o", "map.pgm", "map.yaml", "report.json") + (
-        ("map.png",) if plot else ()
+    return (
+        ("trajectory.tum", "graph.g2o", "map.pgm", "map.yaml", "report.json")
+        + (("map.png",) if plot else ())
+        + (("covariances.csv",) if covariances else ())
     )
 
 
@@ -138,7 +172,9 @@ def run_map(
     workers: int = 1,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
-    ``report.json`` (and ``map.png`` when ``plot``) into ``out``. Loop verification runs
+    ``report.json`` (``map.png`` when ``plot``; ``covariances.csv`` when the
+    configuration asks for the covariances, ``config.back_end.covariances``) into
+    ``out``. Loop verification runs
     on ``workers - 1`` forked local processes beside this one (1: in this process; the map
     is the same).
     """
@@ -166,6 +202,9 @@ def run_map(
     files["trajectory"] = outdir / "trajectory.tum"
     outputs.write_g2o(outdir / "graph.g2o", result.poses, result.edges)
     files["graph"] = outdir / "graph.g2o"
+    if result.covariances is not None:
+        outputs.write_covariances(outdir / "covariances.csv", result.poses, result.covariances, ts)
+        files["covariances"] = outdir / "covariances.csv"
     grid = occupancy_grid(scans, result.poses, cfg.occupancy)
     outputs.write_map(outdir / "map.pgm", outdir / "map.yaml", grid)
     files["map"] = outdir / "map.pgm"
@@ -192,6 +231,7 @@ def run_map(
         "used_odometry": result.used_odometry,
         "workers": workers,
         "counts": result.counts(),
+        "pose_sigmas": _sigmas_dict(result.covariances),
         "seconds": {**result.seconds, **seconds},
         "metrics": metrics,
         "unplaced_or_flagged": {str(k): v for k, v in result.reasons.items()},
@@ -202,6 +242,12 @@ def run_map(
     outputs.write_report(outdir / "report.json", report)
     files["report"] = outdir / "report.json"
     return MapRun(label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed)
+
+
+def _sigmas_dict(covariances) -> dict | None:
+    """:func:`pose_sigmas` for ``report.json`` (None when not computed or no scan has one)."""
+    sig = None if covariances is None else pose_sigmas(covariances)
+    return None if sig is None else {"position_m": sig[0], "heading_deg": sig[1]}
 
 
 def _written_by_earlier_run(outdir: Path, name: str) -> bool:
