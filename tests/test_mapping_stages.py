@@ -1018,6 +1018,9 @@ def test_map_scans_gives_each_scans_covariance_when_asked():
         back_end=dataclasses.replace(cfg.back_end, covariances=True),
     )
     assert map_scans(scans[:3]).covariances is None
+    assert map_scans([], config=chain).covariances == ()
+    one = map_scans(scans[:1], config=chain).covariances
+    assert len(one) == 1 and np.abs(one[0]).max() < 1e-10
     r = map_scans(scans, config=chain)
     C = np.array(r.covariances)
     assert C.shape == (len(scans), 3, 3)

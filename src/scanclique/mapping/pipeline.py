@@ -959,7 +959,8 @@ def map_scans(
             raise ScanError(f"map_scans: scans[{k}] is a {type(s).__name__}, not a Scan")
     t0 = time.perf_counter()
     if not scans:
-        return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg)
+        covs = () if cfg.back_end.covariances else None
+        return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg, covs)
     if use_odometry is None:
         use_odometry = all(s.odometry is not None for s in scans)
     m = _Mapper(scans, bool(use_odometry), cfg, workers)
