@@ -1035,3 +1035,24 @@ def test_map_scans_gives_each_scans_covariance_when_asked():
         t = r0 @ s.reference
         e = np.array([p.x - t.x, p.y - t.y, math.remainder(p.theta - t.theta, 2 * math.pi)])
         assert e @ np.linalg.solve(c, e) < 11.34
+
+
+def test_map_png_draws_the_covariance_ellipses(tmp_path):
+    """``map.png`` with covariances draws their ellipses (green) over the same map."""
+    pytest.importorskip("matplotlib")
+    from scanclique.mapping import outputs
+    from scanclique.mapping.occupancy import occupancy_grid
+
+    scans, r = _small_result()
+    grid = occupancy_grid(scans, r.poses)
+    covs = [np.diag([0.04, 0.01, 0.001])] * len(r.poses)
+    outputs.write_png(tmp_path / "plain.png", grid, r.poses)
+    outputs.write_png(tmp_path / "cov.png", grid, r.poses, covariances=covs)
+    import matplotlib.image as mpimg
+
+    plain, cov = mpimg.imread(tmp_path / "plain.png"), mpimg.imread(tmp_path / "cov.png")
+    assert plain.shape == cov.shape
+    green = (cov[..., 1] > 0.4) & (cov[..., 0] < 0.3) & (cov[..., 2] < 0.3)
+    assert green.sum() > 100 and not (
+        (plain[..., 1] > 0.4) & (plain[..., 0] < 0.3) & (plain[..., 2] < 0.3)
+    ).any()

@@ -35,7 +35,7 @@ from .geometry import Pose2
 from .kinds import kind_name
 from .scan import Scan
 
-__all__ = ["plot_features", "plot_match", "save_figure", "FEATURE_STYLE"]
+__all__ = ["plot_features", "plot_match", "save_figure", "ellipse_outline", "FEATURE_STYLE"]
 
 #: marker, colour and legend label of each point-feature kind
 FEATURE_STYLE = {
@@ -49,6 +49,19 @@ _LINE_COLOUR = "tab:blue"
 _A_COLOUR = "0.35"
 _B_COLOUR = "tab:orange"
 _CLUSTER_COLOURS = ("#8c8c8c", "#b0b0b0")
+
+
+def ellipse_outline(mean, cov, nsig: float = 3.0, n: int = 24) -> np.ndarray:
+    """The ``nsig``-sigma ellipse of a 2-D Gaussian (``mean`` (2,), ``cov`` (2, 2)) as
+    ``n`` points (n, 2) on its outline, the first repeated last (a closed polyline).
+
+    >>> ellipse_outline([1.0, 0.0], np.diag([4.0, 1.0]), nsig=1.0, n=5).round(6).tolist()[:2]
+    [[1.0, 1.0], [3.0, 0.0]]
+    """
+    w, v = np.linalg.eigh(np.asarray(cov, dtype=float))
+    t = np.linspace(0, 2 * math.pi, n)
+    circle = np.sqrt(np.maximum(w, 0.0))[:, None] * nsig * np.vstack([np.cos(t), np.sin(t)])
+    return (v @ circle).T + np.asarray(mean, dtype=float)
 
 
 def _pyplot():

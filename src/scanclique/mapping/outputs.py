@@ -34,6 +34,7 @@ from .occupancy import OccupancyGrid, probabilities
 __all__ = [
     "OCCUPIED_THRESH",
     "FREE_THRESH",
+    "MAX_ELLIPSES",
     "write_tum",
     "write_covariances",
     "write_g2o",
@@ -133,9 +134,17 @@ def write_map(pgm: str | Path, yaml: str | Path, grid: OccupancyGrid) -> tuple[i
     return w, h
 
 
-def write_png(path: str | Path, grid: OccupancyGrid, poses, closures=(), title: str = "") -> None:
+#: at most this many pose covariance ellipses on ``map.png`` (evenly spaced along the log)
+MAX_ELLIPSES = 60
+
+
+def write_png(
+    path: str | Path, grid: OccupancyGrid, poses, closures=(), title: str = "", covariances=None
+) -> None:
     """``map.png``: occupancy probabilities (white free, black occupied, grey unknown),
-    the trajectory (blue) and the accepted loop closures (red segments)."""
+    the trajectory (blue) and the accepted loop closures (red segments); with
+    ``covariances`` (one (3, 3) per pose), the 3-sigma ellipses of the positions of at
+    most :data:`MAX_ELLIPSES` poses evenly spaced along the log (green)."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -161,6 +170,18 @@ def write_png(path: str | Path, grid: OccupancyGrid, poses, closures=(), title: 
     for k, (a, b) in enumerate(segs):
         ax.plot([a.x, b.x], [a.y, b.y], "-", color="tab:red", lw=0.5, alpha=0.6,
                 label="loop closures" if k == 0 else None)  # fmt: skip
+    if covariances is not None and len(poses):
+        from ..plot import ellipse_outline  # noqa: PLC0415
+
+        step = max(1, -(-len(poses) // MAX_ELLIPSES))
+        drawn = 0
+        for q, c in zip(poses[::step], covariances[::step], strict=True):
+            if q is None or c is None:
+                continue
+            e = ellipse_outline((q.x, q.y), np.asarray(c)[:2, :2], 3.0)
+            ax.plot(e[:, 0], e[:, 1], "-", color="tab:green", lw=0.6,
+                    label="position, 3 sigma" if drawn == 0 else None)  # fmt: skip
+            drawn += 1
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

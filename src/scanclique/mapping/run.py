@@ -211,7 +211,10 @@ def run_map(
     files["map_yaml"] = outdir / "map.yaml"
     removed = ()
     if plot:
-        outputs.write_png(outdir / "map.png", grid, result.poses, result.accepted_closures, label)
+        outputs.write_png(
+            outdir / "map.png", grid, result.poses, result.accepted_closures, label,
+            covariances=result.covariances,
+        )  # fmt: skip
         files["image"] = outdir / "map.png"
     elif _written_by_earlier_run(outdir, "map.png"):
         (outdir / "map.png").unlink()

@@ -73,10 +73,9 @@ def write_report(path, report: dict) -> Path:
 
 
 def _ellipse(ax, m, c, color, nsig=3.0):
-    w, v = np.linalg.eigh(c)
-    w = np.maximum(w, 0)
-    t = np.linspace(0, 2 * math.pi, 24)
-    pts = (v @ (np.sqrt(w)[:, None] * nsig * np.vstack([np.cos(t), np.sin(t)]))).T + m
+    from ..plot import ellipse_outline  # noqa: PLC0415
+
+    pts = ellipse_outline(m, c, nsig)
     ax.plot(pts[:, 0], pts[:, 1], color=color, lw=0.5)
 
 
