@@ -167,6 +167,18 @@ def test_cli_slam_on_simulated_directory(tmp_path, park):
     d = tmp_path / "vp"
     _write_vp(d, park)
     out = tmp_path / "out"
+    # the command: --out alone writes map.png too
+    res = CliRunner().invoke(app, ["slam", str(d), "--association", "clique", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert (out / "map.png").is_file()
+    res = CliRunner().invoke(
+        app, ["slam", str(d), "-a", "nn", "--out", str(tmp_path / "np"), "--json", "--no-plot"]
+    )
+    assert res.exit_code == 0, res.output
+    assert not (tmp_path / "np" / "map.png").exists()
+    assert (tmp_path / "np" / "report.json").is_file()
+    res = CliRunner().invoke(app, ["slam", str(d), "--plot"])
+    assert res.exit_code == 2 and "give --out" in res.output
     res = CliRunner().invoke(
         app, ["slam", str(d), "--association", "clique", "--out", str(out), "--json", "--plot"]
     )

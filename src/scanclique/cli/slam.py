@@ -37,7 +37,9 @@ def slam(
     ] = "clique",
     out: Annotated[
         str | None,  # not a Path: Path('') is '.', and an empty --out must be refused
-        typer.Option("--out", help="Directory for trajectory.tum, landmarks.csv, report.json."),
+        typer.Option(
+            "--out", help="Directory for trajectory.tum, landmarks.csv, report.json, map.png."
+        ),
     ] = None,
     clutter: Annotated[
         int,
@@ -49,7 +51,14 @@ def slam(
         ),
     ] = 0,
     seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the clutter.")] = 0,
-    plot: Annotated[bool, typer.Option("--plot", help="Also write map.png into --out.")] = False,
+    plot: Annotated[
+        bool | None,
+        typer.Option(
+            "--plot/--no-plot",
+            help="Write map.png (landmarks, trajectory, GPS) into --out: the default when "
+            "--out is given.",
+        ),
+    ] = None,
     smooth: Annotated[
         bool,
         typer.Option(
@@ -72,7 +81,8 @@ def slam(
     **Examples**
 
     ```
-    scanclique slam victoria-park --association clique --out runs/vp --plot
+    scanclique slam victoria-park --association clique --out runs/vp   # map.png too
+    scanclique slam victoria-park -a jcbb --out runs/vp-jcbb --no-plot
     scanclique slam victoria-park --association jcbb --json
     scanclique slam /data/victoria-park -a nn --clutter 5
     scanclique slam victoria-park -a clique --smooth
@@ -84,6 +94,7 @@ def slam(
         raise _fail(f"--association must be one of {', '.join(METHODS)}, got {association!r}")
     if plot and out is None:
         raise _fail("--plot writes map.png into --out: give --out DIR")
+    plot = out is not None if plot is None else plot
     from ..slam import SlamConfig
     from ..slam.run import output_names, run_slam
 
