@@ -1024,6 +1024,7 @@ def test_map_scans_gives_each_scans_covariance_when_asked():
     r = map_scans(scans, config=chain)
     C = np.array(r.covariances)
     assert C.shape == (len(scans), 3, 3)
+    assert not r.covariances[1].flags.writeable  # an immutable record, as the edges are
     np.testing.assert_allclose(C, C.transpose(0, 2, 1), atol=1e-15)
     assert (np.linalg.eigvalsh(C)[:, 0] >= -1e-12).all()
     np.testing.assert_allclose(C[0], np.zeros((3, 3)), atol=1e-10)

@@ -990,5 +990,5 @@ def map_scans(
         used_odometry=bool(use_odometry),
         seconds=seconds,
         config=cfg,
-        covariances=None if covs is None else tuple(covs),
+        covariances=None if covs is None else tuple(_ro(c) for c in covs),
     )
