@@ -314,9 +314,13 @@ def test_the_output_names_are_the_files_written(tmp_path):
     r = invoke("map", _scan_text(tmp_path), "--out", tmp_path / "m", "--json")
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in (tmp_path / "m").iterdir()) == sorted(map_names(plot=False))
-    r = invoke("slam", _tiny_victoria_park(tmp_path / "vp"), "--out", tmp_path / "s", "--json")
+    vp = _tiny_victoria_park(tmp_path / "vp")
+    r = invoke("slam", vp, "--out", tmp_path / "s", "--json")  # map.png with --out
     assert r.exit_code == 0, r.output
-    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == sorted(slam_names())
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == sorted(slam_names(plot=True))
+    r = invoke("slam", vp, "--out", tmp_path / "s2", "--json", "--no-plot")
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "s2").iterdir()) == sorted(slam_names())
 
 
 def test_an_empty_out_is_not_the_current_directory(tmp_path, monkeypatch):
