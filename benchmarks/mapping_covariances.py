@@ -50,6 +50,7 @@ from scanclique.eval.relations import join_relations  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
 from scanclique.mapping import MapConfig, map_scans  # noqa: E402
 from scanclique.mapping import backend as _backend  # noqa: E402
+from scanclique.slam.metrics import nees  # noqa: E402
 from scanclique.uncertainty import compose_covariance, inverse_covariance  # noqa: E402
 
 RAW = ("fr079-raw", "intel-raw")
@@ -153,15 +154,15 @@ def corrected_log(name: str, cfg: MapConfig) -> dict:
     res = map_scans(scans, config=cfg)
     wall = time.perf_counter() - t0
     r0 = scans[0].reference.inverse()
-    d2 = []
-    for p, C, s in zip(res.poses[1:], res.covariances[1:], scans[1:], strict=True):
+    E = []
+    for p, s in zip(res.poses[1:], scans[1:], strict=True):
         t = r0 @ s.reference
-        e = np.array([p.x - t.x, p.y - t.y, math.remainder(p.theta - t.theta, 2 * math.pi)])
-        d2.append(float(e @ np.linalg.solve(C, e)))
+        E.append((p.x - t.x, p.y - t.y, math.remainder(p.theta - t.theta, 2 * math.pi)))
+    d2 = nees(np.array(E), np.array(res.covariances[1:]))
     C = np.array(res.covariances)
     return {
         **_row(name, "reference poses", scans, res, wall, len(d2)),
-        "d2": _summary(np.array(d2)),
+        "d2": _summary(d2),
         "largest_position_sigma_m": float(np.sqrt(np.linalg.eigvalsh(C[:, :2, :2])[:, -1].max())),
     }
 

@@ -850,29 +850,28 @@ class _Mapper:
             g.add_edge(i, j, Z, P, robust, scale, tangent=q)
         out = g.optimize(be.max_iterations)
         kf_pose = {self.kf[k]: out[k] for k in range(len(self.kf))}
-        poses = []
+        t = time.perf_counter()
+        kf_cov = None
+        if be.covariances:
+            marg = g.covariances()
+            kf_cov = {self.kf[k]: marg[k] for k in range(len(self.kf))}
+        poses, covs = [], None if kf_cov is None else []
         for j in range(len(self.scans)):
+            base = self.kf_of[j]
             if j in kf_pose:
                 poses.append(kf_pose[j])
             else:
-                poses.append(kf_pose[self.kf_of[j]] @ self.rel_to_kf[j])
-        if not be.covariances:
-            return poses, None
-        t = time.perf_counter()
-        marg = g.covariances()
-        kf_cov = {self.kf[k]: marg[k] for k in range(len(self.kf))}
-        covs = []
-        for j in range(len(self.scans)):
-            if j in kf_cov:
-                covs.append(kf_cov[j])
-            else:
-                base = self.kf_of[j]
+                poses.append(kf_pose[base] @ self.rel_to_kf[j])
+            if covs is not None:  # a scan between keyframes: its match to its keyframe added
                 covs.append(
-                    compose_covariance(
+                    kf_cov[j]
+                    if j in kf_cov
+                    else compose_covariance(
                         kf_pose[base], kf_cov[base], self.rel_to_kf[j], self.cov_to_kf[j]
                     )
                 )
-        self.seconds["covariances"] = time.perf_counter() - t
+        if covs is not None:
+            self.seconds["covariances"] = time.perf_counter() - t
         return poses, covs
 
 

@@ -14,11 +14,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from .. import datasets
 from ..errors import ScanCliqueError
 from ..scan import Scan
+from ..uncertainty import constellation_std
 from .config import MapConfig
 from .pipeline import MapResult, map_scans
 
@@ -138,15 +137,10 @@ class MapRun:
 def pose_sigmas(covariances) -> tuple[float, float] | None:
     """The largest position standard deviation (m; the larger axis of a scan's xy
     covariance) and heading standard deviation (deg) over the scans; None for none."""
-    C = [np.asarray(c, dtype=float) for c in covariances if c is not None]
-    if not C:
+    stds = [constellation_std(c) for c in covariances if c is not None]
+    if not stds:
         return None
-    A = np.array(C)
-    xy = np.linalg.eigvalsh(A[:, :2, :2])[:, -1]
-    return (
-        float(np.sqrt(max(xy.max(), 0.0))),
-        math.degrees(math.sqrt(max(float(A[:, 2, 2].max()), 0.0))),
-    )
+    return max(s for s, _ in stds), math.degrees(max(t for _, t in stds))
 
 
 def output_names(plot: bool = True, covariances: bool = False) -> tuple[str, ...]:
