@@ -177,6 +177,15 @@ def test_cli_slam_on_simulated_directory(tmp_path, park):
     assert res.exit_code == 0, res.output
     assert not (tmp_path / "np" / "map.png").exists()
     assert (tmp_path / "np" / "report.json").is_file()
+    # --no-plot into the first run's directory: its map.png (another run's map) is removed,
+    # with a note; a map.png that no run listed is left alone
+    res = CliRunner().invoke(app, ["slam", str(d), "-a", "nn", "--out", str(out), "--no-plot"])
+    assert res.exit_code == 0, res.output
+    assert not (out / "map.png").exists() and "removed" in res.output
+    assert json.loads((out / "report.json").read_text())["removed"] == [str(out / "map.png")]
+    (out / "map.png").write_bytes(b"mine")
+    res = CliRunner().invoke(app, ["slam", str(d), "-a", "nn", "--out", str(out), "--no-plot"])
+    assert res.exit_code == 0 and (out / "map.png").read_bytes() == b"mine"
     res = CliRunner().invoke(app, ["slam", str(d), "--plot"])
     assert res.exit_code == 2 and "give --out" in res.output
     res = CliRunner().invoke(

@@ -18,6 +18,7 @@ from . import (
     _fail,
     _guard,
     _invocation,
+    _note,
     _print_json,
     _read_app_config,
     _save_config,
@@ -124,6 +125,8 @@ def slam(
             return run_slam(data, smooth=smooth, progress=progress, **kw)
 
     run = _guard(work)
+    for f in run.removed:
+        _note(f"removed {f}: an earlier run's figure (this run drew none; --plot draws one)")
     if save_config is not None:
         _save_config(cfg, save_config, f"used by: {_invocation()}")
     if json_out:

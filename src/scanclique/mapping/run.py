@@ -5,7 +5,6 @@ A plain function a script calls the same way as the command does.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -15,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import datasets
+from .._outdir import remove_earlier_output
 from ..errors import ScanCliqueError
 from ..scan import Scan
 from ..uncertainty import constellation_std
@@ -210,9 +210,8 @@ def run_map(
             covariances=result.covariances,
         )  # fmt: skip
         files["image"] = outdir / "map.png"
-    elif _written_by_earlier_run(outdir, "map.png"):
-        (outdir / "map.png").unlink()
-        removed = (str(outdir / "map.png"),)
+    elif (gone := remove_earlier_output(outdir, "map.png")) is not None:
+        removed = (str(gone),)
     t_out = time.perf_counter() - t
     from ..eval import frame_mounting  # noqa: PLC0415
 
@@ -245,15 +244,3 @@ def _sigmas_dict(covariances) -> dict | None:
     """:func:`pose_sigmas` for ``report.json`` (None when not computed or no scan has one)."""
     sig = None if covariances is None else pose_sigmas(covariances)
     return None if sig is None else {"position_m": sig[0], "heading_deg": sig[1]}
-
-
-def _written_by_earlier_run(outdir: Path, name: str) -> bool:
-    """Whether ``outdir/name`` is a file that the ``report.json`` beside it lists among the
-    files an earlier :func:`run_map` wrote (nothing else there is ever removed)."""
-    if not (outdir / name).is_file():
-        return False
-    try:
-        files = json.loads((outdir / "report.json").read_text(encoding="utf-8"))["files"]
-        return any(Path(str(v)).name == name for v in files.values())
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return False

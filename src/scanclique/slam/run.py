@@ -8,6 +8,7 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._outdir import remove_earlier_output
 from ..errors import ConfigError, ParseError
 from .ekf import SlamConfig, SlamResult, ekf_slam
 from .metrics import GpsError, align_se2, duplicate_pairs, gps_error, gps_outliers, sensor_positions
@@ -86,6 +88,9 @@ class SlamRun:
         Name -> path of the files written.
     alignment : (Rm (2, 2), t (2,))
         Best SE(2) alignment of the estimate to the GPS frame (identity without GPS).
+    removed : tuple of str
+        Files of an earlier run in ``out`` that this one removed (a ``map.png`` of an
+        earlier run, when this one draws none: it would show another map).
     """
 
     result: SlamResult
@@ -93,6 +98,7 @@ class SlamRun:
     metrics: dict
     files: dict = field(default_factory=dict)
     alignment: tuple = (np.eye(2), np.zeros(2))
+    removed: tuple = ()
 
     def to_dict(self) -> dict:
         """JSON-ready: method, metrics (value, units), GPS errors, ambiguous steps' times,
@@ -114,6 +120,7 @@ class SlamRun:
             },
             "ambiguous_times": r.observation_times[r.ambiguous].tolist(),
             "files": {k: str(v) for k, v in self.files.items()},
+            "removed": list(self.removed),
             "config": _plain(r.config),
         }
 
@@ -315,6 +322,8 @@ def run_slam(
                 gps,
                 title=f"EKF-SLAM ({association}) on Victoria Park",
             )
+        elif (gone := remove_earlier_output(d, "map.png")) is not None:
+            run = dataclasses.replace(run, removed=(str(gone),))
         run.files.update(files)
         run.files["report"] = d / "report.json"
         write_report(d / "report.json", run.to_dict())
