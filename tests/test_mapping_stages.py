@@ -275,6 +275,10 @@ def test_run_map_and_command(tmp_path):
     rows = np.loadtxt(tmp_path / "cov" / "covariances.csv", delimiter=",", skiprows=1)
     assert rows.shape == (15, 8) and (rows[:, 0] == np.arange(15)).all()
     assert (rows[1:, 2] > 0).all() and (rows[1:, 5] > 0).all() and (rows[1:, 7] > 0).all()
+    assert (
+        json.loads(res.output)["pose_sigmas"]
+        == json.loads((tmp_path / "cov" / "report.json").read_text())["pose_sigmas"]
+    )
     sig = json.loads((tmp_path / "cov" / "report.json").read_text())["pose_sigmas"]
     assert sig["position_m"] == pytest.approx(
         max(np.linalg.eigvalsh([[r[2], r[3]], [r[3], r[5]]])[-1] for r in rows) ** 0.5
@@ -1054,6 +1058,7 @@ def test_map_png_draws_the_covariance_ellipses(tmp_path):
     plain, cov = mpimg.imread(tmp_path / "plain.png"), mpimg.imread(tmp_path / "cov.png")
     assert plain.shape == cov.shape
     green = (cov[..., 1] > 0.4) & (cov[..., 0] < 0.3) & (cov[..., 2] < 0.3)
-    assert green.sum() > 100 and not (
-        (plain[..., 1] > 0.4) & (plain[..., 0] < 0.3) & (plain[..., 2] < 0.3)
-    ).any()
+    assert (
+        green.sum() > 100
+        and not ((plain[..., 1] > 0.4) & (plain[..., 0] < 0.3) & (plain[..., 2] < 0.3)).any()
+    )

@@ -107,7 +107,7 @@ def map_cmd(
     _check_out_dir(out, output_names(plot, cfg.back_end.covariances))  # before the run
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..mapping.run import run_map
+    from ..mapping.run import run_map, sigmas_dict
 
     quiet = json_out or not sys.stderr.isatty()
     with Progress(
@@ -153,6 +153,7 @@ def map_cmd(
                 "counts": run.result.counts(),
                 "seconds": {**run.result.seconds, **run.seconds},
                 "metrics": run.metrics,
+                "pose_sigmas": sigmas_dict(run.result.covariances),
                 "files": run.files,
                 "removed": list(run.removed),
             }

@@ -27,6 +27,7 @@ __all__ = [
     "output_names",
     "pose_sigmas",
     "relation_summary",
+    "sigmas_dict",
     "run_map",
     "is_bag",
 ]
@@ -227,7 +228,7 @@ def run_map(
         "used_odometry": result.used_odometry,
         "workers": workers,
         "counts": result.counts(),
-        "pose_sigmas": _sigmas_dict(result.covariances),
+        "pose_sigmas": sigmas_dict(result.covariances),
         "seconds": {**result.seconds, **seconds},
         "metrics": metrics,
         "unplaced_or_flagged": {str(k): v for k, v in result.reasons.items()},
@@ -240,7 +241,8 @@ def run_map(
     return MapRun(label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed)
 
 
-def _sigmas_dict(covariances) -> dict | None:
-    """:func:`pose_sigmas` for ``report.json`` (None when not computed or no scan has one)."""
+def sigmas_dict(covariances) -> dict | None:
+    """:func:`pose_sigmas` as a dict for ``report.json`` and ``--json`` (None when not
+    computed or no scan has one)."""
     sig = None if covariances is None else pose_sigmas(covariances)
     return None if sig is None else {"position_m": sig[0], "heading_deg": sig[1]}
