@@ -63,6 +63,15 @@ def tangent_covariance(Z: Pose2, P: np.ndarray) -> np.ndarray:
     return (V * w) @ V.T
 
 
+def _tangent_jacobians(thetas: np.ndarray) -> np.ndarray:
+    """``J = diag(R(theta)^T, 1)`` (m, 3, 3) for headings ``thetas`` (m,): the Jacobian
+    from a pose's ``(x, y, theta)`` perturbation in the parent's axes to its tangent space."""
+    c, s = np.cos(thetas), np.sin(thetas)
+    J = np.zeros((len(thetas), 3, 3))
+    J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, s, -s, c, 1.0
+    return J
+
+
 def tangent_covariances(thetas: np.ndarray, P: np.ndarray) -> np.ndarray:
     """:func:`tangent_covariance` of many edges at once: ``thetas`` (m,) the headings of
     the measurements ``Z``, ``P`` (m, 3, 3) their covariances; returns (m, 3, 3)."""
@@ -73,9 +82,7 @@ def tangent_covariances(thetas: np.ndarray, P: np.ndarray) -> np.ndarray:
         P[bad] = 0.0
         idx = np.arange(3)
         P[:, idx, idx] = np.where(np.isfinite(diag), diag, BIG_VARIANCE)
-    c, s = np.cos(thetas), np.sin(thetas)
-    J = np.zeros((len(thetas), 3, 3))
-    J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, s, -s, c, 1.0
+    J = _tangent_jacobians(thetas)
     Q = J @ P @ J.transpose(0, 2, 1)
     Q = 0.5 * (Q + Q.transpose(0, 2, 1))
     w, V = np.linalg.eigh(Q)
@@ -88,9 +95,7 @@ def map_frame_covariances(thetas: np.ndarray, Q: np.ndarray) -> np.ndarray:
     tangent spaces of poses of headings ``thetas`` (m,) (GTSAM's convention for a Pose2's
     marginal, a right perturbation ``x Exp(xi)``) as covariances of the poses' ``(x, y,
     theta)`` in the parent (map) frame's axes: ``J^T Q J`` with ``J = diag(R(theta)^T, 1)``."""
-    c, s = np.cos(thetas), np.sin(thetas)
-    J = np.zeros((len(thetas), 3, 3))
-    J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, s, -s, c, 1.0
+    J = _tangent_jacobians(thetas)
     P = J.transpose(0, 2, 1) @ np.asarray(Q, dtype=float) @ J
     return 0.5 * (P + P.transpose(0, 2, 1))
 

@@ -267,7 +267,6 @@ class _Mapper:
         self.kf_sig: _Rows | None = None  # (keyframes, signature size) when signatures exist
         self.kf_of: list[int] = [0] * n  # the keyframe each scan's edge hangs from
         self.rel_to_kf: list[Pose2] = [Pose2.identity()] * n
-        self.cov_to_kf: list[np.ndarray | None] = [None] * n  # None: a keyframe
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
         self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
@@ -791,7 +790,6 @@ class _Mapper:
             self.chain[j] = chain_k @ rel
             self.kf_of[j] = base
             self.rel_to_kf[j] = rel
-            self.cov_to_kf[j] = cov
             if step.kind in (MATCH, ICP):
                 self.edges.append(Edge(k, j, rel, cov, step.kind))
                 if not self.odo:
@@ -817,7 +815,6 @@ class _Mapper:
                 )
                 self.kf_of[j] = j
                 self.rel_to_kf[j] = Pose2.identity()
-                self.cov_to_kf[j] = None
             world_prev2, world_prev = world_prev, self.chain[j]
             # what the motion model, not the scans, gave this scan, for the next prediction
             loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
@@ -855,6 +852,8 @@ class _Mapper:
         if be.covariances:
             marg = g.covariances()
             kf_cov = {self.kf[k]: marg[k] for k in range(len(self.kf))}
+            # a scan kept between keyframes hangs from its keyframe by its front-end edge
+            to_kf = {(e.i, e.j): e.covariance for e in self.edges if e.kind in (MATCH, ICP)}
         poses, covs = [], None if kf_cov is None else []
         for j in range(len(self.scans)):
             base = self.kf_of[j]
@@ -867,7 +866,7 @@ class _Mapper:
                     kf_cov[j]
                     if j in kf_cov
                     else compose_covariance(
-                        kf_pose[base], kf_cov[base], self.rel_to_kf[j], self.cov_to_kf[j]
+                        kf_pose[base], kf_cov[base], self.rel_to_kf[j], to_kf[(base, j)]
                     )
                 )
         if covs is not None:
