@@ -7,11 +7,12 @@ import math
 
 import numpy as np
 import pytest
+from conftest import circle_drive
 
 from scanclique.geometry import Pose2
 from scanclique.mapping import MapConfig, map_scans
 from scanclique.scan import Scan
-from scanclique.sim import office_world, room_world, simulate_scan, simulate_trajectory
+from scanclique.sim import office_world, simulate_scan, simulate_trajectory
 
 
 def _relative_errors(result, scans, step=1):
@@ -78,40 +79,15 @@ def test_drive_without_odometry(office_drive):
 
 def test_smooth_drive_without_odometry():
     rng = np.random.default_rng(3)
-    scans = _circle_scans(rng, laps=1, n_per_lap=36)
+    scans = circle_drive(rng, laps=1, n_per_lap=36)
     r = map_scans(scans, use_odometry=False)
     assert r.placed_by.count("match") + r.placed_by.count("icp") >= 30
     assert _aligned_errors(r, scans).max() < 0.1
 
 
-def _circle_scans(rng, laps=2, n_per_lap=36, people=False):
-    """A drive around a circle of radius 1.5 m in a room, ``laps`` times: the later laps
-    revisit the first (loop closures), odometry drifts."""
-    world = room_world(8.0, 7.0, rng=rng, pillars=0, clutter=6)
-    cx = (4.0, 3.5)
-    scans = []
-    odo = Pose2.identity()
-    prev = None
-    for k in range(laps * n_per_lap):
-        a = 2 * math.pi * k / n_per_lap
-        ref = Pose2(cx[0] + 1.5 * math.cos(a), cx[1] + 1.5 * math.sin(a), a + math.pi / 2)
-        if prev is not None:
-            u = prev.inverse() @ ref
-            odo = odo @ Pose2(u.x * 1.03, u.y + 0.01, u.theta * 1.04 + 0.003)
-        prev = ref
-        crowd = None
-        if people:
-            crowd = (np.array([[cx[0] + 2.6 * math.cos(0.3 * k), cx[1] + 0.4]]), np.array([0.2]))
-        scans.append(
-            simulate_scan(world, ref, rng=rng, timestamp=0.2 * k, odometry=odo, people=crowd,
-                          source=f"circle:{k}")
-        )  # fmt: skip
-    return scans
-
-
 def test_loop_closures_on_a_circle():
     rng = np.random.default_rng(5)
-    scans = _circle_scans(rng)
+    scans = circle_drive(rng)
     r = map_scans(scans)
     closures = r.accepted_closures
     assert len(closures) >= 3
@@ -125,7 +101,7 @@ def test_loop_closures_on_a_circle():
 
 def test_moving_people_do_not_break_the_chain():
     rng = np.random.default_rng(9)
-    scans = _circle_scans(rng, laps=1, n_per_lap=30, people=True)
+    scans = circle_drive(rng, laps=1, n_per_lap=30, people=True)
     r = map_scans(scans, use_odometry=False)
     t, _ = _relative_errors(r, scans)
     assert np.median(t) < 0.03
@@ -198,7 +174,7 @@ def test_imprecise_closures_are_refused():
     from scanclique.mapping.config import LoopConfig
 
     rng = np.random.default_rng(5)
-    scans = _circle_scans(rng)
+    scans = circle_drive(rng)
     cfg = MapConfig()
     # no match fixes a heading to a thousandth of a degree: every closure is imprecise
     tight = dataclasses.replace(cfg.loops, max_sigma_radians=math.radians(0.001))

@@ -764,7 +764,8 @@ def _line_mapper(n=40, jump_at=20, jump=5.0, big_cov=True, loose_xy=0.35, **loop
     cfg = dataclasses.replace(cfg, loops=lc)
     angles = np.linspace(-math.pi / 2, math.pi / 2, 11)
     scans = [Scan(np.full(11, 5.0), angles, source=f"line:{k}") for k in range(n)]
-    m = _Mapper(scans, False, cfg)
+    m = _Mapper(False, False, cfg)
+    m.scans, m.chain = scans, [None] * n
     tight = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
     loose = np.diag([loose_xy**2, loose_xy**2, math.radians(60.0) ** 2])
     m.chain[0] = Pose2.identity()

@@ -54,6 +54,7 @@ __all__ = [
     "constant_velocity",
     "reversed_increment",
     "odometry_sees_reversing",
+    "ReversingWatch",
     "along_corridor",
     "contest_by_odometry",
     "associate",
@@ -134,6 +135,39 @@ def reversed_increment(rel: Pose2) -> Pose2:
     return Pose2(-rel.x, -rel.y, rel.theta)
 
 
+class ReversingWatch:
+    """:func:`odometry_sees_reversing` one scan at a time, for a log still being recorded:
+    :meth:`see` each scan's odometry (None for a scan without), then :attr:`sees_reversing`
+    is the answer over the scans seen so far.
+
+    >>> w = ReversingWatch()
+    >>> for i in range(60):
+    ...     w.see(Pose2(0.1 * i, 0.0, 0.0))
+    >>> w.sees_reversing
+    False
+    """
+
+    def __init__(self, min_step: float = 0.01, min_moving: int = 50) -> None:
+        self.min_step, self.min_moving = min_step, min_moving
+        self.moving = 0  # increments forwards by more than min_step so far
+        self.backwards = False  # some increment backwards by more than min_step
+        self.prev: Pose2 | None = None
+
+    def see(self, odometry: Pose2 | None) -> None:
+        """Take the next scan's odometry pose (None: the scan carries none)."""
+        if odometry is None:
+            return
+        if self.prev is not None:
+            dx = (self.prev.inverse() @ odometry).x
+            self.backwards = self.backwards or dx < -self.min_step
+            self.moving += dx > self.min_step
+        self.prev = odometry
+
+    @property
+    def sees_reversing(self) -> bool:
+        return self.backwards or self.moving < self.min_moving
+
+
 def odometry_sees_reversing(
     scans: Sequence[Scan], min_step: float = 0.01, min_moving: int = 50
 ) -> bool:
@@ -144,6 +178,7 @@ def odometry_sees_reversing(
     over a whole log although it drives: it measures the speed's magnitude, and a robot
     that reverses is logged as driving forwards (the raw fr079 log: 0 of 4062 moving steps
     backwards, while its scans and its benchmark relations back up at scans 1400-1434).
+    :class:`ReversingWatch` tells it as the scans come.
 
     >>> from scanclique.scan import Scan
     >>> fwd = [Scan([1.0], [0.0], odometry=Pose2(0.1 * i, 0.0, 0.0)) for i in range(60)]
@@ -152,17 +187,12 @@ def odometry_sees_reversing(
     >>> odometry_sees_reversing(fwd[:10])  # too little driving to tell
     True
     """
-    moving = 0
-    prev = None
+    watch = ReversingWatch(min_step, min_moving)
     for s in scans:
-        o = s.odometry
-        if o is not None and prev is not None:
-            dx = (prev.inverse() @ o).x
-            if dx < -min_step:
-                return True
-            moving += dx > min_step
-        prev = o if o is not None else prev
-    return moving < min_moving
+        watch.see(s.odometry)
+        if watch.backwards:
+            return True
+    return watch.sees_reversing
 
 
 def refine_pose(pa: PreparedScan, pb: PreparedScan, pose: Pose2, fe) -> Pose2:

@@ -239,24 +239,25 @@ def _cov_xy_rot(s_xy: float, s_th: float) -> np.ndarray:
 class _Mapper:
     """The state carried across scans by :func:`map_scans` (keyframes, estimate, graph)."""
 
-    def __init__(self, scans: Sequence[Scan], use_odometry: bool, cfg: MapConfig, workers: int = 1):
-        self.scans = scans
+    def __init__(
+        self, use_odometry: bool, blind_to_reversing: bool, cfg: MapConfig, workers: int = 1
+    ):
+        self.scans: list[Scan] = []  # the scans so far, in recording order (add_scan)
         self.odo = use_odometry
         # odometry that never reports backing up (the speed's magnitude only): a reversing
         # robot is logged as driving forwards, so while the scans say it is backing up, a
         # match the odometry rejects is also validated against the odometry driven
-        # backwards (frontend.odometry_sees_reversing)
-        self.blind_to_reversing = bool(use_odometry) and not odometry_sees_reversing(scans)
-        if self.blind_to_reversing:
-            log.info("the odometry never moves backwards: a match it rejects is tried reversed")
+        # backwards (frontend.odometry_sees_reversing; map_scans tells it from the whole
+        # log, the online mapper as it goes)
+        self.blind_to_reversing = bool(use_odometry) and blind_to_reversing
         self.cfg = cfg
         self.fe = cfg.front_end
         self.lc = cfg.loops
         self.floor = (self.fe.sigma_floor_metres, self.fe.sigma_floor_radians)
-        n = len(scans)
-        self.chain: list[Pose2 | None] = [None] * n  # front-end poses (dead reckoning)
+        # per scan, appended as each comes (add_scan)
+        self.chain: list[Pose2 | None] = []  # front-end poses (dead reckoning)
         self.motion = VelocityModel(self.fe)  # without odometry: the learnt motion model
-        self.placed_by: list[str] = [""] * n
+        self.placed_by: list[str] = []
         self.reasons: dict[int, str] = {}
         self.edges: list[Edge] = []
         self.closures: list[LoopClosure] = []
@@ -265,8 +266,14 @@ class _Mapper:
         self.kf_prep: list = []
         self.kf_path = _Rows()
         self.kf_sig: _Rows | None = None  # (keyframes, signature size) when signatures exist
-        self.kf_of: list[int] = [0] * n  # the keyframe each scan's edge hangs from
-        self.rel_to_kf: list[Pose2] = [Pose2.identity()] * n
+        self.kf_of: list[int] = []  # the keyframe each scan's edge hangs from
+        self.rel_to_kf: list[Pose2] = []
+        # the chain poses of the two scans before the next, for the motion's prediction
+        self.world_prev2: Pose2 | None = None
+        self.world_prev = Pose2.identity()
+        # the newest scan when it is not a keyframe: (prepared, pose and covariance
+        # relative to its keyframe), for close_log to make it one
+        self.newest: tuple | None = None
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
         self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
@@ -658,172 +665,207 @@ class _Mapper:
             self.est_xy = np.asarray(self.gtsam.utilities.extractPose2(est), dtype=float)
         self.seconds["isam"] += time.perf_counter() - t
 
-    # -- step 2: the front end ----------------------------------------------------------
-    def run(self, progress: Progress | None = None) -> None:
-        scans, fe = self.scans, self.fe
-        n = len(scans)
-        t_fe = time.perf_counter()
-        loops_before = 0.0
-        p0 = self.prepare(0)
-        self.chain[0] = Pose2.identity()
-        self.placed_by[0] = "first"
-        self.add_keyframe(0, p0, None, None)
-        world_prev2: Pose2 | None = None
-        world_prev = Pose2.identity()  # chain pose of the previous scan
-        for j in range(1, n):
-            k = self.kf[-1]
-            pk = self.kf_prep[-1]
-            pj = self.prepare(j)
-            sj, sk = scans[j], scans[k]
-            times = (_ts(scans, j - 2), _ts(scans, j - 1), sj.timestamp)
-            chain_k = self.chain[k]
-            # the prior of scan j relative to keyframe k
-            if self.odo and sj.odometry is not None and sk.odometry is not None:
-                prior_a, prior_b = sk.odometry, sj.odometry
-                noise = fe.odometry_noise
-                path = [s.odometry for s in scans[k : j + 1] if s.odometry is not None]
-                kind = ODOMETRY
-            else:
-                pred = self.motion.predict(world_prev2, world_prev, times)
-                prior_a, prior_b = chain_k, pred
-                noise = fe.velocity_noise
-                path = None
-                kind = CONSTANT_VELOCITY
-            carried_w = None
-            if kind == CONSTANT_VELOCITY:
-                # the previous scan's own looseness counts when it lies relative to k too
-                carried_w = self.motion.carried(self.kf_of[j - 1] == k and j - 1 != k)
-            if kind == CONSTANT_VELOCITY and fe.icp_fallback:
-                rel_pred, pred_cov = odometry_prior(prior_a, prior_b, noise)
-                step = associate_by_scans(
-                    pk, pj, rel_pred, None if world_prev2 is None else pred_cov,
-                    self.cfg.match, fe, self.floor, self.motion.max_translation(j - k),
-                    _rotated(carried_w, -chain_k.theta),
-                    chain_k.inverse() @ world_prev,
-                )  # fmt: skip
-                if step.kind == ICP:
-                    self.reasons[j] = step.reason or ""
-            else:
-                step = None
-                if (
-                    kind == ODOMETRY
-                    and self.blind_to_reversing
-                    and world_prev2 is not None
-                    and (world_prev2.inverse() @ world_prev).x < -REVERSING_STEP
-                ):
-                    # the robot was backing up (the scans say so) while its odometry drove
-                    # forwards: it most likely still is, so the odometry reversed is the
-                    # prior first (the odometry as logged next, when that rejects the
-                    # match). The other way round, a wrong match that happens to agree with
-                    # the forward odometry was taken: fr079 with every second scan, 14 deg
-                    # off at scan 1408 (relation error 0.888 -> 0.148 m at most)
-                    back_b = prior_a @ reversed_increment(prior_a.inverse() @ prior_b)
-                    back_path = [prior_a @ reversed_increment(prior_a.inverse() @ q) for q in path]
-                    back = associate(
-                        pk, pj, prior_a, back_b, noise, self.cfg.match, path=back_path,
-                        sigma_floor=self.floor, front_end=fe,
-                    )  # fmt: skip
-                    if back.kind == MATCH:
-                        self.reasons[j] = (
-                            "the scans say the robot is backing up: matched against the "
-                            "odometry reversed (it never reports backing up)"
-                        )
-                        step, prior_b, path = back, back_b, back_path
-                if step is None:
-                    step = associate(
-                        pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
-                        sigma_floor=self.floor, front_end=fe,
-                        weak_prior=kind == CONSTANT_VELOCITY,
-                    )  # fmt: skip
-            # the odometry increment and its covariance (the first prior of the fallback)
-            odo = odometry_prior(prior_a, prior_b, noise, path=path) if kind == ODOMETRY else None
-            if step.kind == MATCH and odo is not None:
-                step = contest_by_odometry(pk, pj, step, odo[0], fe, self.cfg.match, odo[1])
-                if step.kind == ICP:
-                    self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
-            if step.kind != MATCH and fe.icp_fallback and odo is not None:
-                priors = [odo]
-                # the chain's own constant-velocity prediction too
-                pred = constant_velocity(world_prev2, world_prev, *times)
-                priors.append(odometry_prior(chain_k, pred, fe.velocity_noise))
-                seeds = [p for p, _ in priors]
-                if step.pose is not None:
-                    seeds.append(step.pose)
-                alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match)
-                if alt is not None:
-                    self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
-                    step = alt
-            if step.kind in (MATCH, ICP):
-                rel, cov, base = step.pose, step.covariance, k
-                self.placed_by[j] = step.kind
-            else:
-                # placed by the prior from the previous scan (j - 1), flagged
-                if kind == ODOMETRY and scans[j - 1].odometry is not None:
-                    a, b = scans[j - 1].odometry, sj.odometry
-                else:
-                    kind = CONSTANT_VELOCITY
-                    a, b = world_prev, self.motion.predict(world_prev2, world_prev, times)
-                    noise = fe.velocity_noise
-                fb = prior_step(a, b, noise, kind, step.reason or "", step.verdict, step.score)
-                if kind == CONSTANT_VELOCITY and carried_w is not None:
-                    # placed by the prediction alone: it is as unsure as the prediction,
-                    # inherited looseness included, and all of its translation is the motion's
-                    c = fb.covariance.copy()
-                    c[:2, :2] += _rotated(carried_w, -a.theta)
-                    fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason, c[:2, :2])
-                s_th = self.motion.heading_sigma()
-                if not self.odo and fb.covariance[2, 2] < s_th**2:
-                    # without odometry, a scan the raw scans could not place may have turned
-                    # as the prediction has proved to miss (a sharp turn before a wall)
-                    c = fb.covariance.copy()
-                    c[2, 2] = s_th**2
-                    fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason, fb.loose)
-                # edge from j-1; expressed from keyframe k for the keyframe chain
-                rel_prev = self.rel_to_kf[j - 1] if self.kf_of[j - 1] == k else Pose2.identity()
-                cov_prev = np.zeros((3, 3))
-                rel = rel_prev @ fb.pose
-                cov = compose_covariance(rel_prev, cov_prev, fb.pose, fb.covariance)
-                base = k
-                self.placed_by[j] = kind
-                self.reasons[j] = f"{step.verdict}: {step.reason}"
-                self.edges.append(Edge(j - 1, j, fb.pose, fb.covariance, kind))
-            self.chain[j] = chain_k @ rel
-            self.kf_of[j] = base
-            self.rel_to_kf[j] = rel
-            if step.kind in (MATCH, ICP):
-                self.edges.append(Edge(k, j, rel, cov, step.kind))
-                if not self.odo:
-                    self.motion.observe(world_prev2, world_prev, times, self.chain[j], rel, j - k)
-            moved = math.hypot(rel.x, rel.y) >= fe.keyframe_distance or abs(rel.theta) >= (
-                fe.keyframe_angle
-            )
-            if (
-                kind == CONSTANT_VELOCITY
-                and step.kind in (MATCH, ICP)
-                and constellation_std(cov)[0] >= fe.keyframe_distance
-            ):
-                # without odometry, a scan the raw scans place only to within more than a
-                # keyframe's spacing (a corridor, look-alike poses) is a keyframe of its own:
-                # a scan kept relative to a keyframe is where the front end put it for good,
-                # a keyframe is where the back end and the loops put it
-                moved = True
-            if moved or step.kind not in (MATCH, ICP) or j == n - 1:
-                lb = self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"]
-                self.add_keyframe(j, pj, rel, cov)
-                loops_before += (
-                    self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"] - lb
-                )
-                self.kf_of[j] = j
-                self.rel_to_kf[j] = Pose2.identity()
-            world_prev2, world_prev = world_prev, self.chain[j]
-            # what the motion model, not the scans, gave this scan, for the next prediction
-            loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
-            frame = self.chain[j - 1] if step.kind not in (MATCH, ICP) else chain_k
-            self.motion.placed(_rotated(loose, frame.theta))
-            if progress is not None and (j % 50 == 0 or j == n - 1):
-                progress(j + 1, n, sum(1 for c in self.closures if c.accepted and not c.local))
+    # -- step 2: the front end, one scan at a time --------------------------------------
+    def add_scan(self, scan: Scan) -> None:
+        """Take the log's next scan: place it by the front end (matched to the current
+        keyframe, else by the prior, flagged); a new keyframe is searched for loops, and
+        every ``pcm_batch`` keyframes the closures are selected and the estimate updated."""
+        t = time.perf_counter()
+        busy = self.loop_seconds()
+        j = len(self.scans)
+        self.scans.append(scan)
+        self.chain.append(None)
+        self.placed_by.append("")
+        self.kf_of.append(j)
+        self.rel_to_kf.append(Pose2.identity())
+        if j == 0:
+            self.chain[0] = Pose2.identity()
+            self.placed_by[0] = "first"
+            self.add_keyframe(0, self.prepare(0), None, None)
+        else:
+            self.place(j)
+        # the front end's own time: the loops' searches and flushes are timed apart
+        self.seconds["front_end"] += time.perf_counter() - t - (self.loop_seconds() - busy)
+
+    def loop_seconds(self) -> float:
+        return self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"]
+
+    def promote(self, j: int, prep, rel: Pose2, cov: np.ndarray) -> None:
+        """Make scan ``j`` (``rel``, ``cov`` from the current keyframe) a keyframe."""
+        self.add_keyframe(j, prep, rel, cov)
+        self.kf_of[j] = j
+        self.rel_to_kf[j] = Pose2.identity()
+
+    def close_log(self) -> None:
+        """The log has ended: its last scan becomes a keyframe (when it is not one) and the
+        closures still pending are decided."""
+        t = time.perf_counter()
+        busy = self.loop_seconds()
+        if self.newest is not None:
+            self.promote(len(self.scans) - 1, *self.newest)
+            self.newest = None
+        self.seconds["front_end"] += time.perf_counter() - t - (self.loop_seconds() - busy)
         self.flush(final=True)
-        self.seconds["front_end"] = time.perf_counter() - t_fe - loops_before
+
+    def run(self, scans: Sequence[Scan], progress: Progress | None = None) -> None:
+        """Map the whole of ``scans``: :meth:`add_scan` for each, then :meth:`close_log`."""
+        n = len(scans)
+        for j, scan in enumerate(scans):
+            self.add_scan(scan)
+            if progress is not None and j > 0 and (j % 50 == 0 or j == n - 1):
+                progress(j + 1, n, sum(1 for c in self.closures if c.accepted and not c.local))
+        self.close_log()
+
+    def place(self, j: int) -> None:
+        """The front end on scan ``j >= 1``: its pose relative to the current keyframe."""
+        scans, fe = self.scans, self.fe
+        prev2, prev = self.world_prev2, self.world_prev  # chain poses of scans j - 2, j - 1
+        k = self.kf[-1]
+        pk = self.kf_prep[-1]
+        pj = self.prepare(j)
+        sj, sk = scans[j], scans[k]
+        times = (_ts(scans, j - 2), _ts(scans, j - 1), sj.timestamp)
+        chain_k = self.chain[k]
+        # the prior of scan j relative to keyframe k
+        if self.odo and sj.odometry is not None and sk.odometry is not None:
+            prior_a, prior_b = sk.odometry, sj.odometry
+            noise = fe.odometry_noise
+            path = [s.odometry for s in scans[k : j + 1] if s.odometry is not None]
+            kind = ODOMETRY
+        else:
+            pred = self.motion.predict(prev2, prev, times)
+            prior_a, prior_b = chain_k, pred
+            noise = fe.velocity_noise
+            path = None
+            kind = CONSTANT_VELOCITY
+        carried_w = None
+        if kind == CONSTANT_VELOCITY:
+            # the previous scan's own looseness counts when it lies relative to k too
+            carried_w = self.motion.carried(self.kf_of[j - 1] == k and j - 1 != k)
+        if kind == CONSTANT_VELOCITY and fe.icp_fallback:
+            rel_pred, pred_cov = odometry_prior(prior_a, prior_b, noise)
+            step = associate_by_scans(
+                pk, pj, rel_pred, None if prev2 is None else pred_cov,
+                self.cfg.match, fe, self.floor, self.motion.max_translation(j - k),
+                _rotated(carried_w, -chain_k.theta),
+                chain_k.inverse() @ prev,
+            )  # fmt: skip
+            if step.kind == ICP:
+                self.reasons[j] = step.reason or ""
+        else:
+            step = None
+            if (
+                kind == ODOMETRY
+                and self.blind_to_reversing
+                and prev2 is not None
+                and (prev2.inverse() @ prev).x < -REVERSING_STEP
+            ):
+                # the robot was backing up (the scans say so) while its odometry drove
+                # forwards: it most likely still is, so the odometry reversed is the
+                # prior first (the odometry as logged next, when that rejects the
+                # match). The other way round, a wrong match that happens to agree with
+                # the forward odometry was taken: fr079 with every second scan, 14 deg
+                # off at scan 1408 (relation error 0.888 -> 0.148 m at most)
+                back_b = prior_a @ reversed_increment(prior_a.inverse() @ prior_b)
+                back_path = [prior_a @ reversed_increment(prior_a.inverse() @ q) for q in path]
+                back = associate(
+                    pk, pj, prior_a, back_b, noise, self.cfg.match, path=back_path,
+                    sigma_floor=self.floor, front_end=fe,
+                )  # fmt: skip
+                if back.kind == MATCH:
+                    self.reasons[j] = (
+                        "the scans say the robot is backing up: matched against the "
+                        "odometry reversed (it never reports backing up)"
+                    )
+                    step, prior_b, path = back, back_b, back_path
+            if step is None:
+                step = associate(
+                    pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
+                    sigma_floor=self.floor, front_end=fe,
+                    weak_prior=kind == CONSTANT_VELOCITY,
+                )  # fmt: skip
+        # the odometry increment and its covariance (the first prior of the fallback)
+        odo = odometry_prior(prior_a, prior_b, noise, path=path) if kind == ODOMETRY else None
+        if step.kind == MATCH and odo is not None:
+            step = contest_by_odometry(pk, pj, step, odo[0], fe, self.cfg.match, odo[1])
+            if step.kind == ICP:
+                self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
+        if step.kind != MATCH and fe.icp_fallback and odo is not None:
+            priors = [odo]
+            # the chain's own constant-velocity prediction too
+            pred = constant_velocity(prev2, prev, *times)
+            priors.append(odometry_prior(chain_k, pred, fe.velocity_noise))
+            seeds = [p for p, _ in priors]
+            if step.pose is not None:
+                seeds.append(step.pose)
+            alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match)
+            if alt is not None:
+                self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
+                step = alt
+        if step.kind in (MATCH, ICP):
+            rel, cov, base = step.pose, step.covariance, k
+            self.placed_by[j] = step.kind
+        else:
+            # placed by the prior from the previous scan (j - 1), flagged
+            if kind == ODOMETRY and scans[j - 1].odometry is not None:
+                a, b = scans[j - 1].odometry, sj.odometry
+            else:
+                kind = CONSTANT_VELOCITY
+                a, b = prev, self.motion.predict(prev2, prev, times)
+                noise = fe.velocity_noise
+            fb = prior_step(a, b, noise, kind, step.reason or "", step.verdict, step.score)
+            if kind == CONSTANT_VELOCITY and carried_w is not None:
+                # placed by the prediction alone: it is as unsure as the prediction,
+                # inherited looseness included, and all of its translation is the motion's
+                c = fb.covariance.copy()
+                c[:2, :2] += _rotated(carried_w, -a.theta)
+                fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason, c[:2, :2])
+            s_th = self.motion.heading_sigma()
+            if not self.odo and fb.covariance[2, 2] < s_th**2:
+                # without odometry, a scan the raw scans could not place may have turned
+                # as the prediction has proved to miss (a sharp turn before a wall)
+                c = fb.covariance.copy()
+                c[2, 2] = s_th**2
+                fb = Step(fb.pose, c, fb.kind, fb.verdict, fb.score, fb.reason, fb.loose)
+            # edge from j-1; expressed from keyframe k for the keyframe chain
+            rel_prev = self.rel_to_kf[j - 1] if self.kf_of[j - 1] == k else Pose2.identity()
+            cov_prev = np.zeros((3, 3))
+            rel = rel_prev @ fb.pose
+            cov = compose_covariance(rel_prev, cov_prev, fb.pose, fb.covariance)
+            base = k
+            self.placed_by[j] = kind
+            self.reasons[j] = f"{step.verdict}: {step.reason}"
+            self.edges.append(Edge(j - 1, j, fb.pose, fb.covariance, kind))
+        self.chain[j] = chain_k @ rel
+        self.kf_of[j] = base
+        self.rel_to_kf[j] = rel
+        if step.kind in (MATCH, ICP):
+            self.edges.append(Edge(k, j, rel, cov, step.kind))
+            if not self.odo:
+                self.motion.observe(prev2, prev, times, self.chain[j], rel, j - k)
+        moved = math.hypot(rel.x, rel.y) >= fe.keyframe_distance or abs(rel.theta) >= (
+            fe.keyframe_angle
+        )
+        if (
+            kind == CONSTANT_VELOCITY
+            and step.kind in (MATCH, ICP)
+            and constellation_std(cov)[0] >= fe.keyframe_distance
+        ):
+            # without odometry, a scan the raw scans place only to within more than a
+            # keyframe's spacing (a corridor, look-alike poses) is a keyframe of its own:
+            # a scan kept relative to a keyframe is where the front end put it for good,
+            # a keyframe is where the back end and the loops put it
+            moved = True
+        self.newest = None
+        if moved or step.kind not in (MATCH, ICP):
+            self.promote(j, pj, rel, cov)
+        else:  # the last scan of a log becomes a keyframe when the log ends (close_log)
+            self.newest = (pj, rel, cov)
+        self.world_prev2, self.world_prev = self.world_prev, self.chain[j]
+        # what the motion model, not the scans, gave this scan, for the next prediction
+        loose = step.loose if step.kind in (MATCH, ICP) else fb.loose
+        frame = self.chain[j - 1] if step.kind not in (MATCH, ICP) else chain_k
+        self.motion.placed(_rotated(loose, frame.theta))
 
     # -- step 5: the batch back end -----------------------------------------------------
     def optimize(self) -> tuple[list[Pose2], list[np.ndarray] | None]:
@@ -872,6 +914,35 @@ class _Mapper:
         if covs is not None:
             self.seconds["covariances"] = time.perf_counter() - t
         return poses, covs
+
+    # -- the result ---------------------------------------------------------------------
+    def result(self, t0: float) -> MapResult:
+        """The batch back end over the keyframe graph so far, and the map's record
+        (``t0``: the ``perf_counter`` the run started at, for ``seconds["total"]``)."""
+        t = time.perf_counter()
+        poses, covs = self.optimize()
+        seconds = dict(self.seconds)
+        seconds["optimize"] = time.perf_counter() - t - seconds.get("covariances", 0.0)
+        # every edge of the keyframe graph, in scan indices, for the outputs
+        kf_edges = [
+            Edge(self.kf[i], self.kf[j], Z, P, kind if kind != "chain" else "keyframe")
+            for i, j, Z, P, kind in self.kf_edges
+            if kind != "chain"
+        ]
+        seconds["total"] = time.perf_counter() - t0
+        return MapResult(
+            poses=tuple(poses),
+            placed_by=tuple(self.placed_by),
+            reasons=dict(self.reasons),
+            keyframes=tuple(self.kf),
+            edges=tuple(self.edges) + tuple(kf_edges),
+            loop_closures=tuple(self.closures),
+            chained=tuple(self.chain),
+            used_odometry=bool(self.odo),
+            seconds=seconds,
+            config=self.cfg,
+            covariances=None if covs is None else tuple(_ro(c) for c in covs),
+        )
 
 
 def _rotated(cov: np.ndarray | None, theta: float) -> np.ndarray | None:
@@ -961,32 +1032,12 @@ def map_scans(
         return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg, covs)
     if use_odometry is None:
         use_odometry = all(s.odometry is not None for s in scans)
-    m = _Mapper(scans, bool(use_odometry), cfg, workers)
+    blind = bool(use_odometry) and not odometry_sees_reversing(scans)
+    if blind:
+        log.info("the odometry never moves backwards: a match it rejects is tried reversed")
+    m = _Mapper(bool(use_odometry), blind, cfg, workers)
     try:
-        m.run(progress)
+        m.run(scans, progress)
     finally:
         m.verifier.close()
-    t = time.perf_counter()
-    poses, covs = m.optimize()
-    seconds = dict(m.seconds)
-    seconds["optimize"] = time.perf_counter() - t - seconds.get("covariances", 0.0)
-    # every edge of the keyframe graph, in scan indices, for the outputs
-    kf_edges = [
-        Edge(m.kf[i], m.kf[j], Z, P, kind if kind != "chain" else "keyframe")
-        for i, j, Z, P, kind in m.kf_edges
-        if kind != "chain"
-    ]
-    seconds["total"] = time.perf_counter() - t0
-    return MapResult(
-        poses=tuple(poses),
-        placed_by=tuple(m.placed_by),
-        reasons=dict(m.reasons),
-        keyframes=tuple(m.kf),
-        edges=tuple(m.edges) + tuple(kf_edges),
-        loop_closures=tuple(m.closures),
-        chained=tuple(m.chain),
-        used_odometry=bool(use_odometry),
-        seconds=seconds,
-        config=cfg,
-        covariances=None if covs is None else tuple(_ro(c) for c in covs),
-    )
+    return m.result(t0)
