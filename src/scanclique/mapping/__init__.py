@@ -6,10 +6,13 @@
 :func:`map_scans` (front end by matching, verified loop closures selected by PCM, GTSAM
 pose-graph optimisation) returns a :class:`MapResult`; :func:`run_map` also writes the
 outputs (trajectory.tum, graph.g2o, map.pgm/map.yaml, map.png, report.json).
+:class:`OnlineMapper` is the same mapper fed one scan at a time, answering with each
+scan's pose as soon as it comes.
 """
 
 from .config import BackEndConfig, FrontEndConfig, LoopConfig, MapConfig, OccupancyConfig
 from .loops import LoopClosure
+from .online import OnlineMapper
 from .pipeline import Edge, MapResult, map_scans
 from .run import MapRun, run_map
 
@@ -22,6 +25,7 @@ __all__ = [
     "MapConfig",
     "MapResult",
     "MapRun",
+    "OnlineMapper",
     "OccupancyConfig",
     "map_scans",
     "run_map",

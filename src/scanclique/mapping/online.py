@@ -1,0 +1,236 @@
+"""Mapping a log while it is recorded: :class:`OnlineMapper` (issue 12, part 3, "iSAM2
+incrementally if you offer an online mode").
+
+A robot's driver hands the scans over one at a time; :meth:`OnlineMapper.add` places each
+at once and answers with its pose in the map frame (the frame of the first scan) as the
+mapper estimates it *now*: its keyframe's estimate by the incremental optimiser (iSAM2,
+which takes the accepted closures every ``loops.pcm_batch`` keyframes), composed with the
+scan's match to that keyframe. No scan that has not come yet is used. This is the same
+mapper as :func:`~scanclique.mapping.map_scans` (:class:`~.pipeline._Mapper`), fed one scan
+at a time: :meth:`OnlineMapper.finish` ends the log and runs the batch back end, and its
+:class:`~.pipeline.MapResult` is the one ``map_scans`` gives for the same scans, pose for
+pose, when the two take the odometry alike.
+
+What ``map_scans`` reads from the whole log, the online mapper reads from the scans so far:
+
+* ``use_odometry=None``: the odometry is used when the *first* scan carries it
+  (``map_scans``: when every scan does). A later scan without odometry is placed by the
+  constant-velocity prior, as in ``map_scans(..., use_odometry=True)``.
+* ``odometry_reverses=None``: whether the wheel odometry reports backing up
+  (:func:`~.frontend.odometry_sees_reversing`, which ``map_scans`` asks of the whole log)
+  is told from the scans so far (:class:`~.frontend.ReversingWatch`): until 50 moving
+  steps have come, and as soon as one goes backwards, it is taken to report it. A robot's
+  odometry either reports backing up or does not: give it when known.
+"""
+
+from __future__ import annotations
+
+import operator
+import time
+from bisect import bisect_left
+
+from .._workers import check_workers
+from ..errors import ArgumentError, ConfigError, ScanError
+from ..geometry import Pose2
+from ..scan import Scan
+from .config import MapConfig
+from .frontend import ReversingWatch
+from .pipeline import MapResult, _Mapper, map_scans
+
+__all__ = ["OnlineMapper"]
+
+
+def _flag(name: str, value) -> bool | None:
+    if value is not None and not isinstance(value, bool):
+        raise ArgumentError(
+            f"OnlineMapper: {name} must be True, False or None, got {type(value).__name__}"
+        )
+    return value
+
+
+class OnlineMapper:
+    """Map scans as they come: :meth:`add` each in recording order, :meth:`finish` at the
+    end (paper §2, the first application, run online).
+
+    Parameters
+    ----------
+    use_odometry : bool, optional
+        None (default): use the odometry when the first scan carries it. False: from the
+        scans alone (constant-velocity prior). True: use it where present.
+    odometry_reverses : bool, optional
+        Whether the wheel odometry reports the robot backing up. None (default): told from
+        the scans so far (module docstring).
+    config : MapConfig, optional
+    workers : int
+        As for :func:`~scanclique.mapping.map_scans`: N > 1 verifies the loop candidates on
+        N - 1 forked local processes. Use the mapper in a ``with`` block (or call
+        :meth:`close`) so that they end with it.
+
+    Raises
+    ------
+    ConfigError
+        If ``config`` is not a :class:`MapConfig` or ``workers`` is out of range.
+    ArgumentError
+        If ``use_odometry`` or ``odometry_reverses`` is not a bool or None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanclique.sim import simulate_pair
+    >>> pair = simulate_pair(np.random.default_rng(0))
+    >>> with OnlineMapper(use_odometry=False) as mapper:
+    ...     first = mapper.add(pair.scan_a)
+    ...     now = mapper.add(pair.scan_b)        # scan b's pose in scan a's frame, now
+    ...     result = mapper.finish()             # what map_scans([a, b]) gives
+    >>> first, len(result.poses)
+    (Pose2(x=0.0000, y=0.0000, theta=0.0000), 2)
+    """
+
+    def __init__(
+        self,
+        *,
+        use_odometry: bool | None = None,
+        odometry_reverses: bool | None = None,
+        config: MapConfig | None = None,
+        workers: int = 1,
+    ) -> None:
+        if config is not None and not isinstance(config, MapConfig):
+            raise ConfigError(
+                f"OnlineMapper: config must be a MapConfig or None, got {type(config).__name__}"
+            )
+        check_workers("OnlineMapper: workers", workers)
+        self._use = _flag("use_odometry", use_odometry)
+        self._reverses = _flag("odometry_reverses", odometry_reverses)
+        self._cfg = config or MapConfig()
+        self._workers = workers
+        self._watch = ReversingWatch()
+        self._mapper: _Mapper | None = None  # made at the first scan
+        self._result: MapResult | None = None
+        self._busy = 0.0  # seconds spent in add and finish
+        self._closed = False  # close() before finish(): no result
+
+    # -- taking scans -------------------------------------------------------------------
+    def add(self, scan: Scan) -> Pose2:
+        """Map the next scan; return its pose in the map frame as now estimated (maps the
+        scan's points into the frame of the first scan; m, rad).
+
+        The pose of an earlier scan may move as closures come (:meth:`pose`,
+        :meth:`poses`); the one returned here is what the mapper knew when the scan came.
+
+        Raises
+        ------
+        ScanError
+            If ``scan`` is not a :class:`~scanclique.scan.Scan`.
+        ArgumentError
+            After :meth:`finish` or :meth:`close`.
+        """
+        if not isinstance(scan, Scan):
+            raise ScanError(f"OnlineMapper.add: scan must be a Scan, got {type(scan).__name__}")
+        if self._result is not None or self._closed:
+            raise ArgumentError(
+                "OnlineMapper.add: the log is finished (finish() or close() was called); "
+                "start a new OnlineMapper"
+            )
+        t = time.perf_counter()
+        if self._mapper is None:
+            use = scan.odometry is not None if self._use is None else self._use
+            blind = self._reverses is False
+            self._mapper = _Mapper(use, blind, self._cfg, self._workers)
+        m = self._mapper
+        if self._reverses is None:
+            self._watch.see(scan.odometry)
+            m.blind_to_reversing = m.odo and not self._watch.sees_reversing
+        m.add_scan(scan)
+        pose = self.pose(len(m.scans) - 1)
+        self._busy += time.perf_counter() - t
+        return pose
+
+    # -- what is known now --------------------------------------------------------------
+    def __len__(self) -> int:
+        """The number of scans taken so far."""
+        return 0 if self._mapper is None else len(self._mapper.scans)
+
+    def pose(self, index: int) -> Pose2:
+        """Scan ``index``'s pose in the map frame under the current estimate (its
+        keyframe's, composed with its match to it).
+
+        Raises
+        ------
+        ArgumentError
+            If ``index`` is not an integer naming a scan taken so far (negative counts
+            from the newest).
+        """
+        n = len(self)
+        try:
+            if isinstance(index, bool):
+                raise TypeError
+            index = operator.index(index)
+        except TypeError:
+            raise ArgumentError(
+                f"OnlineMapper.pose: index must be an integer, got {index!r}"
+            ) from None
+        if not -n <= index < n:
+            raise ArgumentError(f"OnlineMapper.pose: no scan {index} ({n} taken so far)")
+        m = self._mapper
+        j = index % n
+        base = m.kf_of[j]
+        return m.estimate_of(bisect_left(m.kf, base)) @ m.rel_to_kf[j]
+
+    def poses(self) -> tuple[Pose2, ...]:
+        """Every scan's pose so far under the current estimate (:meth:`pose`)."""
+        return tuple(self.pose(j) for j in range(len(self)))
+
+    @property
+    def keyframes(self) -> tuple[int, ...]:
+        """Scan indices of the keyframes so far."""
+        return () if self._mapper is None else tuple(self._mapper.kf)
+
+    @property
+    def loop_closures(self) -> tuple:
+        """The loop candidates decided so far, with their verdicts (accepted or not; see
+        :class:`~scanclique.mapping.loops.LoopClosure`). The candidates of the newest
+        ``loops.pcm_batch`` keyframes are decided at the next batch or at :meth:`finish`."""
+        return () if self._mapper is None else tuple(self._mapper.closures)
+
+    # -- the end ------------------------------------------------------------------------
+    def finish(self) -> MapResult:
+        """End the log: the last scan becomes a keyframe, the pending closures are decided
+        and the batch back end (Levenberg–Marquardt) runs. The result is what
+        :func:`~scanclique.mapping.map_scans` gives for the same scans when the odometry is
+        taken alike (module docstring); ``seconds["total"]`` is the time spent in
+        :meth:`add` and here. Calling it again returns the same result.
+
+        Raises
+        ------
+        ArgumentError
+            After :meth:`close` without a result.
+        """
+        if self._result is not None:
+            return self._result
+        if self._closed:
+            raise ArgumentError("OnlineMapper.finish: the mapper was closed without a result")
+        t = time.perf_counter()
+        m = self._mapper
+        if m is None:
+            self._result = map_scans([], config=self._cfg)
+            return self._result
+        try:
+            m.close_log()
+        finally:
+            m.verifier.close()
+        self._result = m.result(t - self._busy)
+        return self._result
+
+    def close(self) -> None:
+        """End the worker processes (if any) without a result; the mapper takes no more
+        scans. :meth:`finish` closes them too."""
+        if self._result is None and not self._closed:
+            if self._mapper is not None:
+                self._mapper.verifier.close()
+            self._closed = True
+
+    def __enter__(self) -> OnlineMapper:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
