@@ -65,8 +65,7 @@ def test_the_poses_as_they_come():
     r0 = scans[0].reference.inverse()
     err_live = [p.distance_to(r0 @ s.reference)[0] for p, s in zip(live, scans, strict=True)]
     err_odo = [
-        (scans[0].odometry.inverse() @ s.odometry).distance_to(r0 @ s.reference)[0]
-        for s in scans
+        (scans[0].odometry.inverse() @ s.odometry).distance_to(r0 @ s.reference)[0] for s in scans
     ]
     assert max(err_live) < 0.15 < max(err_odo)
     # the newest scan's answer is what pose() gives for it (no later scan has moved it)
@@ -160,3 +159,36 @@ def test_the_finished_map_of_a_real_log_is_map_scans():
     _assert_same_map(batch, online)
     worst = max(p.distance_to(q)[0] for p, q in zip(live, online.poses, strict=True))
     assert worst < 1.0 and math.isfinite(worst)
+
+
+def test_map_online_keeps_each_answer_and_the_command_writes_them(drive_log, tmp_path):
+    """map_online: the live poses are the answers of add (the first the origin), one time
+    per scan; run_map(online=True) writes them as trajectory_live.tum beside the finished
+    map, whose trajectory.tum is the batch map's here (the drive's odometry is too short
+    to tell reversing: taken alike)."""
+    import json
+
+    from scanclique.mapping import map_online, run_map
+
+    scans = read_scans(drive_log)
+    calls = []
+    orun = map_online(scans, progress=lambda *a: calls.append(a))
+    assert len(orun.live) == len(scans) == orun.add_seconds.size
+    assert orun.live[0].as_array().tolist() == [0.0, 0.0, 0.0]
+    assert not orun.add_seconds.flags.writeable and (orun.add_seconds > 0).all()
+    assert calls and calls[-1][:2] == (len(scans), len(scans))
+    _assert_same_map(map_scans(scans), orun.result)
+    online = run_map(drive_log, tmp_path / "o", plot=False, online=True)
+    batch = run_map(drive_log, tmp_path / "b", plot=False)
+    tum = [(tmp_path / d / "trajectory.tum").read_text() for d in ("o", "b")]
+    assert tum[0] == tum[1]
+    live = np.loadtxt(tmp_path / "o/trajectory_live.tum")
+    np.testing.assert_allclose(live[:, 1:3], _array(orun.live)[:, :2], atol=1e-6)
+    report = json.loads((tmp_path / "o/report.json").read_text())
+    assert set(report["online"]["add_ms"]) == {"p50", "p95", "max"}
+    assert online.online == report["online"] and batch.online is None
+    assert any("time per scan online" in r[0] for r in online.rows())
+    with pytest.raises(ArgumentError, match="map_online: scans must be a sequence of Scan"):
+        map_online(str(drive_log))
+    with pytest.raises(ScanError, match=r"map_online: scans\[1\] is a str"):
+        map_online([scans[0], "scan"])

@@ -314,6 +314,10 @@ def test_the_output_names_are_the_files_written(tmp_path):
     r = invoke("map", _scan_text(tmp_path), "--out", tmp_path / "m", "--json")
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in (tmp_path / "m").iterdir()) == sorted(map_names(plot=False))
+    r = invoke("map", _scan_text(tmp_path), "--out", tmp_path / "o", "--json", "--online")
+    assert r.exit_code == 0, r.output
+    written = sorted(p.name for p in (tmp_path / "o").iterdir())
+    assert written == sorted(map_names(plot=False, online=True))
     vp = _tiny_victoria_park(tmp_path / "vp")
     r = invoke("slam", vp, "--out", tmp_path / "s", "--json")  # map.png with --out
     assert r.exit_code == 0, r.output

@@ -64,6 +64,15 @@ def map_cmd(
             "forked processes beside this one (the map is the same as with 1).",
         ),
     ] = 1,
+    online: Annotated[
+        bool,
+        typer.Option(
+            "--online",
+            help="Map the log as a robot would live, one scan at a time, and also write "
+            "trajectory_live.tum: each scan's pose as it was known when the scan came. The "
+            "table adds the time per scan.",
+        ),
+    ] = False,
     covariances: Annotated[
         bool,
         typer.Option(
@@ -77,7 +86,8 @@ def map_cmd(
     json_out: JsonOpt = False,
 ) -> None:
     """Map a log: trajectory.tum, graph.g2o, map.pgm + map.yaml (ROS map_server),
-    report.json (map.png with --plot, covariances.csv with --covariances) in OUT.
+    report.json (map.png with --plot, covariances.csv with --covariances,
+    trajectory_live.tum with --online) in OUT.
 
     **Examples**
 
@@ -87,6 +97,7 @@ def map_cmd(
     scanclique map my.bag --topic /scan --out runs/mine --plot
     scanclique map fr079-raw --out runs/fr079 --workers 2
     scanclique map intel --out runs/intel --covariances
+    scanclique map fr079-raw --out runs/fr079 --online   # + trajectory_live.tum
     scanclique config --for map > map.toml      # every key of MapConfig, to edit
     scanclique map intel --out runs/intel -c map.toml --save-config runs/used.toml
     ```
@@ -104,7 +115,7 @@ def map_cmd(
         import dataclasses
 
         cfg = dataclasses.replace(cfg, back_end=dataclasses.replace(cfg.back_end, covariances=True))
-    _check_out_dir(out, output_names(plot, cfg.back_end.covariances))  # before the run
+    _check_out_dir(out, output_names(plot, cfg.back_end.covariances, online))  # before the run
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from ..mapping.run import run_map, sigmas_dict
@@ -140,6 +151,7 @@ def map_cmd(
                 progress=tick,
                 workers=workers,
                 config=cfg,
+                online=online,
             )
         )
     for f in run.removed:
@@ -154,6 +166,7 @@ def map_cmd(
                 "seconds": {**run.result.seconds, **run.seconds},
                 "metrics": run.metrics,
                 "pose_sigmas": sigmas_dict(run.result.covariances),
+                "online": run.online,
                 "files": run.files,
                 "removed": list(run.removed),
             }

@@ -12,7 +12,7 @@ scan's pose as soon as it comes.
 
 from .config import BackEndConfig, FrontEndConfig, LoopConfig, MapConfig, OccupancyConfig
 from .loops import LoopClosure
-from .online import OnlineMapper
+from .online import OnlineMapper, OnlineRun, map_online
 from .pipeline import Edge, MapResult, map_scans
 from .run import MapRun, run_map
 
@@ -26,7 +26,9 @@ __all__ = [
     "MapResult",
     "MapRun",
     "OnlineMapper",
+    "OnlineRun",
     "OccupancyConfig",
+    "map_online",
     "map_scans",
     "run_map",
 ]

@@ -28,16 +28,21 @@ from __future__ import annotations
 import operator
 import time
 from bisect import bisect_left
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 
+import numpy as np
+
+from .._records import readonly
 from .._workers import check_workers
 from ..errors import ArgumentError, ConfigError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
 from .config import MapConfig
 from .frontend import ReversingWatch
-from .pipeline import MapResult, _Mapper, map_scans
+from .pipeline import MapResult, _Mapper, check_iterable_of_scans, map_scans
 
-__all__ = ["OnlineMapper"]
+__all__ = ["OnlineMapper", "OnlineRun", "map_online"]
 
 
 def _flag(name: str, value) -> bool | None:
@@ -234,3 +239,75 @@ class OnlineMapper:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class OnlineRun:
+    """A recorded log mapped online (:func:`map_online`).
+
+    Attributes
+    ----------
+    result : MapResult
+        The finished map (:meth:`OnlineMapper.finish`).
+    live : tuple of Pose2
+        Per scan, its pose as :meth:`OnlineMapper.add` answered it when the scan came (what
+        the robot knew then), in the map frame.
+    add_seconds : (N,) ndarray
+        Per scan, the time :meth:`OnlineMapper.add` took (s); ``finish_seconds`` is that of
+        :meth:`OnlineMapper.finish`.
+    finish_seconds : float
+    """
+
+    result: MapResult
+    live: tuple
+    add_seconds: np.ndarray
+    finish_seconds: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "add_seconds", readonly(self.add_seconds, dtype=float))
+
+
+def map_online(
+    scans: Iterable[Scan],
+    *,
+    use_odometry: bool | None = None,
+    odometry_reverses: bool | None = None,
+    config: MapConfig | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
+    workers: int = 1,
+) -> OnlineRun:
+    """Map a recorded log as a robot would have live: an :class:`OnlineMapper` fed its
+    scans in order, every answer and its time kept. The arguments are the mapper's;
+    ``progress(done, total, closures)`` is called every 50 scans (``total`` 0 when
+    ``scans`` has no length).
+
+    Raises
+    ------
+    ArgumentError
+        If ``scans`` is not an iterable of scans (None, a number, a path), or as
+        :class:`OnlineMapper` does.
+    ConfigError
+        As :class:`OnlineMapper` does.
+    ScanError
+        If one of the scans is not a :class:`~scanclique.scan.Scan` (naming its index).
+    """
+    check_iterable_of_scans("map_online", scans)
+    total = len(scans) if hasattr(scans, "__len__") else 0
+    live, took = [], []
+    with OnlineMapper(
+        use_odometry=use_odometry, odometry_reverses=odometry_reverses, config=config,
+        workers=workers,
+    ) as mapper:  # fmt: skip
+        for j, scan in enumerate(scans):
+            if not isinstance(scan, Scan):
+                raise ScanError(f"map_online: scans[{j}] is a {type(scan).__name__}, not a Scan")
+            t = time.perf_counter()
+            live.append(mapper.add(scan))
+            took.append(time.perf_counter() - t)
+            if progress is not None and j > 0 and (j % 50 == 0 or j == total - 1):
+                accepted = sum(1 for c in mapper.loop_closures if c.accepted and not c.local)
+                progress(j + 1, total, accepted)
+        t = time.perf_counter()
+        result = mapper.finish()
+        finish = time.perf_counter() - t
+    return OnlineRun(result, tuple(live), np.array(took, dtype=float), finish)

@@ -945,6 +945,18 @@ class _Mapper:
         )
 
 
+def check_iterable_of_scans(where: str, scans):
+    """``scans`` itself, or an :class:`ArgumentError` naming ``where`` when it cannot be a
+    sequence of scans (None, a number, a path: iterating would fail with a bare TypeError,
+    or split the path into characters)."""
+    if isinstance(scans, (str, bytes, os.PathLike)) or not isinstance(scans, Iterable):
+        raise ArgumentError(
+            f"{where}: scans must be a sequence of Scan (read a file with read_scans "
+            f"first), got {type(scans).__name__}"
+        )
+    return scans
+
+
 def _rotated(cov: np.ndarray | None, theta: float) -> np.ndarray | None:
     """A ``(2, 2)`` covariance expressed in a frame turned by ``-theta`` (``R cov R^T``,
     ``R`` the rotation by ``theta``): from a scan's frame to the world's with that scan's
@@ -1016,13 +1028,7 @@ def map_scans(
         )
     cfg = config or MapConfig()
     check_workers("map_scans: workers", workers)
-    if isinstance(scans, (str, bytes, os.PathLike)) or not isinstance(scans, Iterable):
-        # list() would fail with a bare TypeError, or split a path into characters
-        raise ArgumentError(
-            f"map_scans: scans must be a sequence of Scan (read a file with read_scans "
-            f"first), got {type(scans).__name__}"
-        )
-    scans = list(scans)
+    scans = list(check_iterable_of_scans("map_scans", scans))
     for k, s in enumerate(scans):
         if not isinstance(s, Scan):
             raise ScanError(f"map_scans: scans[{k}] is a {type(s).__name__}, not a Scan")

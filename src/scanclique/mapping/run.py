@@ -13,6 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .. import datasets
 from .._outdir import remove_earlier_output
 from ..errors import ScanCliqueError
@@ -64,15 +66,16 @@ def _relations_for(log_or_name: str) -> Path | None:
     return None
 
 
-def relation_summary(result: MapResult, scans, relations_path, mounting=None) -> dict | None:
-    """The relation metric (:mod:`scanclique.eval.relations`) of the result's poses."""
+def relation_summary(poses, scans, relations_path, mounting=None) -> dict | None:
+    """The relation metric (:mod:`scanclique.eval.relations`) of ``poses`` (one per scan,
+    or None), or None without a relations file."""
     if relations_path is None:
         return None
     from ..eval import read_relations, relation_metrics  # noqa: PLC0415
 
     rels = read_relations(relations_path)
     ts = [s.timestamp for s in scans]
-    m = relation_metrics(rels, list(result.poses), ts, mounting=mounting)
+    m = relation_metrics(rels, list(poses), ts, mounting=mounting)
     return {"relations": str(relations_path), **m.to_dict()}
 
 
@@ -89,6 +92,10 @@ class MapRun:
     removed: tuple = ()
     """Files of an earlier run in ``out`` that this one removed (a ``map.png`` of an
     earlier ``plot=True`` run, when this one draws none: it would show another map)."""
+    online: dict | None = None
+    """With ``online=True``: the time per scan (``add_ms``: median, p95, max), the
+    finish's (``finish_s``) and the relation metric of the live poses (``live_metrics``,
+    when the log has relations); else None."""
 
     def rows(self) -> list[tuple[str, str, str]]:
         """Metric / Value / Units rows for the command's table."""
@@ -130,6 +137,18 @@ class MapRun:
                     ("largest position sigma", f"{sig[0]:.4f}", "m"),
                     ("largest heading sigma", f"{sig[1]:.3f}", "deg"),
                 ]
+        if self.online:
+            a = self.online["add_ms"]
+            rows.append(
+                ("time per scan online (median / p95 / max)",
+                 f"{a['p50']:.1f} / {a['p95']:.1f} / {a['max']:.0f}", "ms")
+            )  # fmt: skip
+            live = self.online.get("live_metrics")
+            if live:
+                rows.append(
+                    ("relation error of the live poses",
+                     f"{live['all']['translation_mean']:.4f}", "m")
+                )  # fmt: skip
         for k, v in self.files.items():
             rows.append((k, str(v), "file"))
         return rows
@@ -144,7 +163,9 @@ def pose_sigmas(covariances) -> tuple[float, float] | None:
     return max(s for s, _ in stds), math.degrees(max(t for _, t in stds))
 
 
-def output_names(plot: bool = True, covariances: bool = False) -> tuple[str, ...]:
+def output_names(
+    plot: bool = True, covariances: bool = False, online: bool = False
+) -> tuple[str, ...]:
     """The names of the files :func:`run_map` writes into its ``out`` directory (the
     ``map`` command checks them before the run: a directory in the way of one failed
     only when the results were written)."""
@@ -152,6 +173,7 @@ def output_names(plot: bool = True, covariances: bool = False) -> tuple[str, ...
         ("trajectory.tum", "graph.g2o", "map.pgm", "map.yaml", "report.json")
         + (("map.png",) if plot else ())
         + (("covariances.csv",) if covariances else ())
+        + (("trajectory_live.tum",) if online else ())
     )
 
 
@@ -165,6 +187,7 @@ def run_map(
     config: MapConfig | None = None,
     progress: Callable[[int, int, int], None] | None = None,
     workers: int = 1,
+    online: bool = False,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
     ``report.json`` (``map.png`` when ``plot``; ``covariances.csv`` when the
@@ -172,6 +195,12 @@ def run_map(
     ``out``. Loop verification runs
     on ``workers - 1`` forked local processes beside this one (1: in this process; the map
     is the same).
+
+    ``online``: map the log as a robot would have live (:func:`.online.map_online`, one
+    scan at a time, the odometry's reversing told as the scans come) and also write
+    ``trajectory_live.tum``, each scan's pose as it was answered when the scan came. The
+    other files are the finished map's: the batch map, except where the batch reads the
+    whole log to tell whether the odometry reports backing up.
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
@@ -182,9 +211,20 @@ def run_map(
     t_read = time.perf_counter() - t0
     if not scans:
         raise ScanCliqueError(f"{log_or_name}: the log holds no laser scans")
-    result = map_scans(
-        scans, use_odometry=use_odometry, config=cfg, progress=progress, workers=workers
-    )
+    live = None
+    if online:
+        from .online import map_online  # noqa: PLC0415
+
+        if use_odometry is None:  # as map_scans decides it, from the whole log
+            use_odometry = all(s.odometry is not None for s in scans)
+        orun = map_online(
+            scans, use_odometry=use_odometry, config=cfg, progress=progress, workers=workers
+        )
+        result, live = orun.result, orun
+    else:
+        result = map_scans(
+            scans, use_odometry=use_odometry, config=cfg, progress=progress, workers=workers
+        )
     outdir = Path(out)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
@@ -197,6 +237,9 @@ def run_map(
     files["trajectory"] = outdir / "trajectory.tum"
     outputs.write_g2o(outdir / "graph.g2o", result.poses, result.edges)
     files["graph"] = outdir / "graph.g2o"
+    if live is not None:
+        outputs.write_tum(outdir / "trajectory_live.tum", live.live, ts)
+        files["trajectory_live"] = outdir / "trajectory_live.tum"
     if result.covariances is not None:
         outputs.write_covariances(outdir / "covariances.csv", result.poses, result.covariances, ts)
         files["covariances"] = outdir / "covariances.csv"
@@ -219,7 +262,17 @@ def run_map(
     rel_path = _relations_for(str(log_or_name))
     # the relations refer to the robot frame where the log's laser lines say where the
     # laser sits on it (fr079: 0.04 m behind), as benchmarks/mapping.py computes them
-    metrics = relation_summary(result, scans, rel_path, frame_mounting(scans))
+    metrics = relation_summary(result.poses, scans, rel_path, frame_mounting(scans))
+    online_summary = None
+    if live is not None:
+        online_summary = {
+            "add_ms": {
+                q: float(np.percentile(live.add_seconds, p) * 1e3)
+                for q, p in (("p50", 50), ("p95", 95), ("max", 100))
+            },
+            "finish_s": live.finish_seconds,
+            "live_metrics": relation_summary(live.live, scans, rel_path, frame_mounting(scans)),
+        }
     seconds = {"read": t_read, "map": result.seconds.get("total", 0.0), "outputs": t_out}
     seconds["total"] = time.perf_counter() - t0
     report = {
@@ -227,6 +280,7 @@ def run_map(
         "config": outputs.map_config_dict(cfg),
         "used_odometry": result.used_odometry,
         "workers": workers,
+        "online": online_summary,
         "counts": result.counts(),
         "pose_sigmas": sigmas_dict(result.covariances),
         "seconds": {**result.seconds, **seconds},
@@ -238,7 +292,10 @@ def run_map(
     }
     outputs.write_report(outdir / "report.json", report)
     files["report"] = outdir / "report.json"
-    return MapRun(label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed)
+    return MapRun(
+        label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed,
+        online_summary,
+    )  # fmt: skip
 
 
 def sigmas_dict(covariances) -> dict | None:
