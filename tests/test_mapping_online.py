@@ -171,9 +171,15 @@ def test_map_online_keeps_each_answer_and_the_command_writes_them(drive_log, tmp
     from scanclique.mapping import map_online, run_map
 
     scans = read_scans(drive_log)
-    calls = []
-    orun = map_online(scans, progress=lambda *a: calls.append(a))
+    calls, seen = [], []
+    orun = map_online(
+        scans, progress=lambda *a: calls.append(a),
+        watch=lambda m, j: seen.append((j, len(m), m.pose(j))),
+    )  # fmt: skip
     assert len(orun.live) == len(scans) == orun.add_seconds.size
+    # the watch is called after each add, with what is known then
+    assert [(j, n) for j, n, _ in seen] == [(j, j + 1) for j in range(len(scans))]
+    assert [p for *_, p in seen] == list(orun.live)
     assert orun.live[0].as_array().tolist() == [0.0, 0.0, 0.0]
     assert not orun.add_seconds.flags.writeable and (orun.add_seconds > 0).all()
     assert calls and calls[-1][:2] == (len(scans), len(scans))

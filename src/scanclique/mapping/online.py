@@ -275,11 +275,13 @@ def map_online(
     config: MapConfig | None = None,
     progress: Callable[[int, int, int], None] | None = None,
     workers: int = 1,
+    watch: Callable[[OnlineMapper, int], None] | None = None,
 ) -> OnlineRun:
     """Map a recorded log as a robot would have live: an :class:`OnlineMapper` fed its
     scans in order, every answer and its time kept. The arguments are the mapper's;
     ``progress(done, total, closures)`` is called every 50 scans (``total`` 0 when
-    ``scans`` has no length).
+    ``scans`` has no length); ``watch(mapper, index)`` after each scan is added, to read
+    what is known then (:meth:`OnlineMapper.pose` of earlier scans; not timed).
 
     Raises
     ------
@@ -304,6 +306,8 @@ def map_online(
             t = time.perf_counter()
             live.append(mapper.add(scan))
             took.append(time.perf_counter() - t)
+            if watch is not None:
+                watch(mapper, j)
             if progress is not None and j > 0 and (j % 50 == 0 or j == total - 1):
                 accepted = sum(1 for c in mapper.loop_closures if c.accepted and not c.local)
                 progress(j + 1, total, accepted)
