@@ -5,6 +5,7 @@ version and git metadata written with the results."""
 from __future__ import annotations
 
 import importlib.metadata
+import json
 import os
 import platform
 import subprocess
@@ -100,3 +101,30 @@ def provenance(t0: float) -> dict:
 def results_path(out: str | None, name: str) -> Path:
     """``out`` if given, else ``benchmarks/results/<name>``."""
     return Path(out) if out else RESULTS / name
+
+
+def log_available(name: str, known: tuple[str, ...], why: str = "") -> bool:
+    """Whether the registered log ``name`` is one of the ``known`` ones a benchmark runs
+    and its data are present; else say why it is skipped (``why``: the reason it runs only
+    those)."""
+    from scanclique import datasets  # noqa: PLC0415
+    from scanclique.errors import DataNotFoundError  # noqa: PLC0415
+
+    if name not in known:
+        print(f"{name}: skipped (this benchmark runs {', '.join(known)}{why})", flush=True)
+        return False
+    try:
+        datasets.dataset_path(name)
+    except DataNotFoundError as exc:
+        print(f"{name}: skipped ({exc})", flush=True)
+        return False
+    return True
+
+
+def write_results(base: Path | str, text: str, t0: float, rows: list) -> None:
+    """``base``.md holding ``text`` and ``base``.json holding the run's
+    :func:`provenance` and ``rows``."""
+    base = Path(base)
+    base.parent.mkdir(parents=True, exist_ok=True)
+    Path(f"{base}.md").write_text(text)
+    Path(f"{base}.json").write_text(json.dumps({**provenance(t0), "rows": rows}, indent=1) + "\n")

@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
-import json
 import math
 import sys
 import time
@@ -44,7 +43,6 @@ import common  # noqa: E402
 from mapping import relations_trajectory  # noqa: E402
 
 from scanclique import datasets  # noqa: E402
-from scanclique.errors import DataNotFoundError  # noqa: E402
 from scanclique.eval import frame_mounting, read_relations  # noqa: E402
 from scanclique.eval.relations import join_relations  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
@@ -227,15 +225,9 @@ def main(argv=None) -> int:
     cfg = dataclasses.replace(cfg, back_end=dataclasses.replace(cfg.back_end, covariances=True))
     rows = []
     for name in args.logs.split(","):
-        if name not in RAW + CORRECTED:
-            # freiburg's odometry fields are its corrected poses: mapping with them would
-            # be judged against themselves
-            print(f"{name}: skipped (this benchmark runs {', '.join(RAW + CORRECTED)})")
-            continue
-        try:
-            datasets.dataset_path(name)
-        except DataNotFoundError as exc:
-            print(f"{name}: skipped ({exc})", flush=True)
+        # freiburg's odometry fields are its corrected poses: mapping with them would be
+        # judged against themselves
+        if not common.log_available(name, RAW + CORRECTED):
             continue
         row = raw_log(name, cfg) if name in RAW else corrected_log(name, cfg)
         rows.append(row)
@@ -268,11 +260,8 @@ def main(argv=None) -> int:
     ]
     text = "\n".join(head + table(rows) + [""] + ratios) + "\n"
     print(text)
-    base.parent.mkdir(parents=True, exist_ok=True)
-    Path(f"{base}.md").write_text(text)
-    Path(f"{base}.json").write_text(
-        json.dumps({**common.provenance(t0), "rows": rows}, indent=1) + "\n"
-    )
+    if rows:  # a run that found no log leaves earlier results alone
+        common.write_results(base, text, t0, rows)
     return 0
 
 

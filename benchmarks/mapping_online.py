@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import json
 import math
 import sys
 import time
@@ -53,9 +52,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import common  # noqa: E402
+from mapping import _fmt  # noqa: E402 (the mapping benchmark's cell format)
 
 from scanclique import datasets  # noqa: E402
-from scanclique.errors import DataNotFoundError  # noqa: E402
 from scanclique.eval import frame_mounting, read_relations, relation_metrics  # noqa: E402
 from scanclique.eval.relations import (  # noqa: E402
     SHORT_SECONDS,
@@ -192,10 +191,6 @@ def run_log(name: str, modes: list[str], limit: int | None = None) -> list[dict]
     return rows
 
 
-def _f(v, fmt=".4f") -> str:
-    return "" if v is None or not math.isfinite(v) else format(v, fmt)
-
-
 def table(rows: list[dict]) -> list[str]:
     out = [
         "| log | mode | run | wall s | x batch | identical | add ms p50 / p95 / p99 / max "
@@ -233,8 +228,8 @@ def table(rows: list[dict]) -> list[str]:
             label = k.replace("_", " ")
             label = label if r["run"] == "batch" else f"{label} ({r['run']})"
             out.append(
-                f"| {r['log']} | {r['mode']} | {label} | {_f(e['all_m'])} | "
-                f"{_f(e['all_deg'], '.3f')} | {_f(e['short_m'])} | {_f(e['long_m'])} |"
+                f"| {r['log']} | {r['mode']} | {label} | {_fmt(e['all_m'])} | "
+                f"{_fmt(e['all_deg'], '.3f')} | {_fmt(e['short_m'])} | {_fmt(e['long_m'])} |"
             )
     return out
 
@@ -253,14 +248,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     rows = []
     for name in filter(None, args.logs.split(",")):
-        if name not in LOGS:
-            print(f"{name}: skipped (this benchmark runs {', '.join(LOGS)}: the logs with "
-                  "the benchmark's relations)")  # fmt: skip
-            continue
-        try:
-            datasets.dataset_path(name)
-        except DataNotFoundError as exc:
-            print(f"{name}: skipped ({exc})", flush=True)
+        if not common.log_available(name, LOGS, ": the logs with the benchmark's relations"):
             continue
         rows += run_log(name, modes, args.limit)
     date = datetime.date.today().isoformat()
@@ -275,11 +263,7 @@ def main(argv=None) -> int:
     text = "\n".join(head + table(rows)) + "\n" if rows else "no log found\n"
     print(text)
     if rows:
-        base.parent.mkdir(parents=True, exist_ok=True)
-        Path(f"{base}.md").write_text(text)
-        Path(f"{base}.json").write_text(
-            json.dumps({**common.provenance(t0), "rows": rows}, indent=1) + "\n"
-        )
+        common.write_results(base, text, t0, rows)
     return 0
 
 
