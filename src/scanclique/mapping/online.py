@@ -309,8 +309,7 @@ def map_online(
             if watch is not None:
                 watch(mapper, j)
             if progress is not None and j > 0 and (j % 50 == 0 or j == total - 1):
-                accepted = sum(1 for c in mapper.loop_closures if c.accepted and not c.local)
-                progress(j + 1, total, accepted)
+                progress(j + 1, total, mapper._mapper.closures_accepted())
         t = time.perf_counter()
         result = mapper.finish()
         finish = time.perf_counter() - t

@@ -687,6 +687,10 @@ class _Mapper:
         # the front end's own time: the loops' searches and flushes are timed apart
         self.seconds["front_end"] += time.perf_counter() - t - (self.loop_seconds() - busy)
 
+    def closures_accepted(self) -> int:
+        """Loop closures accepted so far (local matches not counted), for progress."""
+        return sum(1 for c in self.closures if c.accepted and not c.local)
+
     def loop_seconds(self) -> float:
         return self.seconds["loops"] + self.seconds["pcm"] + self.seconds["isam"]
 
@@ -713,7 +717,7 @@ class _Mapper:
         for j, scan in enumerate(scans):
             self.add_scan(scan)
             if progress is not None and j > 0 and (j % 50 == 0 or j == n - 1):
-                progress(j + 1, n, sum(1 for c in self.closures if c.accepted and not c.local))
+                progress(j + 1, n, self.closures_accepted())
         self.close_log()
 
     def place(self, j: int) -> None:
