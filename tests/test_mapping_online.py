@@ -192,8 +192,11 @@ def test_map_online_keeps_each_answer_and_the_command_writes_them(drive_log, tmp
     np.testing.assert_allclose(live[:, 1:3], _array(orun.live)[:, :2], atol=1e-6)
     report = json.loads((tmp_path / "o/report.json").read_text())
     assert set(report["online"]["add_ms"]) == {"p50", "p95", "max"}
+    assert report["online"]["first_ms"] > 0
     assert online.online == report["online"] and batch.online is None
-    assert any("time per scan online" in r[0] for r in online.rows())
+    names = [r[0] for r in online.rows()]
+    assert "time per scan online (median / p95 / max)" in names
+    assert "first scan online (kernels load)" in names
     with pytest.raises(ArgumentError, match="map_online: scans must be a sequence of Scan"):
         map_online(str(drive_log))
     with pytest.raises(ScanError, match=r"map_online: scans\[1\] is a str"):
