@@ -57,7 +57,7 @@ from mapping import _fmt  # noqa: E402 (the mapping benchmark's cell format)
 from scanclique import datasets  # noqa: E402
 from scanclique.eval import frame_mounting, read_relations, relation_metrics  # noqa: E402
 from scanclique.eval.relations import (  # noqa: E402
-    SHORT_SECONDS,
+    SplitErrors,
     join_relations,
     relation_errors,
 )
@@ -73,7 +73,10 @@ def _poses(poses) -> np.ndarray:
 
 
 def _errors(rels, poses, ts, mounting) -> dict:
-    m = relation_metrics(rels, list(poses), ts, mounting=mounting)
+    return _means(relation_metrics(rels, list(poses), ts, mounting=mounting))
+
+
+def _means(m: SplitErrors) -> dict:
     return {
         "all_m": m.all.translation_mean,
         "all_deg": m.all.rotation_mean,
@@ -113,19 +116,12 @@ def known_then(rels, ts, mounting):
             kept[k] = (a, mapper.pose(a), j, mapper.pose(j))
 
     def errors() -> dict:
-        t, r, span = [], [], []
-        for k, (a, pa, b, pb) in kept.items():
-            e = relation_errors([rels[k]], {ts[a]: pa, ts[b]: pb}, mounting=mounting)
-            t.append(e[0][0])
-            r.append(e[1][0])
-            span.append(e[2][0])
-        t, r, short = np.array(t), np.degrees(r), np.array(span) <= SHORT_SECONDS
-        return {
-            "all_m": float(np.nanmean(t)),
-            "all_deg": float(np.nanmean(r)),
-            "short_m": float(np.nanmean(t[short])) if short.any() else math.nan,
-            "long_m": float(np.nanmean(t[~short])) if (~short).any() else math.nan,
-        }
+        per = [
+            relation_errors([rels[k]], {ts[a]: pa, ts[b]: pb}, mounting=mounting)
+            for k, (a, pa, b, pb) in kept.items()
+        ]
+        t, r, span = (np.array([e[i][0] for e in per]) for i in range(3))
+        return _means(SplitErrors.of(t, r, span))
 
     return watch, errors
 

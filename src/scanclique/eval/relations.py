@@ -303,6 +303,25 @@ class SplitErrors:
     long: RelationErrors
     short_seconds: float = SHORT_SECONDS
 
+    @classmethod
+    def of(
+        cls,
+        t_err: np.ndarray,
+        r_err: np.ndarray,
+        span: np.ndarray,
+        short_seconds: float = SHORT_SECONDS,
+    ) -> SplitErrors:
+        """From per-relation translation (m) and rotation (rad) errors and spans (s), as
+        :func:`relation_errors` gives them."""
+        t, r = np.asarray(t_err, dtype=float), np.asarray(r_err, dtype=float)
+        short = np.asarray(span, dtype=float) <= short_seconds
+        return cls(
+            RelationErrors.of(t, r),
+            RelationErrors.of(t[short], r[short]),
+            RelationErrors.of(t[~short], r[~short]),
+            short_seconds,
+        )
+
     def to_dict(self) -> dict:
         return {
             "all": self.all.to_dict(),
@@ -325,10 +344,4 @@ def relation_metrics(
     See :func:`relation_errors` for the parameters.
     """
     t, r, span = relation_errors(relations, poses, timestamps, mounting=mounting)
-    short = span <= short_seconds
-    return SplitErrors(
-        RelationErrors.of(t, r),
-        RelationErrors.of(t[short], r[short]),
-        RelationErrors.of(t[~short], r[~short]),
-        short_seconds,
-    )
+    return SplitErrors.of(t, r, span, short_seconds)

@@ -66,17 +66,21 @@ def _relations_for(log_or_name: str) -> Path | None:
     return None
 
 
-def relation_summary(poses, scans, relations_path, mounting=None) -> dict | None:
-    """The relation metric (:mod:`scanclique.eval.relations`) of ``poses`` (one per scan,
-    or None), or None without a relations file."""
+def relation_summary(scans, relations_path, *pose_sets, mounting=None) -> tuple[dict | None, ...]:
+    """The relation metric (:mod:`scanclique.eval.relations`) of each of ``pose_sets``
+    (one pose per scan, or None), the relations read once; None for each without a
+    relations file."""
     if relations_path is None:
-        return None
+        return (None,) * len(pose_sets)
     from ..eval import read_relations, relation_metrics  # noqa: PLC0415
 
     rels = read_relations(relations_path)
     ts = [s.timestamp for s in scans]
-    m = relation_metrics(rels, list(poses), ts, mounting=mounting)
-    return {"relations": str(relations_path), **m.to_dict()}
+    return tuple(
+        {"relations": str(relations_path),
+         **relation_metrics(rels, list(poses), ts, mounting=mounting).to_dict()}
+        for poses in pose_sets
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -265,7 +269,10 @@ def run_map(
     rel_path = _relations_for(str(log_or_name))
     # the relations refer to the robot frame where the log's laser lines say where the
     # laser sits on it (fr079: 0.04 m behind), as benchmarks/mapping.py computes them
-    metrics = relation_summary(result.poses, scans, rel_path, frame_mounting(scans))
+    pose_sets = (result.poses,) if live is None else (result.poses, live.live)
+    metrics, *live_metrics = relation_summary(
+        scans, rel_path, *pose_sets, mounting=frame_mounting(scans)
+    )
     online_summary = None
     if live is not None:
         # the first scan also loads the compiled kernels (about a second): apart
@@ -277,7 +284,7 @@ def run_map(
             },
             "first_ms": float(live.add_seconds[0] * 1e3),
             "finish_s": live.finish_seconds,
-            "live_metrics": relation_summary(live.live, scans, rel_path, frame_mounting(scans)),
+            "live_metrics": live_metrics[0],
         }
     seconds = {"read": t_read, "map": result.seconds.get("total", 0.0), "outputs": t_out}
     seconds["total"] = time.perf_counter() - t0
