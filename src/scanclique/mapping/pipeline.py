@@ -237,7 +237,8 @@ def _cov_xy_rot(s_xy: float, s_th: float) -> np.ndarray:
 
 
 class _Mapper:
-    """The state carried across scans by :func:`map_scans` (keyframes, estimate, graph)."""
+    """The state carried across scans (keyframes, estimate, graph) by :func:`map_scans` and
+    by :class:`~scanclique.mapping.online.OnlineMapper`, which feed it one scan at a time."""
 
     def __init__(
         self, use_odometry: bool, blind_to_reversing: bool, cfg: MapConfig, workers: int = 1
