@@ -86,6 +86,9 @@ BAD_FIELDS = [
     (SlamConfig, "sigma_range", NAN),  # an empty map before
     (SlamConfig, "sigma_bearing", INF),
     (SlamConfig, "sigma_xy_rate", "0.1"),  # a TypeError at the first prediction before
+    (SlamConfig, "sigma_xy_distance", -0.05),
+    (SlamConfig, "sigma_theta_distance", NAN),
+    (SlamConfig, "sigma_theta_turn", INF),
     (SlamConfig, "sensor_fov", -1.0),
     (SlamConfig, "max_range", -1.0),
     (SlamConfig, "max_range", NAN),
@@ -137,6 +140,8 @@ GOOD_FIELDS = [  # the documented meanings of the edge values
     (SlamConfig, "init_range", (0.0, INF)),
     (SlamConfig, "initial_sigma", (0.0, 0.0, 0.0)),  # a known start
     (SlamConfig, "sigma_xy_rate", 0.0),
+    (SlamConfig, "sigma_xy_distance", 0.0),
+    (SlamConfig, "sigma_theta_turn", 0.0),
     (SlamConfig, "control_bias_sigma", 0.1),
     (SlamConfig, "speed_scale_sigma", None),  # the speed as logged
     (SlamConfig, "tentative_update", "landmark"),

@@ -190,14 +190,16 @@ def sym_update(P, d, K, Mt):
 
 
 @njit(cache=True)
-def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, qadd, poses, covs, out0):
+def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, slip, poses, covs, out0):
     """Integrate the vehicle over consecutive controls (one Euler step each).
 
     ``kind`` 0: Ackermann, params (L, H, sigma_v, sigma_v_rel, sigma_steer); 1: unicycle,
     params (sigma_v, sigma_v_rel, sigma_omega). Updates ``x`` (3,), ``Pvv`` (3, 3) and the
     accumulated Jacobian ``Fcum`` (3, 3) in place; writes the pose and covariance after
-    step ``q`` to ``poses[out0 + q]``, ``covs[out0 + q]``. ``qadd`` (3,): additive process
-    noise per second while moving (see :meth:`scanclique.slam.models.MotionModel.moving`)."""
+    step ``q`` to ``poses[out0 + q]``, ``covs[out0 + q]``. ``slip`` (3, 3): additive process
+    variances while moving (see :meth:`scanclique.slam.models.MotionModel.moving`) per
+    second, per metre travelled and per radian turned (:attr:`SlamConfig.slip
+    <scanclique.slam.SlamConfig.slip>`)."""
     F = np.eye(3)
     G = np.zeros((3, 2))
     Q = np.zeros((2, 2))
@@ -248,8 +250,10 @@ def predict_segment(kind, params, x, Pvv, Fcum, dts, controls, qadd, poses, covs
             x[2] = (a + np.pi) % (2.0 * np.pi) - np.pi
             Pn = F @ Pvv @ F.T + G @ Q @ G.T
             if abs(v0) > 1e-6 or (kind == 1 and abs(u1) > 1e-6):
+                dist = abs(vc) * dt
+                turn = abs(w) * dt
                 for r in range(3):
-                    Pn[r, r] += qadd[r] * dt
+                    Pn[r, r] += slip[0, r] * dt + slip[1, r] * dist + slip[2, r] * turn
             Pvv[:, :] = Pn
             Fcum[:, :] = F @ Fcum
         poses[out0 + q, :] = x

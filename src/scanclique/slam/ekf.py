@@ -51,7 +51,7 @@ from .association import (
 from .models import MotionModel, inverse_observe, observe, wrap
 from .reader import Step
 
-__all__ = ["SlamConfig", "SlamResult", "ekf_slam", "held_controls"]
+__all__ = ["SlamConfig", "SlamResult", "ekf_slam", "held_controls", "slip_variance"]
 
 log = logging.getLogger(__name__)
 
@@ -102,6 +102,17 @@ class SlamConfig:
         that the controls' noise does not cover, added while the vehicle moves
         (:meth:`MotionModel.moving <scanclique.slam.models.MotionModel.moving>`: a
         unicycle turning on the spot moves, a car at rest with its wheel turned does not).
+    sigma_xy_distance, sigma_theta_distance : float
+        Additive process noise per square root of metre travelled (m, rad): slip that
+        grows with the path, not with time (the variance of x and of y grows by
+        ``sigma_xy_distance**2`` per metre, the heading's by ``sigma_theta_distance**2``).
+        Added to the per-second noise; 0 leaves it out.
+    sigma_theta_turn : float
+        Additive heading noise per square root of radian turned (rad): a wheel base or
+        a gyro scale off by a little turns every rotation by a little more or less.
+        Added to the others; 0 leaves it out. The three forms together are the
+        additive noise of one step, :attr:`slip` (rows per second, per metre, per
+        radian; columns x, y, heading).
     initial_sigma : (3,) float
         Standard deviations of the initial pose (m, m, rad).
     confirm_hits : int
@@ -196,6 +207,9 @@ class SlamConfig:
     sensor_fov: float = math.pi
     sigma_xy_rate: float = 0.1
     sigma_theta_rate: float = math.radians(0.5)
+    sigma_xy_distance: float = 0.0
+    sigma_theta_distance: float = 0.0
+    sigma_theta_turn: float = 0.0
     initial_sigma: tuple[float, float, float] = (0.01, 0.01, math.radians(0.1))
     confirm_hits: int = 5
     max_misses: int = 3
@@ -219,7 +233,8 @@ class SlamConfig:
         )  # fmt: skip
         check_positive(self, "max_range", "visible_range", "confirm_range", infinite=True)
         check_nonneg(
-            self, "sigma_xy_rate", "sigma_theta_rate", "control_bias_sigma",
+            self, "sigma_xy_rate", "sigma_theta_rate", "sigma_xy_distance",
+            "sigma_theta_distance", "sigma_theta_turn", "control_bias_sigma",
             "control_bias_rate", "speed_scale_sigma", "bearing_bias_sigma",
         )  # fmt: skip
         if not all(math.isfinite(s) and s >= 0 for s in self.initial_sigma):
@@ -306,6 +321,27 @@ class SlamConfig:
     @property
     def R(self) -> np.ndarray:
         return np.diag([self.sigma_range**2, self.sigma_bearing**2])
+
+    @property
+    def slip(self) -> np.ndarray:
+        """The additive process noise as a (3, 3) array of variances: row 0 per second
+        (while moving), row 1 per metre travelled, row 2 per radian turned; columns x, y,
+        heading. One step adds ``slip_variance(self.slip, dt, distance, turn)``."""
+        xy_t, th_t = self.sigma_xy_rate**2, self.sigma_theta_rate**2
+        xy_d, th_d = self.sigma_xy_distance**2, self.sigma_theta_distance**2
+        return np.array(
+            [[xy_t, xy_t, th_t], [xy_d, xy_d, th_d], [0.0, 0.0, self.sigma_theta_turn**2]]
+        )
+
+
+def slip_variance(slip: np.ndarray, x0, x1, dt: float) -> np.ndarray:
+    """The additive variances (3,) of x, y and heading for one step of a moving vehicle
+    from pose ``x0`` to ``x1`` (``(x, y, theta)``) over ``dt`` seconds, given
+    :attr:`SlamConfig.slip`: per second, per metre of the straight path between the two
+    poses and per radian of heading change."""
+    dist = math.hypot(x1[0] - x0[0], x1[1] - x0[1])
+    turn = abs(wrap(x1[2] - x0[2]))
+    return slip[0] * dt + slip[1] * dist + slip[2] * turn
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -637,7 +673,7 @@ def ekf_slam(
     Pvv = f.P[:nv, :nv].copy()
     Fcum = np.eye(nv)
     half_fov = 0.5 * cfg.sensor_fov
-    qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
+    slip = cfg.slip
     kern = None if nv > 3 else motion_model.kernel()
     q_bias = (cfg.control_bias_rate or 0.0) ** 2
     confirm_r = math.inf if cfg.confirm_range is None else cfg.confirm_range
@@ -657,7 +693,7 @@ def ekf_slam(
             from ._kernels import predict_segment
 
             predict_segment(
-                kern[0], kern[1], xv, Pvv, Fcum, dts[a:b], held[a:b], qadd, poses, pcovs, a
+                kern[0], kern[1], xv, Pvv, Fcum, dts[a:b], held[a:b], slip, poses, pcovs, a
             )
         elif nv > 3:
             Fa = np.eye(nv)
@@ -667,6 +703,7 @@ def ekf_slam(
                     u = held[k] + (0.0, xv[3]) if bias else held[k]
                     if sscale:
                         u = np.array([u[0] * (1.0 + xv[i_s]), u[1]])
+                    x_was = xv[:3].copy()
                     xv[:3], F, G = motion_model.predict(xv[:3], u, dts[k])
                     Fa[:3, :3] = F
                     if bias:
@@ -676,7 +713,7 @@ def ekf_slam(
                     Ga[:3] = G
                     Pvv = Fa @ Pvv @ Fa.T + Ga @ motion_model.control_covariance(u) @ Ga.T
                     if motion_model.moving(held[k]):
-                        Pvv[np.diag_indices(3)] += qadd * dts[k]
+                        Pvv[np.diag_indices(3)] += slip_variance(slip, x_was, xv, dts[k])
                     if bias:
                         Pvv[3, 3] += q_bias * dts[k]
                     Fcum = Fa @ Fcum
@@ -685,10 +722,11 @@ def ekf_slam(
         else:
             for k in range(a, b):
                 if dts[k] > 0 and not np.isnan(held[k, 0]):
+                    x_was = xv
                     xv, F, G = motion_model.predict(xv, held[k], dts[k])
                     Pvv = F @ Pvv @ F.T + G @ motion_model.control_covariance(held[k]) @ G.T
                     if motion_model.moving(held[k]):
-                        Pvv[np.diag_indices(3)] += qadd * dts[k]
+                        Pvv[np.diag_indices(3)] += slip_variance(slip, x_was, xv, dts[k])
                     Fcum = F @ Fcum
                 poses[k] = xv
                 pcovs[k] = Pvv

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ekf import SlamConfig
+from .ekf import SlamConfig, slip_variance
 from .models import Ackermann, Unicycle, observe, wrap
 from .reader import Step
 
@@ -169,7 +169,7 @@ def simulate_park(
     # drive: true motion with slip, logged controls with noise, scans at scan_dt
     sx, sy = model.sensor_x, model.sensor_y
     R = cfg.R
-    qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
+    slip = cfg.slip
     steps, times, poses, truth = [], [], [], []
     x = np.zeros(3)
     next_scan = scan_dt
@@ -181,9 +181,10 @@ def simulate_park(
         steps.append(Step(t, u_meas, empty))
         times.append(t)
         poses.append(x.copy())
+        x_was = x
         x, _, _ = model.predict(x, u, control_dt)
         if u[0] != 0:
-            x = x + rng.normal(0.0, np.sqrt(qadd * control_dt))
+            x = x + rng.normal(0.0, np.sqrt(slip_variance(slip, x_was, x, control_dt)))
             x[2] = wrap(x[2])
         t = (q + 1) * control_dt
         if t >= next_scan - 1e-9:
@@ -313,7 +314,7 @@ def simulate_room(
     lms = _room_landmarks(rng, (W, D), n_landmarks, min_spacing)
     max_range = cfg.max_range if cfg.max_range is not None else math.inf
     R = cfg.R
-    qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
+    slip = cfg.slip
     dt_c = 1.0 / control_rate
     n_ctrl = int(math.floor(duration * control_rate))
     # frames between the controls: a phase that never meets the control grid, and jitter
@@ -332,8 +333,9 @@ def simulate_room(
     o = 0  # next frame
 
     def move(x, u, dt):
+        x_was = x
         x, _, _ = model.predict(x, u, dt)
-        x = x + rng.normal(0.0, np.sqrt(qadd * dt))
+        x = x + rng.normal(0.0, np.sqrt(slip_variance(slip, x_was, x, dt)))
         x[2] = wrap(x[2])
         return x
 

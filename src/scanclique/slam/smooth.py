@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .association import NEW
-from .ekf import SlamConfig, SlamResult, held_controls
+from .ekf import SlamConfig, SlamResult, held_controls, slip_variance
 
 __all__ = ["SmoothResult", "smooth"]
 
@@ -80,7 +80,7 @@ class SmoothResult:
     cpu_seconds: float
 
 
-def _odometry(model, held, dts, a, b, qadd):
+def _odometry(model, held, dts, a, b, slip):
     """Controls ``held[a:b]`` over ``dts[a:b]`` integrated from the identity: the end pose
     ``(x, y, theta)`` in the start frame and its covariance (3, 3), propagated as the
     filter's prediction does (control noise through G, additive noise while moving)."""
@@ -89,10 +89,11 @@ def _odometry(model, held, dts, a, b, qadd):
     for k in range(a, b):
         if dts[k] > 0 and not np.isnan(held[k, 0]):
             u = held[k]
+            x_was = x
             x, F, G = model.predict(x, u, dts[k])
             P = F @ P @ F.T + G @ model.control_covariance(u) @ G.T
             if model.moving(u):
-                P[np.diag_indices(3)] += qadd * dts[k]
+                P[np.diag_indices(3)] += slip_variance(slip, x_was, x, dts[k])
     return x, P
 
 
@@ -156,7 +157,7 @@ def smooth(
         held[:, 0] *= 1.0 + result.speed_scale[0]
     if result.control_bias is not None:
         held[:, 1] += result.control_bias[0]
-    qadd = np.array([cfg.sigma_xy_rate**2, cfg.sigma_xy_rate**2, cfg.sigma_theta_rate**2])
+    slip = cfg.slip
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     if len(obs_steps) != len(result.associations):
         raise ValueError("the steps are not the ones the filter ran on")
@@ -177,7 +178,7 @@ def smooth(
     init = gtsam.Values()
     # the first observation step: the initial pose moved there by the controls
     s0 = obs_steps[0] if obs_steps else 0
-    d0, P0 = _odometry(model, held, dts, 0, s0 + 1, qadd)
+    d0, P0 = _odometry(model, held, dts, 0, s0 + 1, slip)
     start = np.asarray(initial_pose, float)  # ekf_slam's initial_pose
     p_first = gtsam.Pose2(*start).compose(gtsam.Pose2(*d0))
     sig0 = np.asarray(cfg.initial_sigma, float)
@@ -200,7 +201,7 @@ def smooth(
         init.insert(X(o), sensor(result.poses[k]))
         if o == 0:
             continue
-        d, P = _odometry(model, held, dts, obs_steps[o - 1] + 1, k + 1, qadd)
+        d, P = _odometry(model, held, dts, obs_steps[o - 1] + 1, k + 1, slip)
         Ps = at_sensor(d, P)
         rel = mount.inverse().compose(gtsam.Pose2(*d)).compose(mount)
         graph.add(
