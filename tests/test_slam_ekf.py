@@ -17,7 +17,13 @@ from scanclique.slam.metrics import align_se2, duplicate_pairs, gps_error, gps_o
 from scanclique.slam.models import inverse_observe, observe
 from scanclique.slam.sim import simulate_park
 
-CFG = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05)
+#: The slip these tests were written for: per second while moving (the defaults before
+#: session 22), the same in the simulated truth and the filter.
+SLIP = dict(
+    sigma_xy_rate=0.05, sigma_theta_rate=math.radians(0.5), sigma_xy_distance=0.0,
+    sigma_theta_distance=0.0, sigma_theta_turn=0.0,
+)  # fmt: skip
+CFG = slam.SlamConfig(max_range=20.0, **SLIP)
 
 
 @pytest.fixture(scope="module")
@@ -214,7 +220,7 @@ def test_steering_bias_is_estimated(park):
         for s in park.steps
     ]
     cfg = slam.SlamConfig(
-        max_range=20.0, sigma_xy_rate=0.05, control_bias_sigma=0.05, control_bias_rate=1e-5
+        max_range=20.0, **SLIP, control_bias_sigma=0.05, control_bias_rate=1e-5
     )
     r = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=cfg)
     b, sb = r.control_bias
@@ -253,7 +259,7 @@ def test_speed_scale_is_estimated(park):
 
 def test_init_range_limits_new_landmarks(park):
     """No landmark starts beyond the initialisation range: every NEW observation is within."""
-    cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, init_range=(0.0, 12.0))
+    cfg = slam.SlamConfig(max_range=20.0, **SLIP, init_range=(0.0, 12.0))
     r = slam.ekf_slam(park.steps, slam.Ackermann(), association="nn", config=cfg)
     obs = [s for s in park.steps if s.n_observations]
     new_r = np.concatenate(
@@ -275,7 +281,7 @@ def test_bearing_bias_is_estimated(park):
         s if not s.n_observations else slam.Step(s.time, s.control, s.observations + (0.0, offset))
         for s in park.steps
     ]
-    cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, bearing_bias_sigma=0.03)
+    cfg = slam.SlamConfig(max_range=20.0, **SLIP, bearing_bias_sigma=0.03)
     r = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=cfg)
     b, sb = r.bearing_bias
     assert abs(b - offset) < 3 * sb and sb < 0.005
@@ -356,7 +362,7 @@ def test_iterated_update_reaches_the_map_estimate():
 
 
 def test_iterated_filter_runs_on_the_park(park):
-    cfg = slam.SlamConfig(max_range=20.0, sigma_xy_rate=0.05, update_iterations=3)
+    cfg = slam.SlamConfig(max_range=20.0, **SLIP, update_iterations=3)
     r = slam.ekf_slam(park.steps, slam.Ackermann(), association="nn", config=cfg)
     e = r.poses - park.poses
     assert np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1))) < 1.5

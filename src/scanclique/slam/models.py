@@ -217,8 +217,8 @@ class Unicycle(MotionModel):
         control to the next, so its effect on the pose shrinks with the control rate: at
         67 Hz, 0.05 m/s adds 0.006 m and 2 deg/s 0.24 deg per square root of second. The
         odometry's systematic error (wheel radii, slip) belongs in the filter's additive
-        process noise, :attr:`SlamConfig.sigma_xy_rate
-        <scanclique.slam.SlamConfig.sigma_xy_rate>` and ``sigma_theta_rate``.
+        process noise, :attr:`SlamConfig.slip <scanclique.slam.SlamConfig.slip>` (per
+        metre travelled, per radian turned, per second).
 
     Examples
     --------

@@ -221,9 +221,9 @@ def room_config(**overrides) -> SlamConfig:
     """The :class:`~scanclique.slam.SlamConfig` of :func:`simulate_room`'s default sensor
     and robot (UTIAS MRCLAM-like), by :meth:`SlamConfig.for_sensor
     <scanclique.slam.SlamConfig.for_sensor>`: range sigma 0.15 m, bearing sigma 3 deg,
-    5 m, a 60 deg field of view; slip 0.02 m and 1 deg per square root of second (about
-    8 % of the distance and 4 deg per metre at 0.25 m/s over a second). Keyword arguments
-    replace fields.
+    5 m, a 60 deg field of view; slip 0.02 m and 1 deg per square root of second while
+    moving (about 8 % of the distance and 4 deg per metre at 0.25 m/s over a second), and
+    none per metre or per radian (the defaults' forms). Keyword arguments replace fields.
 
     >>> cfg = room_config()
     >>> cfg.max_range, round(math.degrees(cfg.sensor_fov)), cfg.visible_range
@@ -236,6 +236,9 @@ def room_config(**overrides) -> SlamConfig:
         fov=math.radians(60.0),
         sigma_xy_rate=0.02,
         sigma_theta_rate=math.radians(1.0),
+        sigma_xy_distance=0.0,
+        sigma_theta_distance=0.0,
+        sigma_theta_turn=0.0,
     )
     if "sensor_fov" in overrides:
         overrides["fov"] = overrides.pop("sensor_fov")
