@@ -219,9 +219,7 @@ def test_steering_bias_is_estimated(park):
         s if s.control is None else slam.Step(s.time, s.control + (0.0, offset), s.observations)
         for s in park.steps
     ]
-    cfg = slam.SlamConfig(
-        max_range=20.0, **SLIP, control_bias_sigma=0.05, control_bias_rate=1e-5
-    )
+    cfg = slam.SlamConfig(max_range=20.0, **SLIP, control_bias_sigma=0.05, control_bias_rate=1e-5)
     r = slam.ekf_slam(steps, slam.Ackermann(), association="jcbb", config=cfg)
     b, sb = r.control_bias
     assert abs(b + offset) < 3 * sb and sb < 0.005

@@ -89,7 +89,9 @@ def test_compiled_and_python_predictions_agree_with_every_form():
     b = _final_cov(steps, slam.SlamConfig(speed_scale_sigma=0.0, **cfg), slam.Ackermann())
     np.testing.assert_allclose(a, b, rtol=1e-9)
     only_t = dict(sigma_xy_distance=0.0, sigma_theta_distance=0.0, sigma_theta_turn=0.0)
-    c = _final_cov(steps, slam.SlamConfig(speed_scale_sigma=None, **{**cfg, **only_t}), slam.Ackermann())
+    c = _final_cov(
+        steps, slam.SlamConfig(speed_scale_sigma=None, **{**cfg, **only_t}), slam.Ackermann()
+    )
     assert a[2, 2] > c[2, 2]  # the per-metre and per-radian forms add to the heading's
 
 
@@ -101,8 +103,12 @@ def test_simulated_truth_slips_per_metre():
     from scanclique.slam.sim import simulate_park
 
     def truth(sigma):
-        cfg = slam.SlamConfig(sigma_xy_distance=sigma, sigma_theta_distance=0.0, sigma_theta_turn=0.0)
-        run = simulate_park(3, laps=1, length=40.0, width=20.0, n_trees=30, p_detect=0.0, config=cfg)
+        cfg = slam.SlamConfig(
+            sigma_xy_distance=sigma, sigma_theta_distance=0.0, sigma_theta_turn=0.0
+        )
+        run = simulate_park(
+            3, laps=1, length=40.0, width=20.0, n_trees=30, p_detect=0.0, config=cfg
+        )
         return run.poses  # no detections: every draw but the slip is the same for each sigma
 
     free, one, two = truth(0.0), truth(0.05), truth(0.1)

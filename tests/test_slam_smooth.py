@@ -4,9 +4,9 @@ observations that started landmarks are recovered; ``--smooth`` of the CLI."""
 
 from __future__ import annotations
 
-import math
 import dataclasses
 import json
+import math
 
 import numpy as np
 import pytest

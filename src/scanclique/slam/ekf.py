@@ -176,8 +176,11 @@ class SlamConfig:
         worse (24.8 m, 7.8 m); with it 0.95, 0.97, 1.0 and 1.03 all give 1.54 m (clique),
         and the logged speeds 1.571 -> 1.540 m (clique), 1.58 -> 1.551 m (NN, JCBB), the
         drift from the start (RMSE under the alignment of the first 50 m) 3.46 -> 3.58 m
-        (clique), 3.38 -> 3.47 m (NN, JCBB). None: the speed is taken as logged (the
-        compiled prediction then runs when no other calibration state is set).
+        (clique), 3.38 -> 3.47 m (NN, JCBB); these with the per-second slip of session
+        19. With the default slip per metre and per radian, speeds scaled by 0.95, 0.97
+        and 1.03 give 1.523, 1.523 and 1.522 m (clique). None: the speed is taken as
+        logged (the compiled prediction then runs when no other calibration state is
+        set).
     bearing_bias_sigma : float or None
         When set, the filter estimates a constant offset of the sensor's bearings (rad;
         a yaw misalignment of its mounting) as a vehicle state, with this prior standard
