@@ -28,6 +28,7 @@ earlier sessions' runs, the files without a suffix the first).
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
 import json
 import math
 import os
@@ -44,7 +45,6 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, provenance  # noqa: E402
 
-DATE = "2026-12-02"
 TAG = "2026-12-02-s9"
 METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
@@ -393,7 +393,7 @@ def main(argv=None):
     for r in vp:
         r.pop("_plot", None)
     result = {
-        "date": DATE,
+        "date": _dt.date.today().isoformat(),
         **provenance(t0),
         "victoria_park": vp,
         "nees": nees,

@@ -121,11 +121,13 @@ class SlamConfig:
         Park against the per-second noise (GPS RMSE start / SE(2) alignment, m): clique
         3.58 / 1.54 -> 3.53 / 1.52, nn 3.47 / 1.55 -> 3.40 / 1.53, jcbb the same as nn;
         with 5 clutter detections per scan clique 3.47 / 1.59 -> 3.37 / 1.51, nn 3.46 /
-        2.28 -> 3.38 / 2.12, jcbb 3.49 / 2.12 -> 3.42 / 2.01. On the simulated room
+        2.28 -> 3.39 / 2.12, jcbb 3.49 / 2.12 -> 3.42 / 2.00. On the simulated room
         (a robot at 0.25 m/s; truth 0.02 m and 1 deg per square root of second) given
         the sensor by :meth:`for_sensor` but not the slip, pose RMSE 0.29 -> 0.14 m
         (clique) and 0.22 -> 0.14 m (nn), as good as the room's true slip. Either form
-        scaled by 0.7 breaks Victoria Park (a loop not closed, 8 m).
+        scaled by 0.7 breaks Victoria Park (a loop not closed, 8 m). The simulated
+        parks, whose truth follows these defaults, are less consistent than with the
+        per-second slip (median ANEES over 20 parks 3.90 against 2.96, clique).
     initial_sigma : (3,) float
         Standard deviations of the initial pose (m, m, rad).
     confirm_hits : int
@@ -344,7 +346,8 @@ class SlamConfig:
     def slip(self) -> np.ndarray:
         """The additive process noise as a (3, 3) array of variances: row 0 per second
         (while moving), row 1 per metre travelled, row 2 per radian turned; columns x, y,
-        heading. One step adds ``slip_variance(self.slip, dt, distance, turn)``."""
+        heading. A step from pose ``x0`` to ``x1`` over ``dt`` seconds adds
+        ``slip_variance(self.slip, x0, x1, dt)``."""
         xy_t, th_t = self.sigma_xy_rate**2, self.sigma_theta_rate**2
         xy_d, th_d = self.sigma_xy_distance**2, self.sigma_theta_distance**2
         return np.array(
