@@ -9,7 +9,8 @@ One command::
 Per log (``fr079-raw``, ``intel-raw``) and mode (``odometry``: with the wheel odometry;
 ``scans``: without it, the paper's point), in one run:
 
-* ``batch``: :func:`~scanclique.mapping.map_scans` over the whole log (the reference);
+* ``batch``: :func:`~scanclique.mapping.map_scans` over the whole log with the online
+  mapper's configuration, :meth:`MapConfig.online` (the reference);
 * ``online``: :class:`~scanclique.mapping.OnlineMapper` fed the scans in recording order,
   as a driver would (:func:`~scanclique.mapping.map_online`), with its defaults (the
   odometry's reversing told as the scans come);
@@ -61,7 +62,7 @@ from scanclique.eval.relations import (  # noqa: E402
     join_relations,
     relation_errors,
 )
-from scanclique.mapping import map_online, map_scans  # noqa: E402
+from scanclique.mapping import MapConfig, map_online, map_scans  # noqa: E402
 
 LOGS = ("fr079-raw", "intel-raw")
 MODES = {"odometry": True, "scans": False}
@@ -136,7 +137,9 @@ def run_log(name: str, modes: list[str], limit: int | None = None) -> list[dict]
     for mode in modes:
         use = MODES[mode]
         t = time.perf_counter()
-        batch = map_scans(scans, use_odometry=use)
+        # the online mapper's defaults (MapConfig.online()), so that "identical" compares
+        # like with like; the batch defaults' map is benchmarks/mapping.py's
+        batch = map_scans(scans, use_odometry=use, config=MapConfig.online())
         wall = time.perf_counter() - t
         ref = _poses(batch.poses)
         base = {"log": name, "mode": mode, "scans": len(scans), "period_s": period,

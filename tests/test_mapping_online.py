@@ -47,7 +47,7 @@ def _online(scans, **kw):
 @pytest.mark.parametrize("use_odometry", [True, False])
 def test_the_finished_map_is_map_scans(use_odometry):
     scans = circle_drive(np.random.default_rng(5), n_per_lap=30)
-    batch = map_scans(scans, use_odometry=use_odometry)
+    batch = map_scans(scans, use_odometry=use_odometry, config=MapConfig.online())
     reverses = odometry_sees_reversing(scans)
     online, live, _ = _online(scans, use_odometry=use_odometry, odometry_reverses=reverses)
     assert len(batch.accepted_closures) >= 3  # there are closures to agree on
@@ -154,7 +154,7 @@ def test_the_finished_map_of_a_real_log_is_map_scans():
     odometry told as it comes: the finished map is map_scans' (which reads the whole
     prefix), and the answers as they came are within a metre of it."""
     scans = read_scans(require_log("fr079-raw"))[:600]
-    batch = map_scans(scans)
+    batch = map_scans(scans, config=MapConfig.online())
     online, live, _ = _online(scans)
     _assert_same_map(batch, online)
     worst = max(p.distance_to(q)[0] for p, q in zip(live, online.poses, strict=True))
@@ -183,9 +183,9 @@ def test_map_online_keeps_each_answer_and_the_command_writes_them(drive_log, tmp
     assert orun.live[0].as_array().tolist() == [0.0, 0.0, 0.0]
     assert not orun.add_seconds.flags.writeable and (orun.add_seconds > 0).all()
     assert calls and calls[-1][:2] == (len(scans), len(scans))
-    _assert_same_map(map_scans(scans), orun.result)
+    _assert_same_map(map_scans(scans, config=MapConfig.online()), orun.result)
     online = run_map(drive_log, tmp_path / "o", plot=False, online=True)
-    batch = run_map(drive_log, tmp_path / "b", plot=False)
+    batch = run_map(drive_log, tmp_path / "b", plot=False, config=MapConfig.online())
     tum = [(tmp_path / d / "trajectory.tum").read_text() for d in ("o", "b")]
     assert tum[0] == tum[1]
     live = np.loadtxt(tmp_path / "o/trajectory_live.tum")
@@ -201,3 +201,19 @@ def test_map_online_keeps_each_answer_and_the_command_writes_them(drive_log, tmp
         map_online(str(drive_log))
     with pytest.raises(ScanError, match=r"map_online: scans\[1\] is a str"):
         map_online([scans[0], "scan"])
+
+
+def test_the_online_defaults_decide_closures_every_5_keyframes():
+    """OnlineMapper, map_online and run_map(online=True) default to MapConfig.online()
+    (PCM every 5 keyframes, the anchors' and corroboration's reach kept in keyframes);
+    map_scans keeps the batch defaults (10)."""
+    on, batch = MapConfig.online().loops, MapConfig().loops
+    assert (on.pcm_batch, batch.pcm_batch) == (5, 10)
+    assert on.pcm_batch * on.pcm_anchor_batches == batch.pcm_batch * batch.pcm_anchor_batches
+    assert on.pcm_batch * on.corroborate_batches == batch.pcm_batch * batch.corroborate_batches
+    assert MapConfig.online().match == MapConfig().match
+    with OnlineMapper() as m:
+        assert m._cfg == MapConfig.online()
+    given = MapConfig()
+    with OnlineMapper(config=given) as m:
+        assert m._cfg is given  # a given configuration is taken as it is

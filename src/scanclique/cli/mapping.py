@@ -110,7 +110,7 @@ def map_cmd(
 
     if save_config is not None:
         _check_out_file(save_config, out_dir=out)  # may go into a new --out
-    cfg = _read_app_config(config, MapConfig())
+    cfg = _read_app_config(config, MapConfig.online() if online else MapConfig())
     if covariances and not cfg.back_end.covariances:
         import dataclasses
 

@@ -252,20 +252,14 @@ class LoopConfig:
         Loop candidates of one keyframe are at least this many keyframes apart.
     pcm_batch : int
         Pairwise consistency maximisation runs over the closures of this many keyframes,
-        and the estimate (iSAM2) takes the accepted ones then: 5 (10 until session 22).
-        An online mapper's answers wait for it: with 5 instead of 10 (the anchors' and
-        the corroboration's reach kept at 20 and 30 keyframes), the poses known when a
-        scan comes are off by 0.0481 against 0.0545 m over relations longer than 10 s
-        on fr079-raw and 0.0256 against 0.0356 m on intel-raw, while the batch map is
-        within 0.2 mm of the old one on every log of the mapping benchmark (intel-raw
-        0.0148 against 0.0147 m, fr079-raw 0.0313 both).
+        and the estimate (iSAM2) takes the accepted ones then. The online mapper's
+        default is 5 (:meth:`MapConfig.online`).
     pcm_gate : float
         Probability of the chi-square gate (3 dof) of pairwise consistency.
     pcm_anchor_batches : int
         Incremental PCM: the closures accepted over the last ``pcm_anchor_batches``
         batches (their newer keyframe that recent) anchor the new ones; a new closure
-        must be pairwise consistent with each of them (0: each batch on its own). 4
-        batches of 5 keyframes (2 of 10 until session 22).
+        must be pairwise consistent with each of them (0: each batch on its own).
     corroborate_batches : int
         The candidates' radius and their verification's prior widen to the front end's
         own uncertainty (its edges' covariances summed along the chain) where it exceeds
@@ -276,8 +270,7 @@ class LoopConfig:
         and so does PCM's chain. An appearance closure that
         moves the estimate beyond the drift model's 99 % gate must then be corroborated
         by another one from an earlier place at least ``separation`` keyframes away, in
-        the same PCM set, within ``corroborate_batches`` batches (6 of 5 keyframes; 3
-        of 10 until session 22); else its verdict is
+        the same PCM set, within ``corroborate_batches`` batches; else its verdict is
         ``"uncorroborated"`` (0: no such rule). Measured (Intel / CSAIL without odometry):
         0: 0.121 m (1.9 degrees: a 90-degree look-alike 7 m away corrects a step placed
         by the prediction) / 0.0777 m; 1: 0.0621 / 0.0787 m; 3 and 6: 0.0621 / 0.0777
@@ -310,10 +303,10 @@ class LoopConfig:
     per_keyframe: int = 2
     every: int = 1
     separation: int = 5
-    pcm_batch: int = 5
+    pcm_batch: int = 10
     pcm_gate: float = 0.99
-    pcm_anchor_batches: int = 4
-    corroborate_batches: int = 6
+    pcm_anchor_batches: int = 2
+    corroborate_batches: int = 3
     min_score: float = 0.3
     appearance: bool = True
     max_sigma_metres: float = 0.20 / 3.255
@@ -416,6 +409,26 @@ class MapConfig:
     loops: LoopConfig = field(default_factory=LoopConfig)
     back_end: BackEndConfig = field(default_factory=BackEndConfig)
     occupancy: OccupancyConfig = field(default_factory=OccupancyConfig)
+
+    @classmethod
+    def online(cls) -> MapConfig:
+        """The defaults of the online mapper (:class:`~scanclique.mapping.OnlineMapper`,
+        :func:`~scanclique.mapping.map_online`, ``scanclique map --online``): closures are
+        decided every 5 keyframes instead of 10 (``loops.pcm_batch``; the anchors' and
+        the corroboration's reach kept at 20 and 30 keyframes), so a robot's answers take
+        a revisit's closures sooner. Measured (``benchmarks/mapping_online.py``, session
+        22): the poses known when a scan comes are off by 0.0481 against 0.0545 m over
+        relations longer than 10 s on fr079-raw and 0.0256 against 0.0356 m on
+        intel-raw (with odometry). The finished map is within 0.2 mm of the batch
+        defaults' on every log of the mapping benchmark, but not better on every one
+        (intel-raw 0.0148 against 0.0147 m, and a millimetre worse with 3 cm of added
+        range noise), so :func:`~scanclique.mapping.map_scans` keeps 10.
+
+        >>> MapConfig.online().loops.pcm_batch, MapConfig().loops.pcm_batch
+        (5, 10)
+        """
+        loops = LoopConfig(pcm_batch=5, pcm_anchor_batches=4, corroborate_batches=6)
+        return cls(loops=loops)
 
     def __post_init__(self) -> None:
         _check_types(self)  # each section a record of its class

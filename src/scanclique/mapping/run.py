@@ -206,14 +206,15 @@ def run_map(
     ``online``: map the log as a robot would have live (:func:`.online.map_online`, one
     scan at a time, the odometry's reversing told as the scans come) and also write
     ``trajectory_live.tum``, each scan's pose as it was answered when the scan came. The
-    other files are the finished map's: the batch map, except where the batch reads the
-    whole log to tell whether the odometry reports backing up.
+    other files are the finished map's: the batch map of the same configuration (default
+    :meth:`MapConfig.online`), except where the batch reads the whole log to tell whether
+    the odometry reports backing up.
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
 
     t0 = time.perf_counter()
-    cfg = config or MapConfig()
+    cfg = config or (MapConfig.online() if online else MapConfig())
     scans, label = load_map_log(log_or_name, topic)
     t_read = time.perf_counter() - t0
     if not scans:
