@@ -427,7 +427,13 @@ class MapConfig:
         >>> MapConfig.online().loops.pcm_batch, MapConfig().loops.pcm_batch
         (5, 10)
         """
-        loops = LoopConfig(pcm_batch=5, pcm_anchor_batches=4, corroborate_batches=6)
+        batch, n = LoopConfig(), 5
+        reach = batch.pcm_batch // n  # batches of n per batch of the defaults
+        loops = LoopConfig(
+            pcm_batch=n,
+            pcm_anchor_batches=batch.pcm_anchor_batches * reach,
+            corroborate_batches=batch.corroborate_batches * reach,
+        )
         return cls(loops=loops)
 
     def __post_init__(self) -> None:
