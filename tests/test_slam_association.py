@@ -148,7 +148,9 @@ def test_clique_is_maximum_consistent_set(seed):
 
 def test_clique_survives_a_pose_error_that_breaks_nn():
     """The pose is 1.5 m off and two landmarks have a neighbour exactly where the shifted
-    prediction puts them: NN takes the neighbours, the relative geometry does not."""
+    prediction puts them: NN takes the neighbours, the relative geometry does not. With
+    the closure rule (the default) NN's pairs, all in gates the 1 m pose error crowds,
+    are not jointly compatible, and NN pairs nothing rather than the neighbours."""
     lm = np.array([[10.0, 0.0], [14.0, 6.0], [18.0, -5.0], [25.0, 3.0]])
     distract = lm[:2] + [1.5, 0.05]
     world = np.vstack([lm, distract])
@@ -157,10 +159,14 @@ def test_clique_survives_a_pose_error_that_breaks_nn():
     mc = np.tile(np.eye(2) * 0.01, (len(world), 1, 1))
     pose = np.array([1.5, 0.0, 0.0])
     pc = np.diag([1.0, 1.0, 0.001])
-    nn = slam.associate(z, R, world, mc, pose, pc, method="nn")
-    cl = slam.associate(z, R, world, mc, pose, pc, method="clique")
+    off = slam.AssociationConfig(closure_crowding=None)
+    nn = slam.associate(z, R, world, mc, pose, pc, method="nn", config=off)
     assert nn.landmarks[:2].tolist() == [4, 5]
-    assert cl.landmarks.tolist() == [0, 1, 2, 3] and cl.clique_size == 4
+    nn = slam.associate(z, R, world, mc, pose, pc, method="nn")
+    assert nn.n_pairs == 0
+    for cfg in (off, None):
+        cl = slam.associate(z, R, world, mc, pose, pc, method="clique", config=cfg)
+        assert cl.landmarks.tolist() == [0, 1, 2, 3] and cl.clique_size == 4
 
 
 def test_truth_recovered_on_easy_problems():

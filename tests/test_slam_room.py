@@ -194,12 +194,14 @@ def test_non_conflicting_cliques_are_not_ambiguous():
     """Two maximum cliques {0, 1} and {0, 2}, nearly as likely, that pair no observation
     or landmark differently are one hypothesis with a missing edge, not rivals: under
     ``ambiguity="conflict"`` the step is not ambiguous and takes the likelier clique;
-    under ``"distinct"`` it is ambiguous and keeps only the shared pair."""
+    under ``"distinct"`` it is ambiguous and keeps only the shared pair. (The closure
+    rule is off: landmarks 1.5 m apart under this pose prior make every pair a closure
+    pair, and the shared pair alone would be refused as unsupported.)"""
     z, R, lm, cov, pose, pose_cov = _three_pairs()
-    old = slam.AssociationConfig(ambiguity="distinct")
+    old = slam.AssociationConfig(ambiguity="distinct", closure_crowding=None)
     a = slam.associate(z, R, lm, cov, pose, pose_cov, method="clique", config=old)
     assert a.ambiguous and a.landmarks.tolist() == [0, slam.REJECTED, slam.REJECTED]
-    new = slam.AssociationConfig(ambiguity="conflict")
+    new = slam.AssociationConfig(ambiguity="conflict", closure_crowding=None)
     a = slam.associate(z, R, lm, cov, pose, pose_cov, method="clique", config=new)
     assert not a.ambiguous and a.n_pairs == 2 and a.landmarks[0] == 0
     # the hybrid's JCBB over the union of the cliques' pairs takes all three either way

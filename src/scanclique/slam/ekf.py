@@ -795,7 +795,13 @@ def ekf_slam(
                 Psub = P[np.ix_(idx, idx)]  # pose (and bearing bias), selected landmarks
                 zJ, Hx, Hm = f.observe(lm_all[J], sx, sy)
                 pred = _predicted(
-                    zJ, Hx, Hm, Psub, lm_all[J], f.att[J] if att is not None else None
+                    zJ,
+                    Hx,
+                    Hm,
+                    Psub,
+                    lm_all[J],
+                    f.att[J] if att is not None else None,
+                    f.permanent()[J],
                 )
                 # 3. associate
                 a = associate_predicted(z, R, pred, association, acfg, att)
@@ -906,11 +912,11 @@ def ekf_slam(
     )
 
 
-def _predicted(zJ, Hx, Hm, Psub, positions, attributes) -> Predicted:
+def _predicted(zJ, Hx, Hm, Psub, positions, attributes, established=None) -> Predicted:
     """:class:`Predicted` for the selected landmarks (Psub over [vehicle, m_J])."""
     n = len(zJ)
     if n == 0:
-        return Predicted(zJ, np.zeros((0, 0)), positions, np.zeros((0, 0)), attributes)
+        return Predicted(zJ, np.zeros((0, 0)), positions, np.zeros((0, 0)), attributes, established)
     no = Hx.shape[2]  # vehicle states the observation depends on
     Hx2 = Hx.reshape(2 * n, no)
     Pvv = Psub[:no, :no]
@@ -925,7 +931,7 @@ def _predicted(zJ, Hx, Hm, Psub, positions, attributes) -> Predicted:
     A = Hx2 @ hm_left(Pvm.T).T  # Hx Pvm HmB^T
     B = hm_left(hm_left(Pmm).T).T  # HmB Pmm HmB^T
     Sz = Hx2 @ Pvv @ Hx2.T + A + A.T + B
-    return Predicted(zJ, Sz, positions, Pmm, attributes)
+    return Predicted(zJ, Sz, positions, Pmm, attributes, established)
 
 
 def _update(f: _Filter, z, glob, R, sx, sy, iterations: int = 1, own=None):
