@@ -33,6 +33,11 @@ Three methods behind one interface (:func:`associate`, and
     consistent pairs). Several distinct maximum cliques mark the step ambiguous; the
     observations they disagree on start no landmark.
 
+For every method, a loop closure needs support (``AssociationConfig.closure_crowding``):
+a pair whose gate the vehicle's drift has opened wide enough to hold a neighbouring tree
+(:func:`gate_crowding`) is kept only when another such pair of the same scan is jointly
+compatible with it.
+
 Observations left unpaired become a new landmark when they are far from every landmark
 (beyond the chi-square bound at ``new_probability``), else they are rejected.
 """
