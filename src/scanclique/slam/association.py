@@ -648,12 +648,13 @@ def gate_crowding(z, pred: Predicted, pairs, probability: float) -> np.ndarray:
     d = float(np.median(D.min(axis=1)))
     density = math.log(2.0) / (math.pi * d * d) if d > 0 else math.inf
     i, j = pairs[:, 0], pairs[:, 1]
-    S = np.empty((m, 2, 2))
-    S[:, 0, 0] = pred.Sz[2 * j, 2 * j]
-    S[:, 0, 1] = S[:, 1, 0] = pred.Sz[2 * j, 2 * j + 1]
-    S[:, 1, 1] = pred.Sz[2 * j + 1, 2 * j + 1]
+    s_rr, s_rb, s_bb = (
+        pred.Sz[2 * j, 2 * j],
+        pred.Sz[2 * j, 2 * j + 1],
+        pred.Sz[2 * j + 1, 2 * j + 1],
+    )
     r = np.maximum(np.asarray(z)[i, 0], 1e-9)
-    det_m = (S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] ** 2) * r * r  # metres: diag(1, r)
+    det_m = (s_rr * s_bb - s_rb**2) * r * r  # in metres: diag(1, r) S diag(1, r)
     area = math.pi * chi2_bound(2, probability) * np.sqrt(np.maximum(det_m, 0.0))
     return density * area
 
