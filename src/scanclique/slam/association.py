@@ -172,14 +172,15 @@ class AssociationConfig:
         compatible: the relative geometry of several old landmarks tells a revisit from
         a neighbouring tree, one landmark alone does not (the paper's argument for batch
         association, section 2). Unsupported closure pairs are unpaired and start no
-        landmark. All methods; None turns it off. Session 23 found that the simulated
-        parks whose runs fail (ANEES far above the band) close the loop on a neighbouring
-        tree 4.8-7.3 m from the right one, a single old landmark paired beside landmarks
-        seen moments before. With 0.1, on 40 simulated parks (the default
-        :class:`~scanclique.slam.SlamConfig`, truth and filter): runs ending above ANEES
-        10 fall from 6 to 1 (clique) and from 6 to 2 (NN), pairs against the truth 0.40
-        -> 0.00 % wrong (clique), duplicate pairs per run 10.4 -> 0, position RMSE 1.76
-        -> 1.26 m (clique) and 1.72 -> 1.45 m (NN); 0.05 gives as much (NN 1 run of 40),
+        landmark. All methods; None turns it off. The failing simulated parks session 23
+        traced (ANEES far above the band; park 1 with NN, park 3 with the clique) close
+        the loop on a neighbouring tree 4.8-7.3 m from the right one, a single old
+        landmark paired beside landmarks seen moments before. With 0.1, on 40 simulated
+        parks (the default :class:`~scanclique.slam.SlamConfig`, truth and filter): runs
+        ending above ANEES 10 fall from 6 to 1 (clique) and from 6 to 2 (NN), pairs
+        against the truth 0.40 -> 0.00 % wrong (clique), duplicate pairs per run 10.4 ->
+        0, position RMSE 1.76 -> 1.26 m (clique) and 1.72 -> 1.45 m (NN); 0.05 gives as
+        much (NN 1 run of 40),
         0.2 less (clique 2, NN 4), 0.5 nothing. Victoria Park is identical to the last
         millimetre at 0, 5 (three clutter draws) and 10 clutter detections per scan for
         the clique (3.533 / 1.523 m start / SE(2) without clutter): its closures come
