@@ -165,33 +165,31 @@ class AssociationConfig:
         result, the same on every machine; Victoria Park's graphs need a few hundred).
     closure_crowding : float or None
         A pair whose gate the drift opens to more than this many unrelated features
-        (:func:`gate_crowding`: the area of the vehicle's and the map's uncertainty about
-        an established landmark, times the map's density) is a *closure* pair: the
-        re-observation of a landmark the vehicle has drifted from. It is kept only when
-        at least ``closure_support`` closure pairs of the same batch are jointly
-        compatible: the relative geometry of several old landmarks tells a revisit from
-        a neighbouring tree, one landmark alone does not (the paper's argument for batch
-        association, section 2). Unsupported closure pairs are unpaired and start no
-        landmark. All methods; None turns it off. The failing simulated parks session 23
-        traced (ANEES far above the band; park 1 with NN, park 3 with the clique) close
-        the loop on a neighbouring tree 4.8-7.3 m from the right one, a single old
-        landmark paired beside landmarks seen moments before. With 0.1, on 40 simulated
-        parks (the default :class:`~scanclique.slam.SlamConfig`, truth and filter): runs
-        ending above ANEES 10 fall from 6 to 1 (clique) and from 6 to 2 (NN), pairs
-        against the truth 0.40 -> 0.00 % wrong (clique), duplicate pairs per run 10.4 ->
-        0, position RMSE 1.76 -> 1.26 m (clique) and 1.72 -> 1.45 m (NN); 0.05 gives as
-        much (NN 1 run of 40),
-        0.2 less (clique 2, NN 4), 0.5 nothing. Victoria Park is identical to the last
-        millimetre at 0, 5 (three clutter draws) and 10 clutter detections per scan for
-        the clique (3.533 / 1.523 m start / SE(2) without clutter): its closures come
-        with several trees. On the simulated rooms nothing changes without clutter; with
-        one spurious detection per frame the pose RMSE falls 0.245 -> 0.228 m (clique)
-        and 0.251 -> 0.236 m (NN); a filter not told the room's sensor
-        (``SlamConfig()``) does better with the clique (0.352 -> 0.334 m) and worse with
-        NN (0.292 -> 0.411 m; with 0.05 both 0.43 m, hence 0.1). Counting the sensor's
-        noise in the gate instead marks the first re-observations of landmarks started
-        at long range: on Victoria Park with 5 clutter detections per scan it cost the
-        clique 0.1-0.4 m (start-aligned).
+        (:func:`gate_crowding`: the area of the vehicle's and the map's uncertainty about an
+        established landmark, times the map's density) is a *closure* pair: the
+        re-observation of a landmark the vehicle has drifted from. It is kept only when at
+        least ``closure_support`` closure pairs of the same batch are jointly compatible:
+        the relative geometry of several old landmarks tells a revisit from a neighbouring
+        tree, one landmark alone does not (the paper's argument for batch association,
+        section 2). Unsupported closure pairs are unpaired and start no landmark. All
+        methods; None turns it off. The failing simulated parks session 23 traced (ANEES far
+        above the band; park 1 with NN, park 3 with the clique) close the loop on a
+        neighbouring tree 4.8-7.3 m from the right one, a single old landmark paired beside
+        landmarks seen moments before. With 0.1, on 40 simulated parks (the default
+        :class:`~scanclique.slam.SlamConfig`, truth and filter): runs ending above ANEES 10
+        fall from 6 to 1 (clique) and from 6 to 2 (NN), pairs against the truth 0.40 -> 0.00
+        % wrong (clique), duplicate pairs per run 10.4 -> 0, position RMSE 1.76 -> 1.26 m
+        (clique) and 1.72 -> 1.45 m (NN); 0.05 gives as much (NN 1 run of 40), 0.2 less
+        (clique 2, NN 4), 0.5 nothing. Victoria Park is identical to the last millimetre at
+        0, 5 (three clutter draws) and 10 clutter detections per scan for the clique (3.533
+        / 1.523 m start / SE(2) without clutter): its closures come with several trees. On
+        the simulated rooms nothing changes without clutter; with one spurious detection per
+        frame the pose RMSE falls 0.245 -> 0.228 m (clique) and 0.251 -> 0.236 m (NN); a
+        filter not told the room's sensor (``SlamConfig()``) does better with the clique
+        (0.352 -> 0.334 m) and worse with NN (0.292 -> 0.411 m; with 0.05 both 0.43 m, hence
+        0.1). Counting the sensor's noise in the gate instead marks the first
+        re-observations of landmarks started at long range: on Victoria Park with 5 clutter
+        detections per scan it cost the clique 0.1-0.4 m (start-aligned).
     closure_support : int
         The closure pairs a batch needs, jointly compatible, for any of them to be kept.
 

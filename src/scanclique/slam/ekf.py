@@ -912,8 +912,9 @@ def ekf_slam(
     )
 
 
-def _predicted(zJ, Hx, Hm, Psub, positions, attributes, established=None) -> Predicted:
-    """:class:`Predicted` for the selected landmarks (Psub over [vehicle, m_J])."""
+def _predicted(zJ, Hx, Hm, Psub, positions, attributes, established) -> Predicted:
+    """:class:`Predicted` for the selected landmarks (Psub over [vehicle, m_J]);
+    ``established`` their permanent flags."""
     n = len(zJ)
     if n == 0:
         return Predicted(zJ, np.zeros((0, 0)), positions, np.zeros((0, 0)), attributes, established)
