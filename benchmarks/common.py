@@ -4,6 +4,7 @@ version and git metadata written with the results."""
 
 from __future__ import annotations
 
+import datetime
 import importlib.metadata
 import json
 import os
@@ -88,10 +89,11 @@ def git_state() -> dict:
 
 
 def provenance(t0: float) -> dict:
-    """What a results file says of its run: the checkout (:func:`git_state`), the machine
-    with its load (:func:`machine`) and the seconds since ``t0`` (``time.perf_counter()``
-    at the start)."""
+    """What a results file says of its run: the day it ran, the checkout
+    (:func:`git_state`), the machine with its load (:func:`machine`) and the seconds since
+    ``t0`` (``time.perf_counter()`` at the start)."""
     return {
+        "date": datetime.date.today().isoformat(),
         "git": git_state(),
         "machine": machine(detailed=True),
         "seconds": time.perf_counter() - t0,

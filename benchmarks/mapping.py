@@ -72,6 +72,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import datetime
 import json
 import math
 import sys
@@ -94,7 +95,8 @@ from scanclique.eval import (  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
 from scanclique.mapping import MapConfig, map_scans  # noqa: E402
 
-DATE = "2026-12-04"
+# the day the benchmark runs: recorded in its results and in their default name
+DATE = datetime.date.today().isoformat()
 ROWS = ("odometry", "chain", "full", "full-no-sigma-gate", "full-2-workers", "no-odometry", "paper")
 LOGS = ("fr079-raw", "intel-raw")
 
@@ -694,7 +696,7 @@ def main(argv=None) -> int:
     stem = (
         Path(args.out)
         if args.out
-        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}-s15"
+        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
     )
     git_at_start = git_state()
     warm = _warm_up()

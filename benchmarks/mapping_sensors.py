@@ -57,6 +57,7 @@ Results: ``benchmarks/results/mapping-sensors-real-2026-12-04-s14.{md,json}``.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
 import os
@@ -72,8 +73,8 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import provenance, results_path  # noqa: E402
 
-TAG = "2026-12-02-s10"
-REAL_TAG = "2026-12-04-s15"
+# the day the benchmark runs: the default name of its results
+TAG = REAL_TAG = datetime.date.today().isoformat()
 
 PROFILES = {
     "carmen": dict(

@@ -54,6 +54,7 @@ sessions: ``places-2026-12-04-s13.*``, ``places-2026-12-02-s9.*``, ``-s8.*``,
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
 import sys
@@ -67,7 +68,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import git_state, machine, results_path, versions  # noqa: E402
 
-DATE = "2026-12-04"
+# the day the benchmark runs: recorded in its results and in their default name
+DATE = datetime.date.today().isoformat()
 LOGS = ("intel", "csail", "freiburg")
 RIGHT_T = 0.5  # metres
 RIGHT_R = 0.2  # radians
@@ -831,7 +833,7 @@ def main(argv=None) -> None:
     if a.full:
         a.query_every, a.loops_every = 1, 1
     stages = set(a.stages.split(","))
-    out_json = results_path(a.out, f"places-{DATE}-s14.json")
+    out_json = results_path(a.out, f"places-{DATE}.json")
     res = {
         "date": DATE,
         "args": vars(a),

@@ -33,6 +33,7 @@ Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
 import sys
@@ -48,7 +49,8 @@ from common import git_state, machine, results_path, versions  # noqa: E402
 from mapping_sensors import PROFILES as SCANNERS  # noqa: E402
 from places import RIGHT_R, RIGHT_T, true_places  # noqa: E402
 
-DATE = "2026-12-02"
+# the day the benchmark runs: recorded in its results and in their default name
+DATE = datetime.date.today().isoformat()
 #: the scanners of ``benchmarks/mapping_sensors.py`` (one definition), as one scan sees
 #: them: its rate and the robot's speed do not matter to a place database
 PROFILES = {
@@ -185,7 +187,7 @@ def main(argv=None) -> None:
     unknown = [p for p in profiles if p not in PROFILES]
     if unknown:
         ap.error(f"unknown profile(s) {unknown}; known: {', '.join(PROFILES)}")
-    out_json = results_path(a.out, f"places-sensors-{DATE}-s10.json")
+    out_json = results_path(a.out, f"places-sensors-{DATE}.json")
     res = {
         "date": DATE,
         "args": vars(a),
