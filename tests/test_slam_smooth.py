@@ -96,6 +96,28 @@ def test_smoothing_applies_the_filters_control_bias(park):
     assert corrected < 2.5
 
 
+def test_smoothing_takes_the_noise_the_filter_ended_with(park, run, monkeypatch):
+    """The sensor noise of the smoother's range-bearing factors: the configured one, or
+    the filter's matched noise where that is larger (``SlamResult.observation_noise``),
+    component by component."""
+    import gtsam
+
+    seen = []
+    real = gtsam.noiseModel.Diagonal.Sigmas
+
+    def spy(sigmas, *a, **k):
+        seen.append(np.array(sigmas, float))
+        return real(sigmas, *a, **k)
+
+    monkeypatch.setattr(gtsam.noiseModel.Diagonal, "Sigmas", spy)
+    raised = dataclasses.replace(run, observation_noise=(0.01, 3.0 * CFG.sigma_bearing))
+    smooth(park.steps, slam.Ackermann(), raised, max_iterations=1)
+    np.testing.assert_allclose(seen[-1], [3.0 * CFG.sigma_bearing, CFG.sigma_range])
+    smooth(park.steps, slam.Ackermann(), dataclasses.replace(run, observation_noise=None),
+           max_iterations=1)  # fmt: skip
+    np.testing.assert_allclose(seen[-1], [CFG.sigma_bearing, CFG.sigma_range])
+
+
 def test_new_observations_get_the_ids_the_filter_gave(park, run):
     full = _landmark_of_new(run)
     assert all(

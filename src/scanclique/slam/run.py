@@ -178,6 +178,11 @@ def summarise(result: SlamResult, model, gps_fixes=None, clutter: int = 0, warn:
     if result.speed_scale is not None:  # the filter's estimate of the speed's scale error
         m["speed scale error"] = (100.0 * result.speed_scale[0], "%")
         m["speed scale error, 1 sigma"] = (100.0 * result.speed_scale[1], "%")
+    if result.observation_noise is not None:  # the sensor noise the run ended with
+        m["range sigma at the end"] = (result.observation_noise[0], "m")
+        m["bearing sigma at the end"] = (math.degrees(result.observation_noise[1]), "deg")
+        if not math.isnan(result.noise_raised):
+            m["noise checks that raised it"] = (100.0 * result.noise_raised, "%")
     m["run time (CPU)"] = (result.cpu_seconds, "s")
     m["run time (wall)"] = (result.seconds, "s")
     return g, m, align

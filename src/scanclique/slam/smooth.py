@@ -133,7 +133,9 @@ def smooth(
         The filter's run (its associations, initial pose, final landmark ids and
         positions as the starting point).
     config : SlamConfig, optional
-        Noise model; default ``result.config``.
+        Noise model; default ``result.config``. The sensor's noise is the larger of this
+        one's and the one the filter ended with (:attr:`SlamResult.observation_noise`),
+        as the controls are read with the filter's calibration estimates.
     initial_pose : (3,) float
         The filter's ``initial_pose`` (its default: the origin).
     max_iterations : int
@@ -211,7 +213,11 @@ def smooth(
     final = {int(i): q for q, i in enumerate(ids)}
     for q, i in enumerate(ids):
         init.insert(Lk(int(i)), np.asarray(result.landmarks[q], float))
-    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([cfg.sigma_bearing, cfg.sigma_range]))
+    # the sensor's noise as the filter ended up taking it (SlamConfig.noise_window)
+    sr, sb = cfg.sigma_range, cfg.sigma_bearing
+    if result.observation_noise is not None:
+        sr, sb = max(sr, result.observation_noise[0]), max(sb, result.observation_noise[1])
+    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sb, sr]))
     nf = 0
     for o, (k, a) in enumerate(zip(obs_steps, _landmark_of_new(result), strict=True)):
         z = steps[k].observations
