@@ -103,6 +103,7 @@ def test_without_a_window_the_noise_is_the_configured_one():
         {"noise_window": 0},
         {"noise_window": -5},
         {"noise_window": 2.5},
+        {"noise_window": 10**12},
         {"noise_trigger": 0.9},
         {"noise_trigger": float("nan")},
         {"noise_trigger": float("inf")},

@@ -55,6 +55,10 @@ __all__ = ["SlamConfig", "SlamResult", "ekf_slam", "held_controls", "slip_varian
 
 log = logging.getLogger(__name__)
 
+#: the largest :attr:`SlamConfig.noise_window` (pairs): a policy limit, so that a mistyped
+#: window is an error and not a memory allocation of terabytes
+MAX_NOISE_WINDOW = 1_000_000
+
 
 @dataclass(frozen=True, slots=True)
 class SlamConfig:
@@ -250,7 +254,8 @@ class SlamConfig:
     noise or count out of range (sigmas of the sensor, ``sensor_fov``, ``confirm_hits``,
     ``max_misses``, ``tentative_scans``, ``update_iterations`` and ``noise_window`` > 0;
     ``max_range``, ``visible_range`` and ``confirm_range`` > 0, +inf meaning no limit;
-    the rates and the calibration sigmas >= 0; ``noise_trigger`` >= 1), or a
+    the rates and the calibration sigmas >= 0; ``noise_window`` at most
+    :data:`MAX_NOISE_WINDOW`; ``noise_trigger`` >= 1), or a
     ``tentative_update`` that is not one of its choices is a
     :class:`~scanclique.errors.ConfigError` naming the field.
     """
@@ -304,6 +309,11 @@ class SlamConfig:
                 f"inf), got {self.init_range!r}"
             )
         check_choice(self, "tentative_update", ("full", "landmark"))
+        if self.noise_window is not None and self.noise_window > MAX_NOISE_WINDOW:
+            raise ConfigError(
+                f"SlamConfig.noise_window must be at most {MAX_NOISE_WINDOW} pairs (its ring "
+                f"holds two numbers per pair and component), got {self.noise_window!r}"
+            )
         if not (math.isfinite(self.noise_trigger) and self.noise_trigger >= 1.0):
             raise ConfigError(
                 f"SlamConfig.noise_trigger must be a number >= 1, got {self.noise_trigger!r}"
