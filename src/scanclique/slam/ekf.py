@@ -47,6 +47,7 @@ from .association import (
     AssociationConfig,
     Predicted,
     associate_predicted,
+    chi2_bound,
 )
 from .models import MotionModel, inverse_observe, observe, wrap
 from .reader import Step
@@ -995,11 +996,6 @@ def ekf_slam(
     )
 
 
-#: the median of a chi-square of 1 degree of freedom (``scipy.stats.chi2.ppf(0.5, 1)``):
-#: the median normalised innovation squared of one component under a right noise
-MEDIAN_CHI2_1 = 0.45493642311957283
-
-
 class _MatchedNoise:
     """The sensor noise matched to the filter's innovations (:attr:`SlamConfig.noise_window`).
 
@@ -1008,11 +1004,12 @@ class _MatchedNoise:
     without the sensor (``S_pred``: the vehicle's and the map's part). Every quarter
     window, once full, each component's variance is set to the ``R`` (found by
     bisection; the median falls as ``R`` grows) at which the median of ``nu**2 / (S_pred
-    + R)`` is :data:`MEDIAN_CHI2_1`, never below the configured one; while the noise is
-    the configured one, only when that median at the configured ``R`` exceeds ``trigger
-    *`` :data:`MEDIAN_CHI2_1` (once raised, the noise follows the innovations, down to
-    the configured one: the narrow gates of a noise too small cut the innovations' tails,
-    which makes the median read low).
+    + R)`` is 0.455, the median of a chi-square of 1 degree of freedom (what a right
+    noise gives), never below the configured one; while the noise is the configured one,
+    only when that median at the configured ``R`` exceeds ``trigger`` times 0.455. Once
+    raised, the noise follows the innovations, down to the configured one: the narrow
+    gates of a noise too small cut the innovations' tails, which makes the median read
+    low.
     """
 
     def __init__(self, R, window: int, trigger: float):
@@ -1054,15 +1051,16 @@ class _MatchedNoise:
         def median_nis(r):
             return float(np.median(nu2 / (sp + r)))
 
+        right = chi2_bound(1, 0.5)  # the median of a chi-square of 1 dof, 0.455
         m0 = median_nis(r0)
-        if m0 <= MEDIAN_CHI2_1 or (self.R[c, c] <= r0 and m0 <= self.trigger * MEDIAN_CHI2_1):
+        if m0 <= right or (self.R[c, c] <= r0 and m0 <= self.trigger * right):
             return r0
         lo, hi = r0, 2.0 * r0
-        while median_nis(hi) > MEDIAN_CHI2_1:
+        while median_nis(hi) > right:
             lo, hi = hi, 2.0 * hi
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            if median_nis(mid) > MEDIAN_CHI2_1:
+            if median_nis(mid) > right:
                 lo = mid
             else:
                 hi = mid
