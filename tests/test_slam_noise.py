@@ -30,8 +30,9 @@ def _pairs(rng, m, r_true, spred):
 
 def test_matched_noise_by_hand():
     """Innovations of a sensor four times noisier (in variance) than configured, in
-    batches of 10 pairs: nothing changes before a window is full, then the variance is
-    matched to within sampling error; a right noise stays exactly as configured."""
+    batches of 10 pairs: nothing changes before the first check (a quarter window, 50
+    pairs), then the variance is matched to within sampling error; a right noise stays
+    exactly as configured."""
     rng = np.random.default_rng(0)
     R0 = np.diag([0.1, math.radians(1.0)]) ** 2
     spred = np.array([0.05, math.radians(0.5)]) ** 2
@@ -40,11 +41,11 @@ def test_matched_noise_by_hand():
     for k in range(100):
         R_noisy = noisy.add(*_pairs(rng, 10, 4.0 * np.diag(R0), spred))
         R_right = right.add(*_pairs(rng, 10, np.diag(R0), spred))
-        if k < 19:  # 190 pairs: no window yet
+        if k < 4:  # 40 pairs: no check yet
             np.testing.assert_array_equal(R_noisy, R0)
     np.testing.assert_allclose(np.diag(R_noisy), 4.0 * np.diag(R0), rtol=0.35)
     np.testing.assert_array_equal(R_right, R0)
-    assert noisy.checks == right.checks == 1 + (1000 - 200) // 50
+    assert noisy.checks == right.checks == 1000 // 50
     assert noisy.raised_checks == noisy.checks and right.raised_checks == 0
 
 
@@ -62,7 +63,7 @@ def test_matched_noise_wraps_bearings():
 
 def test_a_filter_told_a_better_sensor_learns_its_noise(caplog):
     """The room's sensor (3 deg) given to the filter as 1.5 deg: the run ends with about
-    the true bearing noise (a window's estimate: 2.1-3.5 deg over three rooms of 150 and
+    the true bearing noise (a window's estimate: 2.3-3.5 deg over three rooms of 150 and
     300 s), the right range noise untouched, and says so."""
     run = simulate_room(4, duration=150.0, config=CFG)
     cfg = replace(CFG, sigma_bearing=math.radians(1.5))
