@@ -88,12 +88,17 @@ def git_state() -> dict:
     }
 
 
+#: the day the benchmark runs (ISO date): recorded with its results (:func:`provenance`)
+#: and the default name of its results files
+TODAY = datetime.date.today().isoformat()
+
+
 def provenance(t0: float) -> dict:
     """What a results file says of its run: the day it ran, the checkout
     (:func:`git_state`), the machine with its load (:func:`machine`) and the seconds since
     ``t0`` (``time.perf_counter()`` at the start)."""
     return {
-        "date": datetime.date.today().isoformat(),
+        "date": TODAY,
         "git": git_state(),
         "machine": machine(detailed=True),
         "seconds": time.perf_counter() - t0,

@@ -72,7 +72,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import json
 import math
 import sys
@@ -82,7 +81,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import git_state, machine, versions  # noqa: E402
+from common import TODAY, git_state, machine, versions  # noqa: E402
 
 from scanclique import datasets  # noqa: E402
 from scanclique.config import paper_config  # noqa: E402
@@ -95,8 +94,6 @@ from scanclique.eval import (  # noqa: E402
 from scanclique.geometry import Pose2  # noqa: E402
 from scanclique.mapping import MapConfig, map_scans  # noqa: E402
 
-# the day the benchmark runs: recorded in its results and in their default name
-DATE = datetime.date.today().isoformat()
 ROWS = ("odometry", "chain", "full", "full-no-sigma-gate", "full-2-workers", "no-odometry", "paper")
 LOGS = ("fr079-raw", "intel-raw")
 
@@ -690,13 +687,13 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--limit", type=int, default=None, help="first N scans only (a quick look)")
     ap.add_argument(
-        "--out", default=None, help="results stem (default benchmarks/results/mapping-DATE)"
+        "--out", default=None, help="results stem (default: benchmarks/results/mapping-<date>)"
     )
     args = ap.parse_args(argv)
     stem = (
         Path(args.out)
         if args.out
-        else Path(__file__).resolve().parent / "results" / f"mapping-{DATE}"
+        else Path(__file__).resolve().parent / "results" / f"mapping-{TODAY}"
     )
     git_at_start = git_state()
     warm = _warm_up()
@@ -799,7 +796,7 @@ def main(argv=None) -> int:
     js.write_text(
         json.dumps(
             {
-                "date": DATE,
+                "date": TODAY,
                 "machine": machine(detailed=True),
                 "versions": versions(("numpy", "numba", "gtsam", "scipy")),
                 "git": git_at_start,
@@ -814,7 +811,7 @@ def main(argv=None) -> int:
         + "\n"
     )
     md = [
-        "# Mapping benchmark " + DATE,
+        "# Mapping benchmark " + TODAY,
         "",
         _provenance(allres),
         "",

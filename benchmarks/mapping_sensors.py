@@ -57,7 +57,6 @@ Results: ``benchmarks/results/mapping-sensors-real-2026-12-04-s14.{md,json}``.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
 import os
@@ -71,10 +70,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import provenance, results_path  # noqa: E402
-
-# the day the benchmark runs: the default name of its results
-TAG = REAL_TAG = datetime.date.today().isoformat()
+from common import TODAY, provenance, results_path  # noqa: E402
 
 PROFILES = {
     "carmen": dict(
@@ -277,7 +273,7 @@ def main_real(logs: list[str], variants: list[str], odos: list[bool], out_arg) -
                 records.append(rec)
                 print(real_table([rec])[-1], flush=True)
     lines = real_table(records)
-    result = {"tag": REAL_TAG, **provenance(t0), "records": records}
+    result = {"tag": TODAY, **provenance(t0), "records": records}
     about = (
         f"`map_scans` with its defaults on degraded scans of {', '.join(logs)}; the relation "
         "metric of `mapping.py` (robot frame, the laser's mounting taken into account). git "
@@ -285,7 +281,7 @@ def main_real(logs: list[str], variants: list[str], odos: list[bool], out_arg) -
         f"{result['machine'].get('load_average')}."
     )
     title = "Mapping real logs with another scanner's limits (benchmarks/mapping_sensors.py --real)"
-    write_results(out_arg, f"mapping-sensors-real-{REAL_TAG}", result, title, about, lines, t0)
+    write_results(out_arg, f"mapping-sensors-real-{TODAY}", result, title, about, lines, t0)
 
 
 def write_results(out_arg, stem: str, result: dict, title: str, about: str, lines, t0) -> None:
@@ -339,7 +335,7 @@ def main(argv=None) -> None:
                 )
     lines = table(records)
     result = {
-        "tag": TAG,
+        "tag": TODAY,
         **provenance(t0),
         "profiles": PROFILES,
         "steps": a.steps,
@@ -352,7 +348,7 @@ def main(argv=None) -> None:
     )
     print("\n".join(lines))
     title = "Mapping on other laser scanners (benchmarks/mapping_sensors.py)"
-    write_results(a.out, f"mapping-sensors-{TAG}", result, title, about, lines, t0)
+    write_results(a.out, f"mapping-sensors-{TODAY}", result, title, about, lines, t0)
 
 
 if __name__ == "__main__":

@@ -54,7 +54,6 @@ sessions: ``places-2026-12-04-s13.*``, ``places-2026-12-02-s9.*``, ``-s8.*``,
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
 import sys
@@ -66,10 +65,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import git_state, machine, results_path, versions  # noqa: E402
+from common import TODAY, git_state, machine, results_path, versions  # noqa: E402
 
-# the day the benchmark runs: recorded in its results and in their default name
-DATE = datetime.date.today().isoformat()
 LOGS = ("intel", "csail", "freiburg")
 RIGHT_T = 0.5  # metres
 RIGHT_R = 0.2  # radians
@@ -833,9 +830,9 @@ def main(argv=None) -> None:
     if a.full:
         a.query_every, a.loops_every = 1, 1
     stages = set(a.stages.split(","))
-    out_json = results_path(a.out, f"places-{DATE}.json")
+    out_json = results_path(a.out, f"places-{TODAY}.json")
     res = {
-        "date": DATE,
+        "date": TODAY,
         "args": vars(a),
         "machine": machine(detailed=True),
         "versions": versions(("numpy", "scipy", "numba", "distributed")),
@@ -930,7 +927,7 @@ def main(argv=None) -> None:
     out_json.write_text(json.dumps(res, indent=1, default=float))
     md = report(res)
     out_json.with_suffix(".md").write_text(
-        f"# places benchmark {DATE}\n\n"
+        f"# places benchmark {TODAY}\n\n"
         f"`python benchmarks/places.py {' '.join(argv or sys.argv[1:])}`"
         f" at {res['git']['commit']}, {res['machine']['cpus']} CPUs, load "
         f"{res['machine']['load_average']}, {res['seconds']:.0f} s"

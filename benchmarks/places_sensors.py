@@ -33,7 +33,6 @@ Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
 import sys
@@ -45,12 +44,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import git_state, machine, results_path, versions  # noqa: E402
+from common import TODAY, git_state, machine, results_path, versions  # noqa: E402
 from mapping_sensors import PROFILES as SCANNERS  # noqa: E402
 from places import RIGHT_R, RIGHT_T, true_places  # noqa: E402
 
-# the day the benchmark runs: recorded in its results and in their default name
-DATE = datetime.date.today().isoformat()
 #: the scanners of ``benchmarks/mapping_sensors.py`` (one definition), as one scan sees
 #: them: its rate and the robot's speed do not matter to a place database
 PROFILES = {
@@ -187,9 +184,9 @@ def main(argv=None) -> None:
     unknown = [p for p in profiles if p not in PROFILES]
     if unknown:
         ap.error(f"unknown profile(s) {unknown}; known: {', '.join(PROFILES)}")
-    out_json = results_path(a.out, f"places-sensors-{DATE}.json")
+    out_json = results_path(a.out, f"places-sensors-{TODAY}.json")
     res = {
-        "date": DATE,
+        "date": TODAY,
         "args": vars(a),
         "machine": machine(),
         "versions": versions(("numpy", "scipy", "numba")),

@@ -28,7 +28,6 @@ earlier sessions' runs, the files without a suffix the first).
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import math
 import os
@@ -43,9 +42,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import RESULTS, provenance  # noqa: E402
+from common import RESULTS, TODAY, provenance  # noqa: E402
 
-TAG = "2026-12-02-s9"
 METHODS = ("nn", "jcbb", "clique", "clique-jcbb")
 
 
@@ -292,7 +290,7 @@ def main(argv=None):
         help="AssociationConfig.closure_crowding for every run: a number, or 'off' "
         "(default: the library's)",
     )
-    ap.add_argument("--out", default=str(RESULTS / f"slam-{TAG}"))
+    ap.add_argument("--out", default=str(RESULTS / f"slam-{TODAY}"))
     args = ap.parse_args(argv)
     sections = set(args.sections.split(","))
     clutters = [int(c) for c in args.clutter.split(",") if c != ""] if "vp" in sections else []
@@ -417,7 +415,6 @@ def main(argv=None):
     for r in vp:
         r.pop("_plot", None)
     result = {
-        "date": _dt.date.today().isoformat(),
         "command": " ".join(["python", "benchmarks/slam.py", *(argv or sys.argv[1:])]),
         "closure_crowding": args.closure_crowding,
         **provenance(t0),
