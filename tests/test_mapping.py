@@ -279,3 +279,37 @@ def test_a_sharp_turn_without_odometry_moves_as_the_turn_allows():
     scans = simulate_trajectory(rng, world, 150, step=0.25)
     r = map_scans(scans, use_odometry=False)
     assert _aligned_errors(r, scans).max() < 0.1
+
+
+def _corrupted_odometry(scans, scale, turn_scale, drift_per_m):
+    """``scans`` with odometry whose steps are stretched by ``scale``, whose turns by
+    ``turn_scale``, and whose heading drifts by ``drift_per_m`` rad per metre: a wheel
+    radius, a wheel base and a gyro off, as a poorly calibrated robot logs them."""
+    import dataclasses
+
+    out, cur = [scans[0]], scans[0].odometry
+    for prev, s in zip(scans, scans[1:], strict=False):
+        d = prev.odometry.inverse() @ s.odometry
+        dist = math.hypot(d.x, d.y)
+        cur = cur @ Pose2(scale * d.x, scale * d.y, turn_scale * d.theta + drift_per_m * dist)
+        out.append(dataclasses.replace(s, odometry=cur))
+    return out
+
+
+def test_a_badly_calibrated_odometry_does_not_pull_the_matches(office_drive):
+    # steps 15 % long, turns 10 % large, 3 deg of heading drift per metre: each 0.25 m
+    # step of the odometry is about 4 cm and 0.75 deg off. The matches, not the odometry,
+    # must place the scans (on the raw Kuemmerle logs, the same corruption with noise
+    # leaves fr079 at 0.0313 m and Intel at 0.0152 m against 0.0313 and 0.0147 m)
+    bad = _corrupted_odometry(office_drive, 1.15, 1.10, math.radians(3.0))
+    r = map_scans(bad)
+    assert r.used_odometry
+    assert sum(k in ("match", "icp") for k in r.placed_by) >= 0.9 * (len(bad) - 1)
+    t, rot = _relative_errors(r, bad)
+    assert np.median(t) < 0.02 and np.median(rot) < math.radians(0.5)
+    odo = [s.odometry for s in bad]
+    t_odo = [
+        (a.inverse() @ b).distance_to(s.reference.inverse() @ u.reference)[0]
+        for a, b, s, u in zip(odo, odo[1:], bad, bad[1:], strict=False)
+    ]
+    assert np.median(t_odo) > 0.03  # the corruption is what it says
