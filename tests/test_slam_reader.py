@@ -1,15 +1,18 @@
-"""Victoria Park reader: steps, frames, missing files and malformed rows."""
+"""Victoria Park reader: steps, frames, missing files and malformed rows; a step, the
+filter and ``associate`` refusing what is not finite or not in order."""
 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from scanclique import datasets, slam
-from scanclique.errors import DataNotFoundError, ParseError
+from scanclique.errors import ArgumentError, DataNotFoundError, ParseError, StepError
+from scanclique.slam import Step
 from scanclique.slam.reader import read_table
 
 
@@ -95,3 +98,63 @@ def test_real_victoria_park(data_dir):
     assert max(s.n_observations for s in obs) == 18 or max(s.n_observations for s in obs) > 10
     b = np.concatenate([s.observations[:, 1] for s in obs])
     assert b.min() >= -math.pi / 2 - 1e-6 and b.max() <= math.pi / 2 + 1e-6
+
+
+@pytest.mark.parametrize(
+    "kwargs, says",
+    [
+        (dict(time=float("nan"), control=None, observations=[]), "time must be finite"),
+        (dict(time="soon", control=None, observations=[]), "time must be a number"),
+        (dict(time=0.0, control=(1.0, float("inf")), observations=[]), "control"),
+        (dict(time=0.0, control=(1.0, 0.0, 2.0), observations=[]), "2 numbers"),
+        (dict(time=0.0, control=None, observations=[[float("nan"), 0.1]]), "observation 0"),
+        (dict(time=0.0, control=None, observations=[[2.0, 0.1], [-0.5, 0.2]]), "observation 1"),
+        (dict(time=0.0, control=None, observations=[[2.0, float("inf")]]), "observation 0"),
+        (dict(time=0.0, control=None, observations=[1.0, 2.0, 3.0]), "(k, 2)"),
+        (dict(time=0.0, control=None, observations=[["a", 1.0]]), "observations must be numbers"),
+        (
+            dict(time=0.0, control=None, observations=[[2.0, 0.1]], attributes=[0.3, 0.4]),
+            "2 attributes",
+        ),
+        (
+            dict(time=0.0, control=None, observations=[[2.0, 0.1]], attributes=[np.nan]),
+            "attribute 0",
+        ),
+    ],
+)
+def test_a_bad_step_is_refused_by_name(kwargs, says):
+    with pytest.raises(StepError, match=re.escape(says)):
+        Step(**kwargs)
+
+
+def test_the_filter_refuses_steps_out_of_order_and_a_bad_initial_pose():
+    u = (0.5, 0.0)
+    steps = [Step(1.0, u, []), Step(1.0, None, [[2.0, 0.1]]), Step(0.5, u, [])]
+    with pytest.raises(StepError, match=r"steps\[2\] at t=0.5 comes before steps\[1\]"):
+        slam.ekf_slam(steps, slam.Unicycle())
+    # equal times are in order
+    assert len(slam.ekf_slam(steps[:2], slam.Unicycle()).times) == 2
+    for bad in [(0.0, float("nan"), 0.0), (0.0, 0.0), "origin"]:
+        with pytest.raises(ArgumentError, match="initial_pose"):
+            slam.ekf_slam(steps[:2], slam.Unicycle(), initial_pose=bad)
+
+
+def test_associate_refuses_what_is_not_finite():
+    lm = np.array([[10.0, 0.0], [10.0, 5.0]])
+    cov = np.tile(np.eye(2) * 0.01, (2, 1, 1))
+    R = np.diag([0.1, 0.01]) ** 2
+    z = np.array([[10.0, 0.0]])
+    assert slam.associate(z, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4).landmarks.tolist() == [0]
+    bad = dict(
+        z=np.array([[np.nan, 0.0]]),
+        R=np.full((2, 2), np.inf),
+        map_mean=lm + np.nan,
+        pose=(0.0, np.nan, 0.0),
+    )
+    for name, value in bad.items():
+        args = dict(z=z, R=R, map_mean=lm, map_cov=cov, pose=np.zeros(3), pose_cov=np.eye(3))
+        args[name] = value
+        with pytest.raises(StepError, match=f"associate: {name} is not finite"):
+            slam.associate(**args)
+    with pytest.raises(StepError, match="negative range"):
+        slam.associate(-z, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4)

@@ -18,6 +18,7 @@ __all__ = [
     "ScanIndexError",
     "PlaceDatabaseError",
     "ArgumentError",
+    "StepError",
 ]
 
 
@@ -79,3 +80,10 @@ class PlaceDatabaseError(ScanCliqueError):
 class ArgumentError(ScanCliqueError, TypeError):
     """A function of the public API was given an argument of the wrong type or kind (e.g.
     ``read_scans(None)``); the message names the argument and what it got."""
+
+
+class StepError(ScanCliqueError, ValueError):
+    """An EKF-SLAM input (``scanclique.slam``) is inconsistent: a step's time, control,
+    observation or attribute that is not finite, a negative range, a shape that does not
+    fit, steps out of time order, or an association's arrays that are not finite. The
+    message names the step (its time, or its index in the sequence) and the field."""

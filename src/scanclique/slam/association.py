@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import check_choice, check_positive, check_probability, check_types
-from ..errors import ConfigError
+from ..errors import ConfigError, StepError
 from ..graph import point_distance_invariants  # the point-point invariant, in the core
 from .models import inverse_observe, observe, wrap
 
@@ -781,6 +781,11 @@ def associate(
     Association
         ``landmarks[i]`` = index into ``map_mean``, :data:`NEW` or :data:`REJECTED`.
 
+    Raises
+    ------
+    StepError
+        An array that is not finite numbers, ``z`` not pairs, or a negative range.
+
     Examples
     --------
     >>> lm = np.array([[10.0, 0.0], [10.0, 5.0], [15.0, -3.0]])
@@ -790,9 +795,22 @@ def associate(
     >>> a.landmarks.tolist()
     [2, 0]
     """
-    mean = np.asarray(map_mean, float).reshape(-1, 2)
+    z = _finite_array(z, "z")
+    if z.size % 2:
+        raise StepError(f"associate: z must be (k, 2) range and bearing, got shape {z.shape}")
+    z = z.reshape(-1, 2)
+    if (z[:, 0] < 0.0).any():
+        raise StepError(f"associate: z has a negative range ({z[:, 0].min()})")
+    R = _finite_array(R, "R")
+    pose_cov = _finite_array(pose_cov, "pose_cov")
+    pose = _finite_array(pose, "pose")
+    if attributes is not None:
+        attributes = _finite_array(attributes, "attributes")
+    if map_attributes is not None:
+        map_attributes = _finite_array(map_attributes, "map_attributes")
+    mean = _finite_array(map_mean, "map_mean").reshape(-1, 2)
     n = len(mean)
-    cov = np.asarray(map_cov, float)
+    cov = _finite_array(map_cov, "map_cov")
     if cov.ndim == 3:
         full = np.zeros((2 * n, 2 * n))
         for j in range(n):
@@ -816,6 +834,17 @@ def associate(
         )
     att = None if attributes is None else np.asarray(attributes, float)
     return associate_predicted(z, R, pred, method, config, att)
+
+
+def _finite_array(values, name: str) -> np.ndarray:
+    """``values`` as a float array, or a :class:`StepError` naming ``name``."""
+    try:
+        a = np.array(values, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise StepError(f"associate: {name} must be numbers ({e})") from None
+    if not np.isfinite(a).all():
+        raise StepError(f"associate: {name} is not finite")
+    return a
 
 
 __all__ += ["predict_map", "inverse_observe"]

@@ -39,7 +39,7 @@ import numpy as np
 
 from .._records import readonly as _ro
 from ..config import check_choice, check_nonneg, check_positive, check_types
-from ..errors import ArgumentError, ConfigError
+from ..errors import ArgumentError, ConfigError, StepError
 from .association import (
     METHODS,
     NEW,
@@ -709,7 +709,11 @@ def ekf_slam(
     Raises
     ------
     ArgumentError
-        ``steps`` is not a sequence of :class:`~scanclique.slam.Step`.
+        ``steps`` is not a sequence of :class:`~scanclique.slam.Step`, or
+        ``initial_pose`` is not three finite numbers.
+    StepError
+        The steps are not in time order (equal times are allowed). A step's own values
+        are checked when it is made (:class:`~scanclique.slam.Step`).
     ConfigError
         ``association`` is not one of the methods (checked before the first step, so a
         log without observations does not hide it).
@@ -723,6 +727,19 @@ def ekf_slam(
     for k, s in enumerate(steps):
         if not isinstance(s, Step):
             raise ArgumentError(f"ekf_slam: steps[{k}] is a {type(s).__name__}, not a Step")
+        if k and s.time < steps[k - 1].time:
+            raise StepError(
+                f"ekf_slam: steps[{k}] at t={s.time} comes before steps[{k - 1}] at "
+                f"t={steps[k - 1].time}: steps must be in time order"
+            )
+    try:
+        pose0 = np.array(initial_pose, dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        raise ArgumentError(
+            f"ekf_slam: initial_pose must be 3 numbers (x, y, theta), got {initial_pose!r}"
+        ) from None
+    if not np.isfinite(pose0).all():
+        raise ArgumentError(f"ekf_slam: initial_pose {pose0.tolist()} is not finite")
     if association not in METHODS:
         raise ConfigError(
             f"association method must be one of {', '.join(METHODS)}, got {association!r}"
@@ -750,7 +767,7 @@ def ekf_slam(
         prior.append(cfg.speed_scale_sigma**2)
     if bbias:
         prior.append(cfg.bearing_bias_sigma**2)
-    x0 = np.r_[np.asarray(initial_pose, float), np.zeros(len(prior) - 3)]
+    x0 = np.r_[pose0, np.zeros(len(prior) - 3)]
     f = _Filter(x0, np.diag(prior), confirm_hits=cfg.confirm_hits)
     nv = f.nv
     if bbias:

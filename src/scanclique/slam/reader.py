@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .._records import readonly as _ro
-from ..errors import ArgumentError, ConfigError, DataNotFoundError, ParseError
+from ..errors import ArgumentError, ConfigError, DataNotFoundError, ParseError, StepError
 from ..io.text import plain_float
 
 __all__ = [
@@ -49,6 +49,14 @@ SOURCE = (
 )
 
 
+def _numbers(values, t: float, field: str) -> np.ndarray:
+    """``values`` as a float array, or a :class:`StepError` naming the step and field."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise StepError(f"Step at t={t}: {field} must be numbers ({e})") from None
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Step:
     """One event of a SLAM log: a control that holds from ``time`` on, and a batch
@@ -67,6 +75,13 @@ class Step:
         (-pi, pi]) of each detected feature, in the sensor frame. ``k`` may be 0.
     attributes : (k,) float64 ndarray, read-only, or None
         A scalar attribute per observation (a tree's diameter, m), or None.
+
+    Raises
+    ------
+    StepError
+        A time, control, observation or attribute that is not a finite number, a negative
+        range, a control that is not two numbers, observations that are not pairs, or
+        attributes that do not match the observations one to one.
     """
 
     time: float
@@ -75,16 +90,42 @@ class Step:
     attributes: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        try:
+            t = float(self.time)
+        except (TypeError, ValueError):
+            raise StepError(f"Step: time must be a number of seconds, got {self.time!r}") from None
+        if not math.isfinite(t):
+            raise StepError(f"Step: time must be finite, got {t}")
+        object.__setattr__(self, "time", t)
         if self.control is not None:
-            object.__setattr__(self, "control", _ro(np.asarray(self.control, float).reshape(2)))
-        obs = np.asarray(self.observations, float).reshape(-1, 2)
+            c = _numbers(self.control, t, "control")
+            if c.size != 2:
+                raise StepError(f"Step at t={t}: control must be 2 numbers, got {c.size}")
+            c = c.reshape(2)
+            if not (math.isfinite(c[0]) and math.isfinite(c[1])):
+                raise StepError(f"Step at t={t}: control {c.tolist()} is not finite")
+            object.__setattr__(self, "control", _ro(c))
+        obs = _numbers(self.observations, t, "observations")
+        if obs.size % 2:
+            raise StepError(
+                f"Step at t={t}: observations must be (k, 2) range and bearing, got shape "
+                f"{obs.shape}"
+            )
+        obs = obs.reshape(-1, 2)
+        if obs.size and not (np.isfinite(obs).all() and obs[:, 0].min() >= 0.0):
+            bad = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] >= 0.0))[0])
+            raise StepError(
+                f"Step at t={t}: observation {bad} (range, bearing) = {obs[bad].tolist()}: "
+                "ranges must be finite and >= 0, bearings finite"
+            )
         object.__setattr__(self, "observations", _ro(obs))
         if self.attributes is not None:
-            att = np.asarray(self.attributes, float).reshape(-1)
+            att = _numbers(self.attributes, t, "attributes").reshape(-1)
             if len(att) != len(obs):
-                raise ValueError(
-                    f"Step at t={self.time}: {len(att)} attributes for {len(obs)} observations"
-                )
+                raise StepError(f"Step at t={t}: {len(att)} attributes for {len(obs)} observations")
+            if att.size and not np.isfinite(att).all():
+                bad = int(np.flatnonzero(~np.isfinite(att))[0])
+                raise StepError(f"Step at t={t}: attribute {bad} is {att[bad]}, not finite")
             object.__setattr__(self, "attributes", _ro(att))
 
     @property

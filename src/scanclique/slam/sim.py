@@ -76,7 +76,8 @@ ParkRun = SimRun
 def _frame(rng, x, landmarks, sensor, R, ranges, fov, p_detect, n_clutter, clutter_ranges):
     """One batch observation from the vehicle pose ``x``: each landmark within ``ranges``
     (min, max) and the field of view ``fov`` of the sensor at ``sensor`` (vehicle frame),
-    detected with probability ``p_detect``, with noise ``R``; then ``n_clutter`` spurious
+    detected with probability ``p_detect``, with noise ``R`` (a detection whose noisy range
+    is negative is missed); then ``n_clutter`` spurious
     detections uniform in ``clutter_ranges`` and the field of view; shuffled. Returns
     ``(z (k, 2), ids (k,))``, ids the landmark of each detection (-1: clutter)."""
     z, _, _ = observe(x, landmarks, sensor[0], sensor[1])
@@ -89,6 +90,11 @@ def _frame(rng, x, landmarks, sensor, R, ranges, fov, p_detect, n_clutter, clutt
     zt = z[vis] + rng.multivariate_normal(np.zeros(2), R, len(vis))
     zt[:, 1] = wrap(zt[:, 1])
     ids = vis.astype(np.int64)
+    # a landmark nearer than its range noise can draw a negative range, which no sensor
+    # reports: that detection is missed (drawn all the same, so the draws that follow
+    # are those of every other frame)
+    real = zt[:, 0] >= 0.0
+    zt, ids = zt[real], ids[real]
     if n_clutter:
         zc = np.column_stack(
             [rng.uniform(*clutter_ranges, n_clutter), rng.uniform(-0.5 * fov, 0.5 * fov, n_clutter)]
