@@ -55,6 +55,7 @@ from ..config import check_choice, check_positive, check_probability, check_type
 from ..errors import ConfigError, StepError
 from ..graph import point_distance_invariants  # the point-point invariant, in the core
 from .models import inverse_observe, observe, wrap
+from .reader import as_numbers
 
 __all__ = [
     "NEW",
@@ -837,11 +838,8 @@ def associate(
 
 
 def _finite_array(values, name: str) -> np.ndarray:
-    """``values`` as a float array, or a :class:`StepError` naming ``name``."""
-    try:
-        a = np.array(values, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise StepError(f"associate: {name} must be numbers ({e})") from None
+    """``values`` as a float array (a copy), or a :class:`StepError` naming ``name``."""
+    a = np.array(as_numbers(values, "associate", name))
     if not np.isfinite(a).all():
         raise StepError(f"associate: {name} is not finite")
     return a

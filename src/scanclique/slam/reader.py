@@ -49,12 +49,13 @@ SOURCE = (
 )
 
 
-def _numbers(values, t: float, field: str) -> np.ndarray:
-    """``values`` as a float array, or a :class:`StepError` naming the step and field."""
+def as_numbers(values, where: str, field: str) -> np.ndarray:
+    """``values`` as a float array, or a :class:`StepError` saying ``where`` (``"Step at
+    t=0.5"``) ``field`` must be numbers (the slam inputs' one conversion)."""
     try:
         return np.asarray(values, dtype=float)
     except (TypeError, ValueError) as e:
-        raise StepError(f"Step at t={t}: {field} must be numbers ({e})") from None
+        raise StepError(f"{where}: {field} must be numbers ({e})") from None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -98,14 +99,14 @@ class Step:
             raise StepError(f"Step: time must be finite, got {t}")
         object.__setattr__(self, "time", t)
         if self.control is not None:
-            c = _numbers(self.control, t, "control")
+            c = as_numbers(self.control, f"Step at t={t}", "control")
             if c.size != 2:
                 raise StepError(f"Step at t={t}: control must be 2 numbers, got {c.size}")
             c = c.reshape(2)
             if not (math.isfinite(c[0]) and math.isfinite(c[1])):
                 raise StepError(f"Step at t={t}: control {c.tolist()} is not finite")
             object.__setattr__(self, "control", _ro(c))
-        obs = _numbers(self.observations, t, "observations")
+        obs = as_numbers(self.observations, f"Step at t={t}", "observations")
         if obs.size % 2:
             raise StepError(
                 f"Step at t={t}: observations must be (k, 2) range and bearing, got shape "
@@ -120,7 +121,7 @@ class Step:
             )
         object.__setattr__(self, "observations", _ro(obs))
         if self.attributes is not None:
-            att = _numbers(self.attributes, t, "attributes").reshape(-1)
+            att = as_numbers(self.attributes, f"Step at t={t}", "attributes").reshape(-1)
             if len(att) != len(obs):
                 raise StepError(f"Step at t={t}: {len(att)} attributes for {len(obs)} observations")
             if att.size and not np.isfinite(att).all():
