@@ -55,7 +55,7 @@ from ..config import check_choice, check_positive, check_probability, check_type
 from ..errors import ConfigError, StepError
 from ..graph import point_distance_invariants  # the point-point invariant, in the core
 from .models import inverse_observe, observe, wrap
-from .reader import as_numbers
+from .reader import as_numbers, as_observations
 
 __all__ = [
     "NEW",
@@ -796,12 +796,7 @@ def associate(
     >>> a.landmarks.tolist()
     [2, 0]
     """
-    z = _finite_array(z, "z")
-    if z.size % 2:
-        raise StepError(f"associate: z must be (k, 2) range and bearing, got shape {z.shape}")
-    z = z.reshape(-1, 2)
-    if (z[:, 0] < 0.0).any():
-        raise StepError(f"associate: z has a negative range ({z[:, 0].min()})")
+    z = np.array(as_observations(z, "associate", "z"))
     R = _finite_array(R, "R")
     pose_cov = _finite_array(pose_cov, "pose_cov")
     pose = _finite_array(pose, "pose")

@@ -58,6 +58,23 @@ def as_numbers(values, where: str, field: str) -> np.ndarray:
         raise StepError(f"{where}: {field} must be numbers ({e})") from None
 
 
+def as_observations(values, where: str, field: str) -> np.ndarray:
+    """``values`` as a ``(k, 2)`` float array of range (m) and bearing (rad), or a
+    :class:`StepError` saying ``where`` which of ``field``'s observations is not finite or
+    has a negative range (the one check of a step's and ``associate``'s observations)."""
+    obs = as_numbers(values, where, field)
+    if obs.size % 2:
+        raise StepError(f"{where}: {field} must be (k, 2) range and bearing, got shape {obs.shape}")
+    obs = obs.reshape(-1, 2)
+    if not obs.size or (np.isfinite(obs).all() and obs[:, 0].min() >= 0.0):
+        return obs
+    i = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] >= 0.0))[0])
+    says = "is not finite" if not np.isfinite(obs[i]).all() else "has a negative range"
+    raise StepError(
+        f"{where}: {field}: observation {i} (range, bearing) = {obs[i].tolist()} {says}"
+    )
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Step:
     """One event of a SLAM log: a control that holds from ``time`` on, and a batch
@@ -106,19 +123,7 @@ class Step:
             if not (math.isfinite(c[0]) and math.isfinite(c[1])):
                 raise StepError(f"Step at t={t}: control {c.tolist()} is not finite")
             object.__setattr__(self, "control", _ro(c))
-        obs = as_numbers(self.observations, f"Step at t={t}", "observations")
-        if obs.size % 2:
-            raise StepError(
-                f"Step at t={t}: observations must be (k, 2) range and bearing, got shape "
-                f"{obs.shape}"
-            )
-        obs = obs.reshape(-1, 2)
-        if obs.size and not (np.isfinite(obs).all() and obs[:, 0].min() >= 0.0):
-            bad = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] >= 0.0))[0])
-            raise StepError(
-                f"Step at t={t}: observation {bad} (range, bearing) = {obs[bad].tolist()}: "
-                "ranges must be finite and >= 0, bearings finite"
-            )
+        obs = as_observations(self.observations, f"Step at t={t}", "observations")
         object.__setattr__(self, "observations", _ro(obs))
         if self.attributes is not None:
             att = as_numbers(self.attributes, f"Step at t={t}", "attributes").reshape(-1)
