@@ -6,6 +6,8 @@ BIN := $(VENV)/bin
 STAMP_CORE := $(VENV)/.installed-core
 STAMP_TEST := $(VENV)/.installed-test
 STAMP_BENCH := $(VENV)/.installed-bench
+# pytest worker processes (pytest-xdist); TEST_WORKERS=0 runs the suite in one process
+TEST_WORKERS ?= 2
 
 .PHONY: demo test lint bench clean
 
@@ -29,7 +31,7 @@ demo: $(STAMP_CORE)
 	$(BIN)/python -m scanclique demo --plot match.png
 
 test: $(STAMP_TEST)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 lint: $(STAMP_TEST)
 	$(BIN)/ruff check src tests benchmarks
