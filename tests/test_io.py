@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from scanclique import Pose2, Scan
-from scanclique.errors import DataNotFoundError, ParseError
+from scanclique.errors import ArgumentError, DataNotFoundError, ParseError
 from scanclique.io import (
     FLASER_MAX_RANGE,
     detect_format,
@@ -117,6 +117,58 @@ def test_rlaser_kept_in_sensor_frame(tmp_path):
     log = read_carmen(path)
     assert log.message_types == ("FLASER", "RLASER")
     np.testing.assert_array_equal(log.scans[1].angles, log.scans[0].angles)
+
+
+def _two_lasers(tmp_path):
+    """A front and a rear laser interleaved, and a third laser type once (RAWLASER2)."""
+    lines = []
+    for i in range(3):
+        lines += [
+            flaser([1.0 + i] * 181, t=10.0 + i),
+            flaser([5.0] * 181, t=10.5 + i, kind="RLASER"),
+        ]
+    return write(tmp_path, "two.log", *lines, rawlaser([3.0] * 5, t=20.0, k=2))
+
+
+def test_a_log_of_several_lasers_is_read_one_laser_at_a_time(tmp_path, caplog):
+    path = _two_lasers(tmp_path)
+    with caplog.at_level(logging.WARNING, logger="scanclique"):
+        every = read_scans(path)  # the contract: one scan per laser message, in file order
+    assert len(every) == 7
+    assert "holds 3 FLASER and 1 RAWLASER2 and 3 RLASER scans, interleaved" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="scanclique"):
+        main = read_scans(path, laser="main")
+    assert [s.ranges[0] for s in main] == [1.0, 2.0, 3.0]
+    assert [s.source for s in main] == ["two.log:1", "two.log:3", "two.log:5"]
+    assert "using the 3 FLASER scans (--laser RAWLASER2 or RLASER for the others)" in caplog.text
+    rear = read_scans(path, laser="RLASER")
+    assert [s.timestamp for s in rear] == [10.5, 11.5, 12.5]
+    assert len(read_scans(path, laser="RAWLASER2")) == 1
+    with pytest.raises(ArgumentError, match="two.log holds no ROBOTLASER1 scans"):
+        read_scans(path, laser="ROBOTLASER1")
+    with pytest.raises(ArgumentError, match="laser must be 'main' or"):
+        read_scans(path, laser="rear")
+
+
+def test_a_log_of_one_laser_is_read_whole_and_quietly(tmp_path, caplog):
+    path = write(tmp_path, "a.log", flaser([1.0] * 181), flaser([2.0] * 181, t=101.0))
+    with caplog.at_level(logging.WARNING, logger="scanclique"):
+        assert len(read_scans(path, laser="main")) == len(read_scans(path)) == 2
+    assert caplog.text == ""
+    assert read_scans(write(tmp_path, "empty.log", "# nothing"), laser="RLASER") == []
+
+
+def test_the_map_reads_the_main_laser(tmp_path):
+    from scanclique.errors import ScanCliqueError
+    from scanclique.mapping.run import load_map_log
+
+    path = _two_lasers(tmp_path)
+    scans, label = load_map_log(path)
+    assert label == "two.log" and [s.ranges[0] for s in scans] == [1.0, 2.0, 3.0]
+    assert [s.ranges[0] for s in load_map_log(path, laser="RLASER")[0]] == [5.0] * 3
+    with pytest.raises(ScanCliqueError, match="--topic applies to ROS bags only"):
+        load_map_log(path, topic="/scan")
 
 
 def test_max_range_option(tmp_path):

@@ -148,6 +148,13 @@ def test_ros1_bag_round_trip(tmp_path, carmen_scans):
     import scanclique as sc
 
     _same(carmen_scans, sc.read_scans(path))
+    # a bag's lasers are its topics: the map's --laser (CARMEN message types) is refused
+    from scanclique.errors import ScanCliqueError
+    from scanclique.mapping.run import load_map_log
+
+    assert len(load_map_log(path)[0]) == len(carmen_scans)
+    with pytest.raises(ScanCliqueError, match="--laser applies to CARMEN logs only"):
+        load_map_log(path, laser="FLASER")
 
 
 @pytest.mark.realdata

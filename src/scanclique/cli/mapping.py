@@ -50,6 +50,14 @@ def map_cmd(
         str | None,
         typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one)."),
     ] = None,
+    laser: Annotated[
+        str | None,
+        typer.Option(
+            "--laser",
+            help="Which laser of a CARMEN log that holds several (FLASER, RLASER, "
+            "ROBOTLASER1, RAWLASER1..4; default: the main one, FLASER first, said on stderr).",
+        ),
+    ] = None,
     plot: Annotated[
         bool, typer.Option("--plot", help="Also write map.png with the trajectory and closures.")
     ] = False,
@@ -147,6 +155,7 @@ def map_cmd(
                 out,
                 use_odometry=None if odometry else False,
                 topic=topic,
+                laser=laser,
                 plot=plot,
                 progress=tick,
                 workers=workers,

@@ -65,7 +65,7 @@ def _check_start(source: str, start: int) -> None:
     finds it (an empty log is left to ``run_add``, which says so)."""
     from .. import datasets
 
-    n = len(_guard(lambda: datasets.load_log(source)))
+    n = len(_guard(lambda: datasets.load_log(source, laser="main")))
     if 0 < n <= start:
         raise _fail(
             _escape(f"--start {start} is beyond the log: {source} has {n} scans (0..{n - 1})")

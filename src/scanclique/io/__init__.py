@@ -27,6 +27,8 @@ from .carmen import (
     DEFAULT_MAX_BEAMS,
     FLASER_MAX_RANGE,
     KNOWN_MESSAGES,
+    LASER_MESSAGES,
+    MAIN_LASER_ORDER,
     CarmenLog,
     _CarmenReader,
     flaser_angles,
@@ -34,6 +36,7 @@ from .carmen import (
     iter_carmen,
     parse_carmen,
     read_carmen,
+    select_laser,
 )
 from .npz import read_scans_npz, write_scans_npz
 from .text import (
@@ -59,6 +62,7 @@ __all__ = [
     "LineSource",
     "detect_format",
     "read_carmen",
+    "select_laser",
     "CarmenLog",
     "read_scans_text",
     "write_scans_text",
@@ -131,7 +135,12 @@ def detect_format(path: str | os.PathLike) -> str:
     return _format_of_lines(lines, spath)
 
 
-def _check_options(strict, max_beams, max_range) -> None:
+def _check_options(strict, max_beams, max_range, laser=None) -> None:
+    if laser is not None and laser != "main" and laser not in LASER_MESSAGES:
+        raise ArgumentError(
+            f"laser must be 'main' or a CARMEN laser message type "
+            f"({', '.join(MAIN_LASER_ORDER)}), got {laser!r}"
+        )
     if not isinstance(strict, bool):
         raise ArgumentError(f"strict must be True or False, got {strict!r}")
     if isinstance(max_beams, bool) or not isinstance(max_beams, int) or max_beams < 1:
@@ -152,6 +161,7 @@ def read_scans(
     strict: bool = True,
     max_beams: int = DEFAULT_MAX_BEAMS,
     max_range: float | None = None,
+    laser: str | None = None,
 ) -> list[Scan]:
     """Read every scan of a file: one :class:`~scanclique.scan.Scan` per laser message.
 
@@ -183,6 +193,13 @@ def read_scans(
         logged at warning level, and then the ``range_max`` of those scans). Ignored by
         the other formats, but checked for all: not a finite number > 0 is a
         :class:`~scanclique.errors.ConfigError`.
+    laser : str, optional
+        CARMEN only: None (default) keeps every laser message; a log that holds more than
+        one laser (FLASER and RLASER, RAWLASER1 and RAWLASER2, ...) interleaves their views
+        in file order, which is logged at warning level. ``"main"`` keeps the log's main
+        laser (:data:`~scanclique.io.carmen.MAIN_LASER_ORDER`: FLASER first, RLASER last)
+        and logs what it left out; a message type (``"RLASER"``) keeps that one's scans.
+        What the mapping and place commands read (``--laser``, default ``"main"``).
 
     Returns
     -------
@@ -196,14 +213,15 @@ def read_scans(
     DataNotFoundError
         If there is no such file.
     ArgumentError
-        ``path`` is not a path (``None``, a number, ...), or an option of the wrong type.
+        ``path`` is not a path (``None``, a number, ...), or an option of the wrong type;
+        ``laser`` names a type the CARMEN log holds no scans of.
 
     See Also
     --------
     read_carmen : the CARMEN reader, also returning PARAM values and skip counts.
     """
     spath = check_path(path)
-    _check_options(strict, max_beams, max_range)
+    _check_options(strict, max_beams, max_range, laser)
     from .rosbag import is_bag
 
     if is_bag(spath):  # a ROS 1 .bag or a ROS 2 bag: its only LaserScan topic
@@ -217,7 +235,9 @@ def read_scans(
     if fmt == "text":
         return parse_scans_text(lines, strict=strict, max_beams=max_beams)
     log = parse_carmen(lines, strict=strict, max_beams=max_beams, max_range=max_range)
-    scans = list(log.scans)
+    scans, note = select_laser(log, laser)
+    if note:
+        _logger.warning("%s", note)
     if scans:
         _logger.info("%s: %d scans, poses: %s", spath, len(scans), poses_carried(scans))
     return scans

@@ -98,7 +98,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..errors import ConfigError, ParseError, ScanError
+from ..errors import ArgumentError, ConfigError, ParseError, ScanError
 from ..geometry import Pose2, wrap_angle
 from ..scan import Scan, beam_angles
 from .text import (
@@ -115,6 +115,7 @@ __all__ = [
     "DEFAULT_MAX_BEAMS",
     "LASER_MESSAGES",
     "KNOWN_MESSAGES",
+    "MAIN_LASER_ORDER",
     "CarmenLog",
     "flaser_angles",
     "detect_no_return",
@@ -122,6 +123,7 @@ __all__ = [
     "parse_carmen",
     "iter_carmen",
     "read_carmen",
+    "select_laser",
 ]
 
 logger = logging.getLogger(__name__)
@@ -139,6 +141,85 @@ LASER_MESSAGES = frozenset(
 
 KNOWN_MESSAGES = LASER_MESSAGES | {"ODOM", "PARAM"}
 """CARMEN message types this reader interprets (others are skipped and counted)."""
+
+MAIN_LASER_ORDER = (
+    "FLASER",
+    "ROBOTLASER1",
+    "RAWLASER1",
+    "RAWLASER2",
+    "RAWLASER3",
+    "RAWLASER4",
+    "RLASER",
+)
+"""Which laser is a log's main one when it holds several (:func:`select_laser`): the front
+laser (FLASER, which carries the odometry and the reference pose, before ROBOTLASER1, which
+some logs write beside it for the same scans), then the lowest-numbered raw laser, the rear
+laser last."""
+
+
+def select_laser(log: CarmenLog, laser: str | None) -> tuple[list[Scan], str | None]:
+    """The scans of one laser of ``log``, and a sentence for the user when others were
+    left out (None when nothing was).
+
+    A trajectory is one sensor's: a log with a front and a rear laser (FLASER and RLASER,
+    or RAWLASER1 and RAWLASER2) interleaves two views in file order, which a mapper would
+    take for one robot jumping back and forth.
+
+    Parameters
+    ----------
+    log : CarmenLog
+    laser : str or None
+        None: every laser message (:func:`~scanclique.io.read_scans`' default); a sentence
+        only when the log holds more than one type. ``"main"``: the first of
+        :data:`MAIN_LASER_ORDER` the log holds. A message type (``"RLASER"``): its scans.
+
+    Raises
+    ------
+    ArgumentError
+        ``laser`` is not None, ``"main"`` or a laser message type, or the log holds scans
+        but none of that type.
+
+    >>> from scanclique.scan import Scan
+    >>> s = Scan(np.array([1.0]), np.array([0.0]))
+    >>> log = CarmenLog("two.log", (s, s, s), ("FLASER", "RLASER", "FLASER"), {}, {},
+    ...                 np.empty((0, 4)))
+    >>> scans, note = select_laser(log, "main")
+    >>> len(scans)
+    2
+    >>> print(note)  # doctest: +NORMALIZE_WHITESPACE
+    two.log holds 2 FLASER and 1 RLASER scans: using the 2 FLASER scans (--laser RLASER for
+    the others)
+    """
+    if laser is not None and laser != "main" and laser not in LASER_MESSAGES:
+        raise ArgumentError(
+            f"laser must be 'main' or one of {', '.join(MAIN_LASER_ORDER)}, got {laser!r}"
+        )
+    counts: dict[str, int] = {}
+    for t in log.message_types:
+        counts[t] = counts.get(t, 0) + 1
+    name = os.path.basename(log.path)
+    held = " and ".join(f"{counts[t]} {t}" for t in MAIN_LASER_ORDER if t in counts)
+    others = [t for t in MAIN_LASER_ORDER if t in counts]
+    if laser is None:
+        if len(counts) < 2:
+            return list(log.scans), None
+        return list(log.scans), (
+            f"{name} holds {held} scans, interleaved in file order: one trajectory needs one "
+            f"sensor (laser='main' or --laser {others[0]} keeps the {others[0]} scans)"
+        )
+    if not counts:
+        return [], None
+    pick = others[0] if laser == "main" else laser
+    if pick not in counts:
+        raise ArgumentError(f"{name} holds no {pick} scans (it holds {held})")
+    if len(counts) < 2:
+        return list(log.scans), None
+    rest = " or ".join(t for t in others if t != pick)
+    return [s for s, t in zip(log.scans, log.message_types, strict=True) if t == pick], (
+        f"{name} holds {held} scans: using the {counts[pick]} {pick} scans "
+        f"(--laser {rest} for the others)"
+    )
+
 
 _FLASER_KINDS = frozenset({"FLASER", "RLASER"})
 

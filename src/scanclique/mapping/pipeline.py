@@ -989,7 +989,8 @@ def map_scans(
     Parameters
     ----------
     scans : sequence of Scan
-        In recording order.
+        One sensor's, in recording order (of a CARMEN log with a front and a rear laser,
+        ``read_scans(path, laser="main")`` reads the front one's).
     use_odometry : bool, optional
         None (default): use the odometry when every scan carries it. False: from the scans
         alone (constant-velocity prior), the paper's point. True: use it where present.

@@ -40,17 +40,23 @@ from ..io.rosbag import BAG_SUFFIXES, is_bag  # noqa: E402,F401 (re-exported)
 
 
 def load_map_log(
-    log_or_name: str | os.PathLike, topic: str | None = None
+    log_or_name: str | os.PathLike, topic: str | None = None, laser: str | None = None
 ) -> tuple[list[Scan], str]:
-    """The scans of a CARMEN log, a registered data set name or a ROS bag, and a label."""
+    """The scans of a CARMEN log, a registered data set name or a ROS bag, and a label.
+
+    ``topic``: a bag's LaserScan topic (default: its only one). ``laser``: a CARMEN log's
+    laser message type (default ``"main"``: its front laser when it holds several, see
+    :func:`scanclique.io.read_scans`), since a map is one sensor's."""
     s = str(log_or_name)
     if is_bag(s):
+        if laser is not None:
+            raise ScanCliqueError(f"--laser applies to CARMEN logs only; {s} is a bag (--topic)")
         from ..io.rosbag import read_bag  # noqa: PLC0415
 
         return read_bag(s, topic=topic), Path(s).name
     if topic is not None:
         raise ScanCliqueError(f"--topic applies to ROS bags only; {s} is not a bag")
-    return datasets.load_log(s), Path(s).name
+    return datasets.load_log(s, laser=laser or "main"), Path(s).name
 
 
 def _relations_for(log_or_name: str) -> Path | None:
@@ -195,6 +201,7 @@ def run_map(
     progress: Callable[[int, int, int], None] | None = None,
     workers: int = 1,
     online: bool = False,
+    laser: str | None = None,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
     ``report.json`` (``map.png`` when ``plot``; ``covariances.csv`` when the
@@ -209,13 +216,15 @@ def run_map(
     other files are the finished map's: the batch map of the same configuration (default
     :meth:`MapConfig.online`), except where the batch reads the whole log to tell whether
     the odometry reports backing up.
+
+    ``laser``: which laser of a CARMEN log that holds several (:func:`load_map_log`).
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
 
     t0 = time.perf_counter()
     cfg = config or (MapConfig.online() if online else MapConfig())
-    scans, label = load_map_log(log_or_name, topic)
+    scans, label = load_map_log(log_or_name, topic, laser)
     t_read = time.perf_counter() - t0
     if not scans:
         raise ScanCliqueError(f"{log_or_name}: the log holds no laser scans")

@@ -44,7 +44,7 @@ def _scans(source) -> tuple[list[Scan], str]:
         from .. import datasets
 
         s = os.fspath(source)
-        scans = list(datasets.load_log(source))
+        scans = list(datasets.load_log(source, laser="main"))  # a log's one trajectory
         if not scans:
             raise ScanCliqueError(f"{s}: the log holds no laser scans")
         # a registered log is one log whether it is named or given by its path
