@@ -240,7 +240,7 @@ def test_bad_scans_are_refused_naming_the_method(tmp_path, worlds):
     import dataclasses
 
     from scanclique.config import MatchConfig
-    from scanclique.errors import ScanError
+    from scanclique.errors import ArgumentError, ScanError
     from scanclique.match import prepare_scan
 
     traj = worlds[0]
@@ -256,6 +256,10 @@ def test_bad_scans_are_refused_naming_the_method(tmp_path, worlds):
             for bad in ("scan", None, [1.0, 2.0]):
                 with pytest.raises(ScanError, match=rf"^PlaceDB\.{where}: scan must be a Scan"):
                     call(bad)
+        for bad_name in (5, b"corridor", ("a",)):
+            with pytest.raises(ArgumentError, match=r"^PlaceDB\.add: name must be a str or None"):
+                db.add(traj[1], name=bad_name)
+        assert db.info()["places"] == 3  # nothing was added
         cfg = MatchConfig()
         other = dataclasses.replace(cfg, features=dataclasses.replace(cfg.features, lines=False))
         p = prepare_scan(traj[3], other)

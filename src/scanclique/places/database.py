@@ -587,9 +587,14 @@ class PlaceDB:
         PlaceDatabaseError
             ``name`` is already used (names are unique; None is allowed any number of
             times).
+        ArgumentError
+            ``name`` is neither a str nor None (SQLite would keep a number as a number, and
+            the place's name would come back as one).
         """
         if not isinstance(scan, Scan):
             raise ScanError(f"PlaceDB.add: scan must be a Scan, got {type(scan).__name__}")
+        if name is not None and not isinstance(name, str):
+            raise ArgumentError(f"PlaceDB.add: name must be a str or None, got {name!r}")
         p = self.prepare(scan)
         sig = scan_signature(p)
         arrays = feature_arrays(p)
