@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from scanclique import datasets, slam
-from scanclique.errors import ArgumentError, DataNotFoundError, ParseError, StepError
+from scanclique.errors import ArgumentError, ConfigError, DataNotFoundError, ParseError, StepError
 from scanclique.slam import Step
 from scanclique.slam.reader import read_table
 
@@ -159,3 +159,34 @@ def test_associate_refuses_what_is_not_finite():
             slam.associate(**args)
     with pytest.raises(StepError, match="negative range"):
         slam.associate(-z, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4)
+
+
+@pytest.mark.parametrize(
+    "make, says",
+    [
+        (lambda: slam.Ackermann(wheelbase=0.0), "Ackermann: wheelbase must be > 0 m"),
+        (lambda: slam.Ackermann(wheelbase=-2.83), "Ackermann: wheelbase must be > 0 m"),
+        (lambda: slam.Ackermann(wheelbase=float("nan")), "wheelbase must be a finite number"),
+        (lambda: slam.Ackermann(laser_a="front"), "Ackermann: laser_a must be a finite number"),
+        (lambda: slam.Ackermann(sigma_steering=-0.1), "sigma_steering must be >= 0"),
+        (lambda: slam.Unicycle(sigma_v=-0.05), "Unicycle: sigma_v must be >= 0"),
+        (lambda: slam.Unicycle(sigma_omega=math.inf), "sigma_omega must be a finite number"),
+        (lambda: slam.Unicycle(sensor_x=True), "Unicycle: sensor_x must be a finite number"),
+    ],
+)
+def test_a_bad_motion_model_is_refused_by_name(make, says):
+    with pytest.raises(ConfigError, match=re.escape(says)):
+        make()
+
+
+def test_the_filter_refuses_a_bad_model_config_or_progress():
+    steps = [Step(0.1 * k, (1.0, 0.0), [[5.0, 0.1]] if k % 2 else []) for k in range(6)]
+    good = slam.Unicycle(sigma_v=np.float32(0.1), sensor_x=1)  # numbers of any kind: floats
+    assert type(good.sigma_v) is float and type(good.sensor_x) is float
+    assert slam.ekf_slam(steps, good).poses.shape == (6, 3)
+    with pytest.raises(ArgumentError, match="motion_model must be a slam.Ackermann"):
+        slam.ekf_slam(steps, "unicycle")
+    with pytest.raises(ConfigError, match="config must be a SlamConfig, got dict"):
+        slam.ekf_slam(steps, good, config={"R": 1})
+    with pytest.raises(ArgumentError, match="progress must be a callable"):
+        slam.ekf_slam(steps, good, progress=10)

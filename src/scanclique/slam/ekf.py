@@ -709,14 +709,16 @@ def ekf_slam(
     Raises
     ------
     ArgumentError
-        ``steps`` is not a sequence of :class:`~scanclique.slam.Step`, or
-        ``initial_pose`` is not three finite numbers.
+        ``steps`` is not a sequence of :class:`~scanclique.slam.Step`, ``motion_model``
+        not a :class:`~scanclique.slam.models.MotionModel`, ``progress`` not callable, or
+        ``initial_pose`` not three finite numbers.
     StepError
         The steps are not in time order (equal times are allowed). A step's own values
         are checked when it is made (:class:`~scanclique.slam.Step`).
     ConfigError
-        ``association`` is not one of the methods (checked before the first step, so a
-        log without observations does not hide it).
+        ``association`` is not one of the methods, or ``config`` not a
+        :class:`~scanclique.slam.SlamConfig` (checked before the first step, so a log
+        without observations does not hide it).
     """
     if isinstance(steps, (str, bytes)) or not isinstance(steps, Iterable):
         raise ArgumentError(
@@ -740,9 +742,20 @@ def ekf_slam(
         ) from None
     if not np.isfinite(pose0).all():
         raise ArgumentError(f"ekf_slam: initial_pose {pose0.tolist()} is not finite")
+    if not isinstance(motion_model, MotionModel):
+        raise ArgumentError(
+            "ekf_slam: motion_model must be a slam.Ackermann, slam.Unicycle or another "
+            f"slam.MotionModel, got {type(motion_model).__name__}"
+        )
     if association not in METHODS:
         raise ConfigError(
             f"association method must be one of {', '.join(METHODS)}, got {association!r}"
+        )
+    if config is not None and not isinstance(config, SlamConfig):
+        raise ConfigError(f"ekf_slam: config must be a SlamConfig, got {type(config).__name__}")
+    if progress is not None and not callable(progress):
+        raise ArgumentError(
+            f"ekf_slam: progress must be a callable(done, total), got {type(progress).__name__}"
         )
     cfg = config or SlamConfig()
     acfg = (

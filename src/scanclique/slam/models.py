@@ -24,9 +24,11 @@ left wheel, laser ahead of the rear axle).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
+
+from ..errors import ConfigError
 
 __all__ = ["wrap", "MotionModel", "Ackermann", "Unicycle", "observe", "inverse_observe"]
 
@@ -40,6 +42,33 @@ def wrap(angle):
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+#: the models' own parameters: numbers, finite; the sigmas >= 0, the wheelbase > 0
+_NUMBERS = frozenset(
+    {"sensor_x", "sensor_y", "wheelbase", "encoder_offset", "sigma_speed", "sigma_speed_rel",
+     "sigma_steering", "sigma_v", "sigma_v_rel", "sigma_omega"}
+)  # fmt: skip
+
+
+def _check_parameters(model) -> None:
+    """Make ``model``'s own parameters floats, or raise a :class:`ConfigError` naming the
+    model and the parameter that is not a finite number, a negative sigma or a wheelbase
+    that is not positive (a subclass's other fields are left alone)."""
+    kind = type(model).__name__
+    for f in fields(model):
+        if f.name not in _NUMBERS:
+            continue
+        v = getattr(model, f.name)
+        name = getattr(model, "_ALIASES", {}).get(f.name, f.name)  # as the user gave it
+        ok = not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.number))
+        if not ok or not math.isfinite(v):
+            raise ConfigError(f"{kind}: {name} must be a finite number, got {v!r}")
+        if f.name.startswith("sigma_") and v < 0:
+            raise ConfigError(f"{kind}: {name} must be >= 0, got {v!r}")
+        if f.name == "wheelbase" and v <= 0:
+            raise ConfigError(f"{kind}: wheelbase must be > 0 m, got {v!r}")
+        object.__setattr__(model, f.name, float(v))
+
+
 @dataclass(frozen=True, slots=True)
 class MotionModel:
     """Common part of the vehicle models: the sensor's position on the vehicle.
@@ -48,10 +77,19 @@ class MotionModel:
     ----------
     sensor_x, sensor_y : float
         Position of the range-bearing sensor in the vehicle frame (m; x forward, y left).
+
+    Raises
+    ------
+    ConfigError
+        For every model: a parameter that is not a finite number, a negative sigma, a
+        wheelbase that is not positive (a NaN wheelbase gave NaN poses, silently).
     """
 
     sensor_x: float = 0.0
     sensor_y: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_parameters(self)
 
     def predict(self, state, control, dt):  # pragma: no cover - abstract
         raise NotImplementedError
@@ -130,6 +168,7 @@ class Ackermann(MotionModel):
     sigma_speed: float = 0.05
     sigma_speed_rel: float = 0.05
     sigma_steering: float = math.radians(1.0)
+    _ALIASES = {"sensor_x": "laser_a", "sensor_y": "laser_b"}  # the constructor's names
 
     def __init__(
         self,
@@ -142,13 +181,14 @@ class Ackermann(MotionModel):
         sigma_speed_rel: float = 0.05,
         sigma_steering: float = math.radians(1.0),
     ) -> None:
-        object.__setattr__(self, "sensor_x", float(laser_a))
-        object.__setattr__(self, "sensor_y", float(laser_b))
-        object.__setattr__(self, "wheelbase", float(wheelbase))
-        object.__setattr__(self, "encoder_offset", float(encoder_offset))
-        object.__setattr__(self, "sigma_speed", float(sigma_speed))
-        object.__setattr__(self, "sigma_speed_rel", float(sigma_speed_rel))
-        object.__setattr__(self, "sigma_steering", float(sigma_steering))
+        object.__setattr__(self, "sensor_x", laser_a)
+        object.__setattr__(self, "sensor_y", laser_b)
+        object.__setattr__(self, "wheelbase", wheelbase)
+        object.__setattr__(self, "encoder_offset", encoder_offset)
+        object.__setattr__(self, "sigma_speed", sigma_speed)
+        object.__setattr__(self, "sigma_speed_rel", sigma_speed_rel)
+        object.__setattr__(self, "sigma_steering", sigma_steering)
+        _check_parameters(self)
 
     @property
     def laser_a(self) -> float:
