@@ -138,6 +138,18 @@ def test_bad_arguments():
             m.pose(bad)
     assert m.pose(np.int64(0)).as_array().tolist() == [0.0, 0.0, 0.0]
     m.close()
+    # the batch mapper and map_online check the same before any scan is mapped
+    scans = [Scan(np.full(5, 2.0), np.linspace(-1, 1, 5))] * 2
+    with pytest.raises(ArgumentError, match="map_scans: use_odometry must be True, False or None"):
+        map_scans(scans, use_odometry="no")  # a string counted as True
+    with pytest.raises(ArgumentError, match="map_scans: progress must be a function or None"):
+        map_scans(scans, progress=50)
+    from scanclique.mapping.online import map_online
+
+    for name in ("progress", "watch"):
+        with pytest.raises(ArgumentError, match=f"map_online: {name} must be a function"):
+            map_online(scans, **{name: "tick"})
+    assert len(map_scans(scans, use_odometry=np.bool_(False)).poses) == 2
 
 
 def test_workers_give_the_serial_online_map():

@@ -68,6 +68,13 @@ def test_exclude_and_candidates(tmp_path, worlds):
         assert db.best(traj[2]).place_id == ids[2]
 
 
+def test_find_loops_refuses_a_progress_that_is_not_a_function(worlds):
+    from scanclique.errors import ArgumentError
+
+    with pytest.raises(ArgumentError, match="find_loops: progress must be a function or None"):
+        find_loops(worlds[0], min_gap=3, progress=True)
+
+
 def test_find_loops_backends_identical(worlds):
     scans = [s for traj in worlds for s in traj]
     serial = find_loops(scans, candidates=2, min_gap=3)

@@ -188,5 +188,5 @@ def test_the_filter_refuses_a_bad_model_config_or_progress():
         slam.ekf_slam(steps, "unicycle")
     with pytest.raises(ConfigError, match="config must be a SlamConfig, got dict"):
         slam.ekf_slam(steps, good, config={"R": 1})
-    with pytest.raises(ArgumentError, match="progress must be a callable"):
+    with pytest.raises(ArgumentError, match="ekf_slam: progress must be a function or None"):
         slam.ekf_slam(steps, good, progress=10)

@@ -134,8 +134,25 @@ def test_new_observations_get_the_ids_the_filter_gave(park, run):
 
 
 def test_steps_must_match_the_run(park, run):
-    with pytest.raises(ValueError, match="not the ones"):
+    from scanclique.errors import StepError
+
+    with pytest.raises(StepError, match="not the ones the filter ran on") as e:
         smooth(park.steps[: len(park.steps) // 2], slam.Ackermann(), run)
+    assert isinstance(e.value, ValueError)  # as before the named error
+
+
+def test_smooth_refuses_bad_arguments_by_name(park, run):
+    from scanclique.errors import ArgumentError, ConfigError
+
+    with pytest.raises(ArgumentError, match="smooth: model must be a slam.MotionModel"):
+        smooth(park.steps, "ackermann", run)
+    with pytest.raises(ArgumentError, match="smooth: result must be the filter's SlamResult"):
+        smooth(park.steps, slam.Ackermann(), None)
+    with pytest.raises(ConfigError, match="smooth: config must be a SlamConfig"):
+        smooth(park.steps, slam.Ackermann(), run, config={"R": 1})
+    for bad in (0, 2.5, True):
+        with pytest.raises(ConfigError, match="smooth: max_iterations must be an integer >= 1"):
+            smooth(park.steps, slam.Ackermann(), run, max_iterations=bad)
 
 
 def test_cli_smooth(tmp_path, park):

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ArgumentError, ConfigError
 
 __all__ = [
     "ClusterConfig",
@@ -34,6 +34,8 @@ __all__ = [
     "check_probability",
     "check_choice",
     "require_count",
+    "require_callable",
+    "require_flag",
     "require_nonneg",
     "require_positive",
     "paper_config",
@@ -129,6 +131,22 @@ def require_count(where: str, lo: int = 0, **values) -> None:
     for name, v in values.items():
         if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
             raise ConfigError(f"{where}{name} must be an integer >= {lo}, got {v!r}")
+
+
+def require_flag(where: str, **values) -> None:
+    """Each value is True, False or None, else :class:`ArgumentError` (a string such as
+    ``"no"`` would otherwise count as True): the checker of tri-state arguments."""
+    for name, v in values.items():
+        if v is not None and not isinstance(v, (bool, np.bool_)):
+            raise ArgumentError(f"{where}{name} must be True, False or None, got {v!r}")
+
+
+def require_callable(where: str, **values) -> None:
+    """Each value is None or callable, else :class:`ArgumentError`, before a run starts
+    (a ``progress`` that is not a function failed at its first call, mid-run)."""
+    for name, v in values.items():
+        if v is not None and not callable(v):
+            raise ArgumentError(f"{where}{name} must be a function or None, got {v!r}")
 
 
 def require_nonneg(where: str, **values) -> None:

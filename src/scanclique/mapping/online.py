@@ -37,6 +37,7 @@ import numpy as np
 
 from .._records import readonly
 from .._workers import check_workers
+from ..config import require_callable, require_flag
 from ..errors import ArgumentError, ConfigError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
@@ -45,14 +46,6 @@ from .frontend import ReversingWatch
 from .pipeline import MapResult, _Mapper, check_iterable_of_scans, map_scans
 
 __all__ = ["OnlineMapper", "OnlineRun", "map_online"]
-
-
-def _flag(name: str, value) -> bool | None:
-    if value is not None and not isinstance(value, bool):
-        raise ArgumentError(
-            f"OnlineMapper: {name} must be True, False or None, got {type(value).__name__}"
-        )
-    return value
 
 
 class OnlineMapper:
@@ -107,8 +100,11 @@ class OnlineMapper:
                 f"OnlineMapper: config must be a MapConfig or None, got {type(config).__name__}"
             )
         check_workers("OnlineMapper: workers", workers)
-        self._use = _flag("use_odometry", use_odometry)
-        self._reverses = _flag("odometry_reverses", odometry_reverses)
+        require_flag(
+            "OnlineMapper: ", use_odometry=use_odometry, odometry_reverses=odometry_reverses
+        )
+        self._use = use_odometry
+        self._reverses = odometry_reverses
         self._cfg = config or MapConfig.online()
         self._workers = workers
         self._watch = ReversingWatch()
@@ -297,6 +293,7 @@ def map_online(
         If one of the scans is not a :class:`~scanclique.scan.Scan` (naming its index).
     """
     check_iterable_of_scans("map_online", scans)
+    require_callable("map_online: ", progress=progress, watch=watch)
     total = len(scans) if hasattr(scans, "__len__") else 0
     live, took = [], []
     with OnlineMapper(

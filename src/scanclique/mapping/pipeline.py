@@ -29,6 +29,7 @@ import numpy as np
 from .._lazy import kernel_module
 from .._records import readonly
 from .._workers import check_workers
+from ..config import require_callable, require_flag
 from ..errors import ArgumentError, ConfigError, ScanError
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
@@ -1011,7 +1012,8 @@ def map_scans(
     Raises
     ------
     ArgumentError
-        If ``scans`` is not an iterable of scans (None, a number, a path).
+        If ``scans`` is not an iterable of scans (None, a number, a path),
+        ``use_odometry`` not True, False or None, or ``progress`` not a function.
     ConfigError
         If ``config`` is not a :class:`MapConfig` (a ``MatchConfig`` goes in its
         ``match`` field), or ``workers`` is not an integer from 1 to
@@ -1034,6 +1036,8 @@ def map_scans(
         )
     cfg = config or MapConfig()
     check_workers("map_scans: workers", workers)
+    require_flag("map_scans: ", use_odometry=use_odometry)
+    require_callable("map_scans: ", progress=progress)
     scans = list(check_iterable_of_scans("map_scans", scans))
     for k, s in enumerate(scans):
         if not isinstance(s, Scan):

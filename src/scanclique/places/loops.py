@@ -42,7 +42,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._workers import RunState, check_workers, local_pool, new_token
-from ..config import MatchConfig, config_from_dict, config_to_dict, require_count
+from ..config import (
+    MatchConfig,
+    config_from_dict,
+    config_to_dict,
+    require_callable,
+    require_count,
+)
 from ..errors import ArgumentError, ConfigError, ScanCliqueError
 from ..geometry import Pose2
 from ..match import prepare_scan
@@ -429,6 +435,7 @@ def find_loops(
         The scheduler cannot be reached.
     """
     require_count("find_loops: ", 1, candidates=candidates, min_gap=min_gap)
+    require_callable("find_loops: ", progress=progress)
     check_workers("find_loops: workers", workers, 0)
     if isinstance(scans, (str, bytes)) or not isinstance(scans, Sequence):
         raise ArgumentError(

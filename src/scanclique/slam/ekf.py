@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._records import readonly as _ro
-from ..config import check_choice, check_nonneg, check_positive, check_types
+from ..config import check_choice, check_nonneg, check_positive, check_types, require_callable
 from ..errors import ArgumentError, ConfigError, StepError
 from .association import (
     METHODS,
@@ -753,10 +753,7 @@ def ekf_slam(
         )
     if config is not None and not isinstance(config, SlamConfig):
         raise ConfigError(f"ekf_slam: config must be a SlamConfig, got {type(config).__name__}")
-    if progress is not None and not callable(progress):
-        raise ArgumentError(
-            f"ekf_slam: progress must be a callable(done, total), got {type(progress).__name__}"
-        )
+    require_callable("ekf_slam: ", progress=progress)
     cfg = config or SlamConfig()
     acfg = (
         cfg.association if isinstance(cfg.association, AssociationConfig) else AssociationConfig()

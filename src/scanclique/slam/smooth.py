@@ -36,8 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import require_count
+from ..errors import ArgumentError, ConfigError, StepError
 from .association import NEW
 from .ekf import SlamConfig, SlamResult, held_controls, slip_variance
+from .models import MotionModel
 
 __all__ = ["SmoothResult", "smooth"]
 
@@ -146,7 +149,26 @@ def smooth(
     SmoothResult
         Empty (no poses, no landmarks, no factors) when the run has no observation step:
         the smoothed variables are the observation steps' poses.
+
+    Raises
+    ------
+    ArgumentError
+        ``model`` is not a :class:`~scanclique.slam.models.MotionModel` or ``result`` not
+        a :class:`SlamResult`.
+    ConfigError
+        ``config`` is not a :class:`SlamConfig`, or ``max_iterations`` not an integer >= 1.
+    StepError
+        ``steps`` hold another number of observation steps than the filter's run.
     """
+    if not isinstance(model, MotionModel):
+        raise ArgumentError(f"smooth: model must be a slam.MotionModel, got {type(model).__name__}")
+    if not isinstance(result, SlamResult):
+        raise ArgumentError(
+            f"smooth: result must be the filter's SlamResult, got {type(result).__name__}"
+        )
+    if config is not None and not isinstance(config, SlamConfig):
+        raise ConfigError(f"smooth: config must be a SlamConfig, got {type(config).__name__}")
+    require_count("smooth: ", 1, max_iterations=max_iterations)
     import gtsam
 
     t0 = time.perf_counter()
@@ -162,7 +184,10 @@ def smooth(
     slip = cfg.slip
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
     if len(obs_steps) != len(result.associations):
-        raise ValueError("the steps are not the ones the filter ran on")
+        raise StepError(
+            f"smooth: the steps are not the ones the filter ran on ({len(obs_steps)} "
+            f"observation steps, the run has {len(result.associations)})"
+        )
     if not obs_steps:  # nothing to smooth (GTSAM would fail on a prior of no variable)
         return SmoothResult(
             times[:0], np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0, np.int64), 0, 0.0, 0.0,
