@@ -177,6 +177,17 @@ def test_free_on_no_return_paints_no_free_space_for_errors(value):
         assert p[row, int((2.2 - g.origin[0]) / 0.1)] < 0.45  # beyond the wall's range
 
 
+def test_occupancy_needs_a_pose_per_scan():
+    from scanclique.errors import ArgumentError, ConfigError
+
+    scans = [Scan(np.full(5, 2.0), np.linspace(-0.5, 0.5, 5))] * 3
+    with pytest.raises(ArgumentError, match="occupancy_grid: 2 poses for 3 scans"):
+        occupancy_grid(scans, [Pose2.identity()] * 2)  # was an IndexError
+    with pytest.raises(ConfigError, match="config must be an OccupancyConfig"):
+        occupancy_grid(scans, [Pose2.identity()] * 3, {"resolution": 0.1})
+    assert occupancy_grid(scans, [None] * 3).log_odds.shape == (1, 1)  # nothing placed
+
+
 def test_occupancy_of_a_wall():
     # one scan facing a wall 2 m ahead: the wall's cells are occupied, the way there free
     angles = np.linspace(-0.2, 0.2, 21)

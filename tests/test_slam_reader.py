@@ -190,3 +190,57 @@ def test_the_filter_refuses_a_bad_model_config_or_progress():
         slam.ekf_slam(steps, good, config={"R": 1})
     with pytest.raises(ArgumentError, match="ekf_slam: progress must be a function or None"):
         slam.ekf_slam(steps, good, progress=10)
+
+
+def test_associate_refuses_arrays_of_the_wrong_shape():
+    lm = np.array([[10.0, 0.0], [10.0, 5.0]])
+    cov = np.tile(np.eye(2) * 0.01, (2, 1, 1))
+    R = np.diag([0.1, 0.01]) ** 2
+    z = np.array([[10.0, 0.0]])
+    args = dict(z=z, R=R, map_mean=lm, map_cov=cov, pose=np.zeros(3), pose_cov=np.eye(3) * 1e-4)
+    assert slam.associate(**{**args, "map_cov": np.eye(4) * 0.01}).landmarks.tolist() == [0]
+    for name, value, says in [
+        ("R", np.eye(3), "R must be of shape (2, 2) or (1, 2, 2), got (3, 3)"),
+        ("pose", np.zeros(2), "pose must be of shape (3,), got (2,)"),
+        ("pose_cov", np.eye(2), "pose_cov must be of shape (3, 3)"),
+        ("map_cov", np.eye(3), "map_cov must be of shape (2, 2, 2) or (4, 4), got (3, 3)"),
+        ("map_mean", np.zeros(5), "map_mean must be (n, 2) positions"),
+        ("cross_cov", np.zeros((3, 3)), "cross_cov must be of shape (3, 4)"),
+        ("attributes", np.ones(2), "attributes must be of shape (1,)"),
+        ("sensor", (0.0, 0.0, 0.0), "sensor must be of shape (2,)"),
+    ]:
+        with pytest.raises(StepError, match=re.escape(f"associate: {says}")):
+            slam.associate(**{**args, name: value})
+
+
+@pytest.mark.parametrize(
+    "kwargs, says",
+    [
+        (dict(laps=0), "simulate_park: laps must be an integer >= 1"),
+        (dict(n_trees=-1), "simulate_park: n_trees must be an integer >= 0"),
+        (dict(length=float("nan")), "simulate_park: length must be a positive number"),
+        (dict(p_detect=1.2), "simulate_park: p_detect must be a probability in [0, 1]"),
+    ],
+)
+def test_the_park_simulator_refuses_bad_parameters(kwargs, says):
+    from scanclique.slam.sim import simulate_park
+
+    with pytest.raises(ConfigError, match=re.escape(says)):
+        simulate_park(0, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs, says",
+    [
+        (dict(duration=-1.0), "simulate_room: duration must be a positive number"),
+        (dict(room=(5.0,)), "simulate_room: room must be (width, depth)"),
+        (dict(room=(5.0, 0.0)), "simulate_room: room_depth must be a positive number"),
+        (dict(clutter=-0.5), "simulate_room: clutter must be a number >= 0"),
+        (dict(n_landmarks=2.5), "simulate_room: n_landmarks must be an integer >= 0"),
+    ],
+)
+def test_the_room_simulator_refuses_bad_parameters(kwargs, says):
+    from scanclique.slam.sim import simulate_room
+
+    with pytest.raises(ConfigError, match=re.escape(says)):
+        simulate_room(0, **kwargs)

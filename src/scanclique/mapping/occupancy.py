@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ArgumentError, ConfigError
 from ..geometry import Pose2
 from ..scan import Scan
 from .config import OccupancyConfig
@@ -136,7 +136,23 @@ def occupancy_grid(
     -------
     OccupancyGrid
         All unknown (zeros) when no scan is placed or no placed scan has a beam to cast.
+
+    Raises
+    ------
+    ArgumentError
+        ``poses`` is not one per scan.
+    ConfigError
+        ``config`` is not an :class:`OccupancyConfig`.
     """
+    if len(poses) != len(scans):
+        raise ArgumentError(
+            f"occupancy_grid: {len(poses)} poses for {len(scans)} scans (one per scan, None "
+            "for a scan that is not placed)"
+        )
+    if config is not None and not isinstance(config, OccupancyConfig):
+        raise ConfigError(
+            f"occupancy_grid: config must be an OccupancyConfig, got {type(config).__name__}"
+        )
     cfg = config or OccupancyConfig()
     r = cfg.resolution
     idx = [k for k in range(0, len(scans), cfg.scan_stride) if poses[k] is not None]

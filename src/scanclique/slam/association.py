@@ -785,7 +785,8 @@ def associate(
     Raises
     ------
     StepError
-        An array that is not finite numbers, ``z`` not pairs, or a negative range.
+        An array that is not finite numbers or not of its shape above, ``z`` not pairs,
+        or a negative range.
 
     Examples
     --------
@@ -797,16 +798,25 @@ def associate(
     [2, 0]
     """
     z = np.array(as_observations(z, "associate", "z"))
-    R = _finite_array(R, "R")
-    pose_cov = _finite_array(pose_cov, "pose_cov")
-    pose = _finite_array(pose, "pose")
-    if attributes is not None:
-        attributes = _finite_array(attributes, "attributes")
-    if map_attributes is not None:
-        map_attributes = _finite_array(map_attributes, "map_attributes")
-    mean = _finite_array(map_mean, "map_mean").reshape(-1, 2)
+    k = len(z)
+    R = _shaped(_finite_array(R, "R"), "R", (2, 2), (k, 2, 2))
+    pose_cov = _shaped(_finite_array(pose_cov, "pose_cov"), "pose_cov", (3, 3))
+    pose = _shaped(_finite_array(pose, "pose").reshape(-1), "pose", (3,))
+    sensor = _shaped(_finite_array(sensor, "sensor").reshape(-1), "sensor", (2,))
+    mean = _finite_array(map_mean, "map_mean")
+    if mean.size % 2:
+        raise StepError(f"associate: map_mean must be (n, 2) positions, got shape {mean.shape}")
+    mean = mean.reshape(-1, 2)
     n = len(mean)
-    cov = _finite_array(map_cov, "map_cov")
+    cov = _shaped(_finite_array(map_cov, "map_cov"), "map_cov", (n, 2, 2), (2 * n, 2 * n))
+    if cross_cov is not None:
+        cross_cov = _shaped(_finite_array(cross_cov, "cross_cov"), "cross_cov", (3, 2 * n))
+    if attributes is not None:
+        attributes = _shaped(_finite_array(attributes, "attributes"), "attributes", (k,))
+    if map_attributes is not None:
+        map_attributes = _shaped(
+            _finite_array(map_attributes, "map_attributes"), "map_attributes", (n,)
+        )
     if cov.ndim == 3:
         full = np.zeros((2 * n, 2 * n))
         for j in range(n):
@@ -830,6 +840,14 @@ def associate(
         )
     att = None if attributes is None else np.asarray(attributes, float)
     return associate_predicted(z, R, pred, method, config, att)
+
+
+def _shaped(a: np.ndarray, name: str, *shapes) -> np.ndarray:
+    """``a`` when its shape is one of ``shapes``, else a :class:`StepError` naming both."""
+    if a.shape not in shapes:
+        want = " or ".join(str(s) for s in shapes)
+        raise StepError(f"associate: {name} must be of shape {want}, got {a.shape}")
+    return a
 
 
 def _finite_array(values, name: str) -> np.ndarray:

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import require_count, require_nonneg, require_positive
+from ..errors import ConfigError
 from .ekf import SlamConfig, slip_variance
 from .models import Ackermann, Unicycle, observe, wrap
 from .reader import Step
@@ -143,7 +145,21 @@ def simulate_park(
     -------
     SimRun
         ``steps`` start at the vehicle's true initial pose ``(0, 0, 0)``.
+
+    Raises
+    ------
+    ConfigError
+        A count that is not an integer (``laps`` >= 1, ``n_trees``, ``clutter`` >= 0), a
+        length, speed or period that is not a positive number, ``p_detect`` outside [0, 1].
     """
+    where = "simulate_park: "
+    require_count(where, 1, laps=laps)
+    require_count(where, 0, n_trees=n_trees, clutter=clutter)
+    require_positive(
+        where, length=length, width=width, radius=radius, speed=speed, min_spacing=min_spacing,
+        max_range=max_range, control_dt=control_dt, scan_dt=scan_dt,
+    )  # fmt: skip
+    _check_p_detect(where, p_detect)
     rng = np.random.default_rng(seed)
     model = model or Ackermann()
     cfg = config or SlamConfig()
@@ -252,6 +268,12 @@ def room_config(**overrides) -> SlamConfig:
     return SlamConfig.for_sensor(**base)
 
 
+def _check_p_detect(where: str, p_detect) -> None:
+    require_nonneg(where, p_detect=p_detect)
+    if p_detect > 1.0:
+        raise ConfigError(f"{where}p_detect must be a probability in [0, 1], got {p_detect!r}")
+
+
 def _room_landmarks(rng, room, n, min_spacing):
     """``n`` points in the room, at least ``min_spacing`` apart (fewer if they do not fit)."""
     return _trees(
@@ -315,7 +337,29 @@ def simulate_room(
     >>> run = simulate_room(0, duration=20.0)
     >>> len(run.landmarks), run.steps[1].control is None or run.steps[1].n_observations == 0
     (15, True)
+
+    Raises
+    ------
+    ConfigError
+        ``n_landmarks`` not an integer >= 0; a duration, size, speed, turn rate or rate
+        that is not a positive number; ``clutter`` or ``min_range`` negative, ``p_detect``
+        outside [0, 1].
     """
+    where = "simulate_room: "
+    require_count(where, 0, n_landmarks=n_landmarks)
+    try:
+        width, depth = room
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where}room must be (width, depth) in m, got {room!r}") from None
+    require_positive(
+        where, duration=duration, room_width=width, room_depth=depth, min_spacing=min_spacing,
+        speed=speed, max_turn_rate=max_turn_rate, control_rate=control_rate,
+        observation_rate=observation_rate,
+    )  # fmt: skip
+    if turn_in_place is not None:
+        require_positive(where, turn_in_place=turn_in_place)
+    require_nonneg(where, clutter=clutter, min_range=min_range)
+    _check_p_detect(where, p_detect)
     rng = np.random.default_rng(seed)
     model = model or Unicycle()
     cfg = config or room_config()
