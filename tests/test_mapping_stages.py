@@ -273,9 +273,10 @@ def test_run_map_and_command(tmp_path):
     assert "front_end" in rep["config"] and "match" in rep["config"]
     assert any(row[0] == "scans" for row in run.rows())
 
+    # (stdout is the JSON; the bag has no static transforms, which stderr warns of)
     res = CliRunner().invoke(app, ["map", str(bag), "--out", str(tmp_path / "cli"), "--json"])
     assert res.exit_code == 0, res.output
-    out = json.loads(res.output)
+    out = json.loads(res.stdout)
     assert out["counts"]["scans"] == 15
     assert "covariances" not in out["files"]
     # --covariances: covariances.csv, one row per scan, and the sigmas in the report
@@ -287,7 +288,7 @@ def test_run_map_and_command(tmp_path):
     assert rows.shape == (15, 8) and (rows[:, 0] == np.arange(15)).all()
     assert (rows[1:, 2] > 0).all() and (rows[1:, 5] > 0).all() and (rows[1:, 7] > 0).all()
     assert (
-        json.loads(res.output)["pose_sigmas"]
+        json.loads(res.stdout)["pose_sigmas"]
         == json.loads((tmp_path / "cov" / "report.json").read_text())["pose_sigmas"]
     )
     sig = json.loads((tmp_path / "cov" / "report.json").read_text())["pose_sigmas"]

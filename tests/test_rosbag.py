@@ -3,6 +3,7 @@ rosbags from scans of a CARMEN log (never a downloaded bag)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -248,3 +249,107 @@ def test_bags_without_odometry_have_none(tmp_path):
     write_ros1(path, scans, odometry=False)
     back = read_bag(path)
     assert [b.odometry for b in back] == [None] * 4
+
+
+def _write_mounted(path, scans, chain):
+    """A ROS 2 bag of ``scans`` (frame ``laser``) with the odometry of ``base_link`` on
+    ``/tf`` and, on ``/tf_static``, ``chain``: (parent, child, Pose2) links from the robot
+    to the laser."""
+    from rosbags.rosbag2 import Writer
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    laser, _, tf = _msgs(ts, ros1=False)
+    T = ts.types
+    stamp = T["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+    links = [
+        T["geometry_msgs/msg/TransformStamped"](
+            header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=parent),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](x=p.x, y=p.y, z=0.1),
+                rotation=T["geometry_msgs/msg/Quaternion"](
+                    x=0.0, y=0.0, z=math.sin(p.theta / 2), w=math.cos(p.theta / 2)
+                ),
+            ),
+        )
+        for parent, child, p in chain
+    ]
+    with Writer(path, version=9) as w:
+        cst = w.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=ts)
+        ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        t0 = int(scans[0].timestamp * 1e9)
+        msg = T["tf2_msgs/msg/TFMessage"](transforms=links)
+        w.write(cst, t0 - 1, ts.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
+        for k, s in enumerate(scans):
+            t_ns = int(s.timestamp * 1e9)
+            w.write(
+                ct, t_ns, ts.serialize_cdr(tf(s.timestamp, s.odometry, k), "tf2_msgs/msg/TFMessage")
+            )
+            w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+
+
+def test_the_mounting_chain_composes_in_the_plane():
+    from scanclique.io.rosbag import mounting
+
+    class Tr:  # the fields _link reads
+        def __init__(self, parent, child, x, y, yaw, roll=0.0):
+            V = type("V", (), {})
+            self.header = V()
+            self.header.frame_id = parent
+            self.child_frame_id = child
+            self.transform = V()
+            self.transform.translation = V()
+            t = self.transform.translation
+            t.x, t.y, t.z = x, y, 0.3
+            q = V()  # yaw then roll
+            cy, sy, cr, sr = (
+                math.cos(yaw / 2),
+                math.sin(yaw / 2),
+                math.cos(roll / 2),
+                math.sin(roll / 2),
+            )
+            q.w, q.x, q.y, q.z = cy * cr, cy * sr, sy * sr, sy * cr
+            self.transform.rotation = q
+
+    from scanclique.io.rosbag import _link
+
+    links: dict = {}
+    for tr in (Tr("/base_link", "mast", 1.0, 0.0, math.pi / 2), Tr("mast", "laser", 1.0, 0.0, 0.0)):
+        _link(tr, links)
+    m, why = mounting(links, "/laser", ("base_link",))
+    assert why == "" and m.distance_to(Pose2(1.0, 1.0, math.pi / 2))[0] < 1e-12
+    assert abs(m.theta - math.pi / 2) < 1e-12
+    assert mounting(links, "laser", ("base_footprint",))[0] is None  # no chain to it
+    _link(Tr("base_link", "flipped", 0.0, 0.0, 0.0, roll=math.pi), links)
+    m, why = mounting(links, "flipped", ("base_link",))
+    assert m is None and "not upright" in why
+
+
+@pytest.mark.realdata
+def test_a_laser_mounted_backwards_is_mapped_through_its_mounting(tmp_path, carmen_scans, caplog):
+    from scanclique.mapping import map_scans
+
+    # the Intel laser on a robot that drives it backwards: the robot's frame is the
+    # laser's turned by a half turn, which the bag's static transforms say in two links
+    M = Pose2(0.0, 0.0, math.pi)
+    robot = [dataclasses.replace(s, odometry=s.odometry @ M.inverse()) for s in carmen_scans]
+    chain = [("base_link", "mast", Pose2(0.0, 0.0, math.pi / 2)),
+             ("mast", "laser", Pose2(0.0, 0.0, math.pi / 2))]  # fmt: skip
+    path = tmp_path / "backwards"
+    _write_mounted(path, robot, chain)
+    back = read_bag(path)
+    for s, b in zip(carmen_scans, back, strict=True):  # the laser's odometry again
+        t, r = b.odometry.distance_to(s.odometry)
+        assert t < 1e-6 and r < 1e-6
+    direct = map_scans(carmen_scans)
+    mapped = map_scans(back)
+    for p, q in zip(mapped.poses, direct.poses, strict=True):
+        assert p.distance_to(q)[0] < 1e-3
+    # without the static transforms the reader says so and hands over the robot's
+    bare = tmp_path / "bare"
+    write_ros2(bare, robot)
+    with caplog.at_level("WARNING", logger="scanclique"):
+        plain = read_bag(bare)
+    assert "no transform from base_link/base_footprint to the scans' frame 'laser'" in caplog.text
+    assert plain[3].odometry.distance_to(robot[3].odometry)[0] < 1e-6

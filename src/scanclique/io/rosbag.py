@@ -19,9 +19,16 @@ Conventions
   Odometry topic) or, when the bag has none, from ``tf`` / ``tf2_msgs/TFMessage``
   transforms ``odom_frame -> base_frame`` (default ``odom`` -> ``base_link``, or
   ``base_footprint``); interpolated at each scan's stamp (linear in x and y, along the
-  shorter arc in the heading); None outside their time span. The pose is the robot's
-  (``base_frame``), not the laser's: the laser's mounting is for the caller to apply
-  (as for CARMEN FLASER messages).
+  shorter arc in the heading); None outside their time span. It is the *laser's* pose, as
+  a Scan's poses are: the robot's composed with the laser's mounting, the chain of
+  transforms from the robot's frame to the scans' ``frame_id`` in the bag's static
+  transforms (``/tf_static``, or fixed ones on ``/tf``), projected to the plane. When the
+  bag holds no such chain, or the laser is not upright on the robot (tilted more than
+  about 25 degrees, or upside down), the robot's pose is used and a warning says so: a
+  laser mounted turned on the robot (sideways, backwards) then disagrees with the
+  odometry, which the mapper reads as the laser's motion (300 Intel scans with the odometry
+  of a robot that carries the laser backwards: 66 scans placed by odometry, the mean
+  error of consecutive poses 0.45 m, against 0.028 m with the laser's odometry).
 * ``Scan.reference`` is None; ``Scan.source`` is ``"<bag>:<topic>#<index>"``.
 
 Errors
@@ -35,6 +42,7 @@ the message index.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 from bisect import bisect_left
@@ -46,7 +54,9 @@ from ..errors import ParseError, ScanCliqueError
 from ..geometry import Pose2
 from ..scan import Scan
 
-__all__ = ["read_bag", "LASERSCAN", "ODOMETRY", "TF"]
+log = logging.getLogger(__name__)
+
+__all__ = ["read_bag", "mounting", "LASERSCAN", "ODOMETRY", "TF"]
 
 LASERSCAN = ("sensor_msgs/msg/LaserScan", "sensor_msgs/LaserScan")
 ODOMETRY = ("nav_msgs/msg/Odometry", "nav_msgs/Odometry")
@@ -88,6 +98,49 @@ def _wrap_beams(r: np.ndarray, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     if not np.all(np.diff(wrapped[order]) > 0):
         return r, ang
     return r[order], wrapped[order]
+
+
+def _rotation(q) -> np.ndarray:
+    """The rotation matrix of a ``geometry_msgs/Quaternion`` (normalised)."""
+    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
+    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _link(tr, links: dict) -> None:
+    """Keep the first transform of ``tr``'s child frame: ``links[child] = (parent, R, t)``
+    (points of the child in the parent's frame: ``R p + t``)."""
+    child = tr.child_frame_id.lstrip("/")
+    if child and child not in links:
+        v = tr.transform.translation
+        t = np.array([float(v.x), float(v.y), float(v.z)])
+        links[child] = (tr.header.frame_id.lstrip("/"), _rotation(tr.transform.rotation), t)
+
+
+def mounting(links: dict, laser: str, bases) -> tuple[Pose2 | None, str]:
+    """The laser frame's pose on the robot (a base frame), projected to the plane, from
+    the transforms ``links`` (:func:`_link`); None and the reason when the chain is not
+    there or the laser is not upright (its z axis more than about 25 degrees off the
+    robot's)."""
+    laser = laser.lstrip("/")
+    R, t = np.eye(3), np.zeros(3)
+    frame, hops = laser, 0
+    while frame not in bases:
+        if frame not in links or hops > 64:
+            return None, f"no transform from {'/'.join(bases)} to the scans' frame {laser!r}"
+        parent, Rp, tp = links[frame]
+        R, t = Rp @ R, Rp @ t + tp
+        frame, hops = parent, hops + 1
+    if R[2, 2] < 0.9:
+        return None, f"the laser frame {laser!r} is not upright on {frame!r}"
+    return Pose2(float(t[0]), float(t[1]), math.atan2(R[1, 0], R[0, 0])), ""
 
 
 def _interp(times: list[float], poses: list[Pose2], t: float) -> Pose2 | None:
@@ -205,10 +258,21 @@ def read_bag(
                 )
         elif len({c.topic for c in odo_c}) > 1:
             odo_c = [c for c in odo_c if c.topic == sorted({c.topic for c in odo_c})[0]]
-        tf_c = [c for c in conns if c.msgtype in TF] if not odo_c else []
+        tf_all = [c for c in conns if c.msgtype in TF]
+        tf_c = tf_all if not odo_c else []
+        static_c = [c for c in tf_all if c.topic.rstrip("/").endswith("tf_static")]
         o_times: list[float] = []
         o_poses: list[Pose2] = []
         bases = (base_frame,) if base_frame else ("base_link", "base_footprint")
+        links: dict = {}  # child frame -> (parent, R, t): the robot's fixed frames
+        for c, _t_ns, raw in reader.messages(connections=static_c) if static_c else ():
+            try:
+                for tr in reader.deserialize(raw, c.msgtype).transforms:
+                    _link(tr, links)
+            except Exception as exc:  # noqa: BLE001
+                raise ParseError(
+                    name, None, f"{c.topic}: cannot deserialise {c.msgtype} ({exc})"
+                ) from None
         # (an empty list of connections would mean *all* messages to rosbags)
         messages = reader.messages(connections=odo_c + tf_c) if odo_c + tf_c else ()
         for k, (c, t_ns, raw) in enumerate(messages):
@@ -225,6 +289,8 @@ def read_bag(
                     o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
                 else:
                     for tr in msg.transforms:
+                        if c not in static_c and tr.child_frame_id.lstrip("/") not in bases:
+                            _link(tr, links)  # a fixed frame published on /tf
                         if (
                             tr.header.frame_id.lstrip("/") == odom_frame
                             and tr.child_frame_id.lstrip("/") in bases
@@ -240,6 +306,7 @@ def read_bag(
         o_times = [o_times[k] for k in order]
         o_poses = [o_poses[k] for k in order]
         out: list[Scan] = []
+        mount: Pose2 | None = None
         for k, (c, t_ns, raw) in enumerate(reader.messages(connections=scans_c)):
             where = f"{name}:{c.topic}#{k}"
             try:
@@ -270,6 +337,18 @@ def read_bag(
                 )  # fmt: skip
             r, ang = _wrap_beams(r, ang)
             t = _stamp(msg, t_ns)
+            if k == 0 and o_poses:
+                mount, why = mounting(links, msg.header.frame_id, bases)
+                if mount is None and msg.header.frame_id.lstrip("/") not in bases:
+                    log.warning(
+                        "%s: %s: the odometry is the robot's, taken as the laser's (a laser "
+                        "mounted turned on the robot then disagrees with it)",
+                        name,
+                        why,
+                    )
+                elif mount is not None:
+                    log.info("%s: the laser is mounted at %s on the robot", name, mount)
+            odo = _interp(o_times, o_poses, t)
             try:
                 out.append(
                     Scan(
@@ -277,7 +356,7 @@ def read_bag(
                         range_min=max(float(msg.range_min), 0.0),
                         range_max=float(msg.range_max),
                         timestamp=t,
-                        odometry=_interp(o_times, o_poses, t),
+                        odometry=odo if odo is None or mount is None else odo @ mount,
                         source=where,
                     )
                 )  # fmt: skip
