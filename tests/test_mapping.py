@@ -85,6 +85,32 @@ def test_smooth_drive_without_odometry():
     assert _aligned_errors(r, scans).max() < 0.1
 
 
+def test_odometry_of_a_laser_mounted_turned_is_told(caplog):
+    """The robot's odometry given as the laser's, for a laser turned by 90 degrees on the
+    robot: the mapper says so (the steps' median turn), and is quiet for the right one."""
+    import dataclasses
+
+    from scanclique.mapping.pipeline import odometry_turned
+
+    scans = circle_drive(np.random.default_rng(0), laps=1, n_per_lap=36)
+    with caplog.at_level("WARNING", logger="scanclique"):
+        r = map_scans(scans)
+    assert "odometry's steps point" not in caplog.text
+    turn, n = odometry_turned(scans, r.poses, r.placed_by)
+    assert abs(turn) < 5.0 and n >= 30  # the drive's own 4 % over-turn: about -2 deg
+    M = Pose2(0.0, 0.0, math.pi / 2)
+    robot = [dataclasses.replace(s, odometry=s.odometry @ M.inverse()) for s in scans]
+    with caplog.at_level("WARNING", logger="scanclique"):
+        r = map_scans(robot)
+    assert "the odometry's steps point -92 deg away from the scans'" in caplog.text
+    assert "mounted turned on the robot" in caplog.text
+    assert r.placed_by.count("match") >= 20
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="scanclique"):
+        map_scans(robot, use_odometry=False)  # no odometry, nothing to tell
+    assert "odometry's steps point" not in caplog.text
+
+
 def test_loop_closures_on_a_circle():
     rng = np.random.default_rng(5)
     scans = circle_drive(rng)

@@ -1056,4 +1056,56 @@ def map_scans(
         m.run(scans, progress)
     finally:
         m.verifier.close()
-    return m.result(t0)
+    result = m.result(t0)
+    if use_odometry:
+        turn, n = odometry_turned(scans, result.poses, result.placed_by)
+        if n >= ODOMETRY_CHECK_STEPS and abs(turn) > ODOMETRY_CHECK_DEGREES:
+            log.warning(
+                "the odometry's steps point %.0f deg away from the scans' (median of %d "
+                "steps): is the laser mounted turned on the robot? Scan.odometry must be "
+                "the laser's pose (read_bag applies a bag's static transforms); "
+                "use_odometry=False (--no-odometry) maps from the scans alone",
+                turn, n,
+            )  # fmt: skip
+    return result
+
+
+#: :func:`map_scans` warns when the odometry's steps point more than this many degrees away
+#: from the scans' (median over at least :data:`ODOMETRY_CHECK_STEPS` steps)
+ODOMETRY_CHECK_DEGREES = 10.0
+ODOMETRY_CHECK_STEPS = 20
+
+
+def odometry_turned(scans, poses, placed_by, min_step: float = 0.05) -> tuple[float, int]:
+    """How far the odometry's steps point from the scans': the median (degrees) of the
+    angle from each odometry step's translation to the mapped one, over consecutive scans
+    placed by matching (``placed_by`` ``"match"`` or ``"icp"``) that both move at least
+    ``min_step`` m, and how many such steps there were (0 and 0 when none).
+
+    A laser mounted turned by ``phi`` on a robot whose odometry is given as the laser's
+    shows here as about ``-phi``; right odometry as about 0 (its own noise aside).
+
+    >>> from scanclique.geometry import Pose2
+    >>> from scanclique.scan import Scan
+    >>> odo = [Pose2(0.1 * k, 0.0, 0.0) for k in range(4)]
+    >>> scans = [Scan([1.0], [0.0], odometry=p) for p in odo]
+    >>> back = [Pose2(-0.1 * k, 0.0, 0.0) for k in range(4)]   # the scans saw it go back
+    >>> odometry_turned(scans, back, ["first", "match", "match", "icp"])
+    (180.0, 3)
+    """
+    d = []
+    for k in range(1, len(scans)):
+        a, b, o0, o1 = poses[k - 1], poses[k], scans[k - 1].odometry, scans[k].odometry
+        if placed_by[k] not in ("match", "icp") or None in (a, b, o0, o1):
+            continue
+        s, o = a.inverse() @ b, o0.inverse() @ o1
+        if math.hypot(s.x, s.y) < min_step or math.hypot(o.x, o.y) < min_step:
+            continue
+        d.append(math.atan2(s.y, s.x) - math.atan2(o.y, o.x))
+    if not d:
+        return 0.0, 0
+    c = np.exp(1j * np.asarray(d))
+    mean = np.angle(np.mean(c))  # the median about the circular mean
+    turn = mean + float(np.median(np.angle(c * np.exp(-1j * mean))))
+    deg = math.degrees(math.atan2(math.sin(turn), math.cos(turn)))
+    return round(deg, 6) + 0.0, len(d)
