@@ -109,6 +109,13 @@ def test_odometry_of_a_laser_mounted_turned_is_told(caplog):
     with caplog.at_level("WARNING", logger="scanclique"):
         map_scans(robot, use_odometry=False)  # no odometry, nothing to tell
     assert "odometry's steps point" not in caplog.text
+    from scanclique.mapping import OnlineMapper
+
+    with caplog.at_level("WARNING", logger="scanclique"), OnlineMapper() as live:
+        for s in robot:
+            live.add(s)
+        live.finish()  # the finished map says it too
+    assert "mounted turned on the robot" in caplog.text
 
 
 def test_loop_closures_on_a_circle():

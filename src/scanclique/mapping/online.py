@@ -43,7 +43,13 @@ from ..geometry import Pose2
 from ..scan import Scan
 from .config import MapConfig
 from .frontend import ReversingWatch
-from .pipeline import MapResult, _Mapper, check_iterable_of_scans, map_scans
+from .pipeline import (
+    MapResult,
+    _Mapper,
+    check_iterable_of_scans,
+    map_scans,
+    tell_turned_odometry,
+)
 
 __all__ = ["OnlineMapper", "OnlineRun", "map_online"]
 
@@ -223,6 +229,8 @@ class OnlineMapper:
         finally:
             m.verifier.close()
         self._result = m.result(t - self._busy)
+        if m.odo:
+            tell_turned_odometry(m.scans, self._result)
         return self._result
 
     def close(self) -> None:

@@ -1058,15 +1058,7 @@ def map_scans(
         m.verifier.close()
     result = m.result(t0)
     if use_odometry:
-        turn, n = odometry_turned(scans, result.poses, result.placed_by)
-        if n >= ODOMETRY_CHECK_STEPS and abs(turn) > ODOMETRY_CHECK_DEGREES:
-            log.warning(
-                "the odometry's steps point %.0f deg away from the scans' (median of %d "
-                "steps): is the laser mounted turned on the robot? Scan.odometry must be "
-                "the laser's pose (read_bag applies a bag's static transforms); "
-                "use_odometry=False (--no-odometry) maps from the scans alone",
-                turn, n,
-            )  # fmt: skip
+        tell_turned_odometry(scans, result)
     return result
 
 
@@ -1074,6 +1066,20 @@ def map_scans(
 #: from the scans' (median over at least :data:`ODOMETRY_CHECK_STEPS` steps)
 ODOMETRY_CHECK_DEGREES = 10.0
 ODOMETRY_CHECK_STEPS = 20
+
+
+def tell_turned_odometry(scans, result: MapResult) -> None:
+    """Warn when the odometry's steps point more than :data:`ODOMETRY_CHECK_DEGREES` away
+    from the scans' (:func:`odometry_turned`): what a map made with odometry says of it."""
+    turn, n = odometry_turned(scans, result.poses, result.placed_by)
+    if n >= ODOMETRY_CHECK_STEPS and abs(turn) > ODOMETRY_CHECK_DEGREES:
+        log.warning(
+            "the odometry's steps point %.0f deg away from the scans' (median of %d steps): "
+            "is the laser mounted turned on the robot? Scan.odometry must be the laser's "
+            "pose (read_bag applies a bag's static transforms); use_odometry=False "
+            "(--no-odometry) maps from the scans alone",
+            turn, n,
+        )  # fmt: skip
 
 
 def odometry_turned(scans, poses, placed_by, min_step: float = 0.05) -> tuple[float, int]:
