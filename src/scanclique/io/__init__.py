@@ -27,10 +27,9 @@ from .carmen import (
     DEFAULT_MAX_BEAMS,
     FLASER_MAX_RANGE,
     KNOWN_MESSAGES,
-    LASER_MESSAGES,
-    MAIN_LASER_ORDER,
     CarmenLog,
     _CarmenReader,
+    check_laser,
     flaser_angles,
     interpolate_odometry,
     iter_carmen,
@@ -136,11 +135,7 @@ def detect_format(path: str | os.PathLike) -> str:
 
 
 def _check_options(strict, max_beams, max_range, laser=None) -> None:
-    if laser is not None and laser != "main" and laser not in LASER_MESSAGES:
-        raise ArgumentError(
-            f"laser must be 'main' or a CARMEN laser message type "
-            f"({', '.join(MAIN_LASER_ORDER)}), got {laser!r}"
-        )
+    check_laser(laser)
     if not isinstance(strict, bool):
         raise ArgumentError(f"strict must be True or False, got {strict!r}")
     if isinstance(max_beams, bool) or not isinstance(max_beams, int) or max_beams < 1:

@@ -123,6 +123,7 @@ __all__ = [
     "parse_carmen",
     "iter_carmen",
     "read_carmen",
+    "check_laser",
     "select_laser",
 ]
 
@@ -155,6 +156,17 @@ MAIN_LASER_ORDER = (
 laser (FLASER, which carries the odometry and the reference pose, before ROBOTLASER1, which
 some logs write beside it for the same scans), then the lowest-numbered raw laser, the rear
 laser last."""
+
+
+def check_laser(laser) -> None:
+    """``laser`` is None, ``"main"`` or a laser message type (:data:`LASER_MESSAGES`), else
+    an :class:`~scanclique.errors.ArgumentError` listing them (:func:`select_laser`'s
+    argument, checked by :func:`~scanclique.io.read_scans` before it reads a file)."""
+    if laser is not None and laser != "main" and laser not in LASER_MESSAGES:
+        raise ArgumentError(
+            f"laser must be 'main' or a CARMEN laser message type "
+            f"({', '.join(MAIN_LASER_ORDER)}), got {laser!r}"
+        )
 
 
 def select_laser(log: CarmenLog, laser: str | None) -> tuple[list[Scan], str | None]:
@@ -190,10 +202,7 @@ def select_laser(log: CarmenLog, laser: str | None) -> tuple[list[Scan], str | N
     two.log holds 2 FLASER and 1 RLASER scans: using the 2 FLASER scans (--laser RLASER for
     the others)
     """
-    if laser is not None and laser != "main" and laser not in LASER_MESSAGES:
-        raise ArgumentError(
-            f"laser must be 'main' or one of {', '.join(MAIN_LASER_ORDER)}, got {laser!r}"
-        )
+    check_laser(laser)
     counts: dict[str, int] = {}
     for t in log.message_types:
         counts[t] = counts.get(t, 0) + 1
