@@ -186,7 +186,9 @@ def test_the_filter_refuses_a_bad_model_config_or_progress():
     assert slam.ekf_slam(steps, good).poses.shape == (6, 3)
     with pytest.raises(ArgumentError, match="motion_model must be a slam.Ackermann"):
         slam.ekf_slam(steps, "unicycle")
-    with pytest.raises(ConfigError, match="config must be a SlamConfig, got dict"):
+    with pytest.raises(
+        ConfigError, match="ekf_slam: config must be a SlamConfig or None, got dict"
+    ):
         slam.ekf_slam(steps, good, config={"R": 1})
     with pytest.raises(ArgumentError, match="ekf_slam: progress must be a function or None"):
         slam.ekf_slam(steps, good, progress=10)

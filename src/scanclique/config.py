@@ -35,6 +35,7 @@ __all__ = [
     "check_choice",
     "require_count",
     "require_callable",
+    "require_config",
     "require_flag",
     "require_nonneg",
     "require_positive",
@@ -131,6 +132,15 @@ def require_count(where: str, lo: int = 0, **values) -> None:
     for name, v in values.items():
         if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
             raise ConfigError(f"{where}{name} must be an integer >= {lo}, got {v!r}")
+
+
+def require_config(where: str, config, cls: type) -> None:
+    """``config`` is None or a ``cls``, else :class:`ConfigError` "``where``config must be
+    a ``cls`` or None": the one check of an entry point's configuration argument."""
+    if config is not None and not isinstance(config, cls):
+        raise ConfigError(
+            f"{where}config must be {a_or_an(cls.__name__)} or None, got {type(config).__name__}"
+        )
 
 
 def require_flag(where: str, **values) -> None:

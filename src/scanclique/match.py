@@ -20,7 +20,7 @@ import numpy as np
 from . import clique as _clique
 from ._kernels.codes import Option
 from ._lazy import kernel_module
-from .config import MatchConfig, a_or_an
+from .config import MatchConfig, a_or_an, require_config
 from .correspondence import CorrespondenceGraph, correspondence_graph
 from .errors import ConfigError, ScanError
 from .features import Features, extract_features
@@ -700,10 +700,7 @@ def _check_args(where: str, config, cls=Scan, **records) -> None:
             raise ScanError(
                 f"{where}: {name} must be {a_or_an(cls.__name__)}{hint}, got {type(r).__name__}"
             )
-    if config is not None and not isinstance(config, MatchConfig):
-        raise ConfigError(
-            f"{where}: config must be a MatchConfig or None, got {type(config).__name__}"
-        )
+    require_config(f"{where}: ", config, MatchConfig)
 
 
 def _check_prepared(pa, pb, config) -> MatchConfig:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import require_config
 from ..errors import ArgumentError, ConfigError
 from ..geometry import Pose2
 from ..scan import Scan
@@ -149,10 +150,7 @@ def occupancy_grid(
             f"occupancy_grid: {len(poses)} poses for {len(scans)} scans (one per scan, None "
             "for a scan that is not placed)"
         )
-    if config is not None and not isinstance(config, OccupancyConfig):
-        raise ConfigError(
-            f"occupancy_grid: config must be an OccupancyConfig, got {type(config).__name__}"
-        )
+    require_config("occupancy_grid: ", config, OccupancyConfig)
     cfg = config or OccupancyConfig()
     r = cfg.resolution
     idx = [k for k in range(0, len(scans), cfg.scan_stride) if poses[k] is not None]

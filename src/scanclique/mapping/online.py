@@ -37,8 +37,8 @@ import numpy as np
 
 from .._records import readonly
 from .._workers import check_workers
-from ..config import require_callable, require_flag
-from ..errors import ArgumentError, ConfigError, ScanError
+from ..config import require_callable, require_config, require_flag
+from ..errors import ArgumentError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
 from .config import MapConfig
@@ -101,10 +101,7 @@ class OnlineMapper:
         config: MapConfig | None = None,
         workers: int = 1,
     ) -> None:
-        if config is not None and not isinstance(config, MapConfig):
-            raise ConfigError(
-                f"OnlineMapper: config must be a MapConfig or None, got {type(config).__name__}"
-            )
+        require_config("OnlineMapper: ", config, MapConfig)
         check_workers("OnlineMapper: workers", workers)
         require_flag(
             "OnlineMapper: ", use_odometry=use_odometry, odometry_reverses=odometry_reverses

@@ -29,8 +29,8 @@ import numpy as np
 from .._lazy import kernel_module
 from .._records import readonly
 from .._workers import check_workers
-from ..config import require_callable, require_flag
-from ..errors import ArgumentError, ConfigError, ScanError
+from ..config import require_callable, require_config, require_flag
+from ..errors import ArgumentError, ScanError
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
 from ..scan import Scan
@@ -1030,10 +1030,7 @@ def map_scans(
     >>> len(r.poses), r.placed_by[0]
     (2, 'first')
     """
-    if config is not None and not isinstance(config, MapConfig):
-        raise ConfigError(
-            f"map_scans: config must be a MapConfig or None, got {type(config).__name__}"
-        )
+    require_config("map_scans: ", config, MapConfig)
     cfg = config or MapConfig()
     check_workers("map_scans: workers", workers)
     require_flag("map_scans: ", use_odometry=use_odometry)

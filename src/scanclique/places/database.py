@@ -66,7 +66,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..config import MatchConfig, config_from_dict, config_to_dict, require_count
+from ..config import MatchConfig, config_from_dict, config_to_dict, require_config, require_count
 from ..errors import ArgumentError, ConfigError, PlaceDatabaseError, ScanError
 from ..geometry import Pose2
 from ..match import PreparedScan, prepare_scan
@@ -449,10 +449,7 @@ class PlaceDB:
         min_features = _whole("min_features", min_features, 0)
         min_score = _real("min_score", min_score, -math.inf, math.inf)
         min_confidence = _real("min_confidence", min_confidence, 0.0, 1.0)
-        if config is not None and not isinstance(config, MatchConfig):
-            raise ConfigError(
-                f"PlaceDB: config must be a MatchConfig or None, got {type(config).__name__}"
-            )
+        require_config("PlaceDB: ", config, MatchConfig)
         given = None if config is None else config_to_dict(config)
         meta = {
             "config": json.dumps(given if given is not None else config_to_dict(MatchConfig())),

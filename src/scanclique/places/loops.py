@@ -47,9 +47,10 @@ from ..config import (
     config_from_dict,
     config_to_dict,
     require_callable,
+    require_config,
     require_count,
 )
-from ..errors import ArgumentError, ConfigError, ScanCliqueError
+from ..errors import ArgumentError, ScanCliqueError
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
@@ -442,10 +443,7 @@ def find_loops(
             f"find_loops: scans must be a sequence of Scan (read a file with read_scans "
             f"first), got {type(scans).__name__}"
         )
-    if config is not None and not isinstance(config, MatchConfig):
-        raise ConfigError(
-            f"find_loops: config must be a MatchConfig or None, got {type(config).__name__}"
-        )
+    require_config("find_loops: ", config, MatchConfig)
     cfg = config or MatchConfig()
     if workers == 0:
         workers = os.cpu_count() or 1

@@ -38,7 +38,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._records import readonly as _ro
-from ..config import check_choice, check_nonneg, check_positive, check_types, require_callable
+from ..config import (
+    check_choice,
+    check_nonneg,
+    check_positive,
+    check_types,
+    require_callable,
+    require_config,
+)
 from ..errors import ArgumentError, ConfigError, StepError
 from .association import (
     METHODS,
@@ -751,8 +758,7 @@ def ekf_slam(
         raise ConfigError(
             f"association method must be one of {', '.join(METHODS)}, got {association!r}"
         )
-    if config is not None and not isinstance(config, SlamConfig):
-        raise ConfigError(f"ekf_slam: config must be a SlamConfig, got {type(config).__name__}")
+    require_config("ekf_slam: ", config, SlamConfig)
     require_callable("ekf_slam: ", progress=progress)
     cfg = config or SlamConfig()
     acfg = (

@@ -36,8 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import require_count
-from ..errors import ArgumentError, ConfigError, StepError
+from ..config import require_config, require_count
+from ..errors import ArgumentError, StepError
 from .association import NEW
 from .ekf import SlamConfig, SlamResult, held_controls, slip_variance
 from .models import MotionModel
@@ -166,8 +166,7 @@ def smooth(
         raise ArgumentError(
             f"smooth: result must be the filter's SlamResult, got {type(result).__name__}"
         )
-    if config is not None and not isinstance(config, SlamConfig):
-        raise ConfigError(f"smooth: config must be a SlamConfig, got {type(config).__name__}")
+    require_config("smooth: ", config, SlamConfig)
     require_count("smooth: ", 1, max_iterations=max_iterations)
     import gtsam
 

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._records import readonly
-from ..config import ValidationConfig
+from ..config import ValidationConfig, require_config
 from ..errors import ConfigError, ScanError
 from ..geometry import Pose2
 from ..match import Hypothesis, ScanMatch, distinct_poses, near_rival
@@ -563,11 +563,7 @@ def validate_match(
     """
     if not isinstance(match, ScanMatch):
         raise ScanError(f"validate_match expects a ScanMatch, got {type(match).__name__}")
-    if config is not None and not isinstance(config, ValidationConfig):
-        raise ConfigError(
-            f"validate_match: config must be a ValidationConfig or None, got "
-            f"{type(config).__name__}"
-        )
+    require_config("validate_match: ", config, ValidationConfig)
     cfg = config or match.config.validation
     if not (isinstance(gate, (int, float)) and math.isfinite(gate) and gate > 0):
         raise ConfigError(f"gate must be a positive number, got {gate!r}")
