@@ -184,7 +184,7 @@ def test_the_filter_refuses_a_bad_model_config_or_progress():
     good = slam.Unicycle(sigma_v=np.float32(0.1), sensor_x=1)  # numbers of any kind: floats
     assert type(good.sigma_v) is float and type(good.sensor_x) is float
     assert slam.ekf_slam(steps, good).poses.shape == (6, 3)
-    with pytest.raises(ArgumentError, match="motion_model must be a slam.Ackermann"):
+    with pytest.raises(ArgumentError, match="ekf_slam: motion_model must be a slam.MotionModel"):
         slam.ekf_slam(steps, "unicycle")
     with pytest.raises(
         ConfigError, match="ekf_slam: config must be a SlamConfig or None, got dict"

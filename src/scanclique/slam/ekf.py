@@ -56,7 +56,7 @@ from .association import (
     associate_predicted,
     chi2_bound,
 )
-from .models import MotionModel, inverse_observe, observe, wrap
+from .models import MotionModel, inverse_observe, observe, require_model, wrap
 from .reader import Step
 
 __all__ = ["SlamConfig", "SlamResult", "ekf_slam", "held_controls", "slip_variance"]
@@ -749,11 +749,7 @@ def ekf_slam(
         ) from None
     if not np.isfinite(pose0).all():
         raise ArgumentError(f"ekf_slam: initial_pose {pose0.tolist()} is not finite")
-    if not isinstance(motion_model, MotionModel):
-        raise ArgumentError(
-            "ekf_slam: motion_model must be a slam.Ackermann, slam.Unicycle or another "
-            f"slam.MotionModel, got {type(motion_model).__name__}"
-        )
+    require_model("ekf_slam: ", "motion_model", motion_model)
     if association not in METHODS:
         raise ConfigError(
             f"association method must be one of {', '.join(METHODS)}, got {association!r}"

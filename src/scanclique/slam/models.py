@@ -28,7 +28,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ArgumentError, ConfigError
 
 __all__ = ["wrap", "MotionModel", "Ackermann", "Unicycle", "observe", "inverse_observe"]
 
@@ -67,6 +67,16 @@ def _check_parameters(model) -> None:
         if f.name == "wheelbase" and v <= 0:
             raise ConfigError(f"{kind}: wheelbase must be > 0 m, got {v!r}")
         object.__setattr__(model, f.name, float(v))
+
+
+def require_model(where: str, name: str, model) -> None:
+    """``model`` is a :class:`MotionModel`, else an :class:`ArgumentError` naming ``where``
+    and the argument ``name`` (the filter's and the smoother's check)."""
+    if not isinstance(model, MotionModel):
+        raise ArgumentError(
+            f"{where}{name} must be a slam.MotionModel (slam.Ackermann, slam.Unicycle or "
+            f"a subclass), got {type(model).__name__}"
+        )
 
 
 @dataclass(frozen=True, slots=True)

@@ -40,7 +40,7 @@ from ..config import require_config, require_count
 from ..errors import ArgumentError, StepError
 from .association import NEW
 from .ekf import SlamConfig, SlamResult, held_controls, slip_variance
-from .models import MotionModel
+from .models import require_model
 
 __all__ = ["SmoothResult", "smooth"]
 
@@ -160,8 +160,7 @@ def smooth(
     StepError
         ``steps`` hold another number of observation steps than the filter's run.
     """
-    if not isinstance(model, MotionModel):
-        raise ArgumentError(f"smooth: model must be a slam.MotionModel, got {type(model).__name__}")
+    require_model("smooth: ", "model", model)
     if not isinstance(result, SlamResult):
         raise ArgumentError(
             f"smooth: result must be the filter's SlamResult, got {type(result).__name__}"
