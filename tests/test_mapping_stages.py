@@ -270,6 +270,9 @@ def test_run_map_and_command(tmp_path):
         assert (tmp_path / "out" / f).is_file(), f
     rep = json.loads((tmp_path / "out" / "report.json").read_text())
     assert rep["counts"]["scans"] == 15 and rep["used_odometry"] is True
+    chk = rep["odometry_check"]  # the simulated odometry agrees with the scans
+    assert chk["steps"] >= 5 and abs(chk["median_turn_deg"]) < 5.0
+    assert any(row[0] == "odometry's turn from the scans (median)" for row in run.rows())
     assert "front_end" in rep["config"] and "match" in rep["config"]
     assert any(row[0] == "scans" for row in run.rows())
 

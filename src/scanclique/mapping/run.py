@@ -21,7 +21,7 @@ from ..errors import ScanCliqueError
 from ..scan import Scan
 from ..uncertainty import constellation_std
 from .config import MapConfig
-from .pipeline import MapResult, map_scans
+from .pipeline import MapResult, map_scans, odometry_turned
 
 __all__ = [
     "MapRun",
@@ -107,6 +107,10 @@ class MapRun:
     max), the first scan's (``first_ms``, which also loads the compiled kernels), the
     finish's (``finish_s``) and the relation metric of the live poses (``live_metrics``,
     when the log has relations); else None."""
+    odometry_check: dict | None = None
+    """With odometry: how far its steps point from the matched ones
+    (:func:`~scanclique.mapping.pipeline.odometry_turned`: ``median_turn_deg`` over
+    ``steps``; a laser mounted turned on the robot shows as minus its turn); else None."""
 
     def rows(self) -> list[tuple[str, str, str]]:
         """Metric / Value / Units rows for the command's table."""
@@ -127,6 +131,13 @@ class MapRun:
             ("loop candidates verified", str(c["loop_candidates"]), ""),
             ("loop closures accepted", str(c["loop_closures_accepted"]), ""),
             ("odometry used", "yes" if self.result.used_odometry else "no", ""),
+        ]
+        if self.odometry_check and self.odometry_check["steps"]:
+            rows.append(
+                ("odometry's turn from the scans (median)",
+                 f"{self.odometry_check['median_turn_deg']:.1f}", "deg")
+            )  # fmt: skip
+        rows += [
             ("mapping time", f"{self.result.seconds.get('total', math.nan):.1f}", "s"),
             ("total time", f"{s.get('total', math.nan):.1f}", "s"),
             ("scans per second", f"{n / max(s.get('total', math.nan), 1e-9):.1f}", "1/s"),
@@ -296,12 +307,17 @@ def run_map(
             "finish_s": live.finish_seconds,
             "live_metrics": live_metrics[0],
         }
+    check = None
+    if result.used_odometry:
+        turn, n = odometry_turned(scans, result.poses, result.placed_by)
+        check = {"median_turn_deg": turn, "steps": n}
     seconds = {"read": t_read, "map": result.seconds.get("total", 0.0), "outputs": t_out}
     seconds["total"] = time.perf_counter() - t0
     report = {
         "log": str(log_or_name),
         "config": outputs.map_config_dict(cfg),
         "used_odometry": result.used_odometry,
+        "odometry_check": check,
         "workers": workers,
         "online": online_summary,
         "counts": result.counts(),
@@ -317,7 +333,7 @@ def run_map(
     files["report"] = outdir / "report.json"
     return MapRun(
         label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed,
-        online_summary,
+        online_summary, check,
     )  # fmt: skip
 
 
