@@ -251,14 +251,14 @@ def test_bags_without_odometry_have_none(tmp_path):
     assert [b.odometry for b in back] == [None] * 4
 
 
-def _write_mounted(path, scans, chain):
+def _write_mounted(path, scans, chain, odom_child=None):
     """A ROS 2 bag of ``scans`` (frame ``laser``) with the odometry of ``base_link`` on
-    ``/tf`` and, on ``/tf_static``, ``chain``: (parent, child, Pose2) links from the robot
-    to the laser."""
+    ``/tf`` (or, with ``odom_child``, of that frame on an ``/odom`` topic) and, on
+    ``/tf_static``, ``chain``: (parent, child, Pose2) links from the robot to the laser."""
     from rosbags.rosbag2 import Writer
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    laser, _, tf = _msgs(ts, ros1=False)
+    laser, odom, tf = _msgs(ts, ros1=False)
     T = ts.types
     stamp = T["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
     links = [
@@ -276,16 +276,23 @@ def _write_mounted(path, scans, chain):
     ]
     with Writer(path, version=9) as w:
         cst = w.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=ts)
-        ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        if odom_child is None:
+            ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        else:
+            ct = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
         cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
         t0 = int(scans[0].timestamp * 1e9)
         msg = T["tf2_msgs/msg/TFMessage"](transforms=links)
         w.write(cst, t0 - 1, ts.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
         for k, s in enumerate(scans):
             t_ns = int(s.timestamp * 1e9)
-            w.write(
-                ct, t_ns, ts.serialize_cdr(tf(s.timestamp, s.odometry, k), "tf2_msgs/msg/TFMessage")
-            )
+            if odom_child is None:
+                msg = tf(s.timestamp, s.odometry, k)
+                w.write(ct, t_ns, ts.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
+            else:
+                msg = odom(s.timestamp, s.odometry, k)
+                msg.child_frame_id = odom_child
+                w.write(ct, t_ns, ts.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
             w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
 
 
@@ -346,6 +353,11 @@ def test_a_laser_mounted_backwards_is_mapped_through_its_mounting(tmp_path, carm
     mapped = map_scans(back)
     for p, q in zip(mapped.poses, direct.poses, strict=True):
         assert p.distance_to(q)[0] < 1e-3
+    # an Odometry topic names the robot's frame: the chain starts there
+    chassis = tmp_path / "chassis"
+    _write_mounted(chassis, robot, [("chassis", "laser", M)], odom_child="chassis")
+    t, r = read_bag(chassis)[5].odometry.distance_to(carmen_scans[5].odometry)
+    assert t < 1e-6 and r < 1e-6
     # without the static transforms the reader says so and hands over the robot's
     bare = tmp_path / "bare"
     write_ros2(bare, robot)

@@ -21,14 +21,16 @@ Conventions
   ``base_footprint``); interpolated at each scan's stamp (linear in x and y, along the
   shorter arc in the heading); None outside their time span. It is the *laser's* pose, as
   a Scan's poses are: the robot's composed with the laser's mounting, the chain of
-  transforms from the robot's frame to the scans' ``frame_id`` in the bag's static
-  transforms (``/tf_static``, or fixed ones on ``/tf``), projected to the plane. When the
-  bag holds no such chain, or the laser is not upright on the robot (tilted more than
-  about 25 degrees, or upside down), the robot's pose is used and a warning says so: a
-  laser mounted turned on the robot (sideways, backwards) then disagrees with the
-  odometry, which the mapper reads as the laser's motion (300 Intel scans with the odometry
-  of a robot that carries the laser backwards: 66 scans placed by odometry, the mean
-  error of consecutive poses 0.45 m, against 0.028 m with the laser's odometry).
+  transforms from the robot's frame (``base_frame``, an Odometry message's
+  ``child_frame_id``, ``base_link`` or ``base_footprint``) to the scans' ``frame_id`` in
+  the bag's static transforms (``/tf_static``, or fixed ones on ``/tf``), projected to
+  the plane. When the bag holds no such chain, or the laser is not upright on the robot
+  (tilted more than about 25 degrees, or upside down), the robot's pose is used and a
+  warning says so: a laser mounted turned on the robot (sideways, backwards) then
+  disagrees with the odometry, which the mapper reads as the laser's motion (300 Intel
+  scans with the odometry of a robot that carries the laser backwards: 66 scans placed
+  by odometry, the mean error of consecutive poses 0.45 m, against 0.028 m with the
+  laser's odometry).
 * ``Scan.reference`` is None; ``Scan.source`` is ``"<bag>:<topic>#<index>"``.
 
 Errors
@@ -192,7 +194,9 @@ def read_bag(
         The ``nav_msgs/Odometry`` topic (default: the only one; tf when there is none).
     odom_frame, base_frame : str
         The tf frames of the odometry (parent) and the robot (child; default
-        ``base_link``, else ``base_footprint``) when odometry comes from tf.
+        ``base_link``, else ``base_footprint``) when odometry comes from tf. With a
+        ``nav_msgs/Odometry`` topic, the robot's frame for the laser's mounting is also
+        its messages' ``child_frame_id``.
 
     Returns
     -------
@@ -285,6 +289,9 @@ def read_bag(
             try:  # a non-finite pose is a ScanError of Pose2: say which message holds it
                 if c.msgtype in ODOMETRY:
                     pp = msg.pose.pose
+                    child = str(getattr(msg, "child_frame_id", "")).lstrip("/")
+                    if child and not o_poses and child not in bases and base_frame is None:
+                        bases = (child, *bases)  # the frame whose pose the odometry gives
                     o_times.append(_stamp(msg, t_ns))
                     o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
                 else:
