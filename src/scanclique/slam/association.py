@@ -799,24 +799,22 @@ def associate(
     """
     z = np.array(as_observations(z, "associate", "z"))
     k = len(z)
-    R = _shaped(_finite_array(R, "R"), "R", (2, 2), (k, 2, 2))
-    pose_cov = _shaped(_finite_array(pose_cov, "pose_cov"), "pose_cov", (3, 3))
-    pose = _shaped(_finite_array(pose, "pose").reshape(-1), "pose", (3,))
-    sensor = _shaped(_finite_array(sensor, "sensor").reshape(-1), "sensor", (2,))
+    R = _finite_array(R, "R", (2, 2), (k, 2, 2))
+    pose_cov = _finite_array(pose_cov, "pose_cov", (3, 3))
+    pose = _finite_array(pose, "pose", (3,), flat=True)
+    sensor = _finite_array(sensor, "sensor", (2,), flat=True)
     mean = _finite_array(map_mean, "map_mean")
     if mean.size % 2:
         raise StepError(f"associate: map_mean must be (n, 2) positions, got shape {mean.shape}")
     mean = mean.reshape(-1, 2)
     n = len(mean)
-    cov = _shaped(_finite_array(map_cov, "map_cov"), "map_cov", (n, 2, 2), (2 * n, 2 * n))
+    cov = _finite_array(map_cov, "map_cov", (n, 2, 2), (2 * n, 2 * n))
     if cross_cov is not None:
-        cross_cov = _shaped(_finite_array(cross_cov, "cross_cov"), "cross_cov", (3, 2 * n))
+        cross_cov = _finite_array(cross_cov, "cross_cov", (3, 2 * n))
     if attributes is not None:
-        attributes = _shaped(_finite_array(attributes, "attributes"), "attributes", (k,))
+        attributes = _finite_array(attributes, "attributes", (k,))
     if map_attributes is not None:
-        map_attributes = _shaped(
-            _finite_array(map_attributes, "map_attributes"), "map_attributes", (n,)
-        )
+        map_attributes = _finite_array(map_attributes, "map_attributes", (n,))
     if cov.ndim == 3:
         full = np.zeros((2 * n, 2 * n))
         for j in range(n):
@@ -842,19 +840,18 @@ def associate(
     return associate_predicted(z, R, pred, method, config, att)
 
 
-def _shaped(a: np.ndarray, name: str, *shapes) -> np.ndarray:
-    """``a`` when its shape is one of ``shapes``, else a :class:`StepError` naming both."""
-    if a.shape not in shapes:
-        want = " or ".join(str(s) for s in shapes)
-        raise StepError(f"associate: {name} must be of shape {want}, got {a.shape}")
-    return a
-
-
-def _finite_array(values, name: str) -> np.ndarray:
-    """``values`` as a float array (a copy), or a :class:`StepError` naming ``name``."""
+def _finite_array(values, name: str, *shapes, flat: bool = False) -> np.ndarray:
+    """``values`` as a float array (a copy; flattened when ``flat``), or a
+    :class:`StepError` naming ``name`` when it is not finite numbers or, when ``shapes``
+    are given, not of one of them."""
     a = np.array(as_numbers(values, "associate", name))
+    if flat:
+        a = a.reshape(-1)
     if not np.isfinite(a).all():
         raise StepError(f"associate: {name} is not finite")
+    if shapes and a.shape not in shapes:
+        want = " or ".join(str(s) for s in shapes)
+        raise StepError(f"associate: {name} must be of shape {want}, got {a.shape}")
     return a
 
 
