@@ -110,12 +110,13 @@ def write_ros1(path, scans, odometry=True):
             w.write(cs, t_ns + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
 
 
-def write_ros2(path, scans):
-    from rosbags.rosbag2 import Writer
+def write_ros2(path, scans, storage="sqlite3"):
+    from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     laser, _, tf = _msgs(ts, ros1=False)
-    with Writer(path, version=9) as w:
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as w:
         cs = w.add_connection("/front/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
         ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
         for k, s in enumerate(scans):
@@ -238,6 +239,28 @@ def test_bad_bags(tmp_path, carmen_scans):
         w.write(co, 1, ts.serialize_ros1(odom(1.0, Pose2(0, 0, 0), 0), "nav_msgs/msg/Odometry"))
     with pytest.raises(ParseError, match="holds no sensor_msgs/LaserScan topic"):
         read_bag(no_scan)
+
+
+def test_ros2_mcap_bag(tmp_path):
+    # MCAP is ROS 2's default storage since Iron: the directory and its .mcap file read
+    # alike; the .mcap file without its metadata.yaml gets a named error saying so
+    import shutil
+
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(5)
+    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 4, n_beams=181)
+    path = tmp_path / "sim_mcap"
+    write_ros2(path, scans, storage="mcap")
+    (file,) = path.glob("*.mcap")
+    assert is_bag(path) and is_bag(file)
+    _same(scans, read_bag(path))
+    _same(scans, read_bag(file))
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    shutil.copy(file, bare / file.name)
+    with pytest.raises(ParseError, match=r"\.mcap file without the bag's metadata\.yaml"):
+        read_bag(bare / file.name)
 
 
 def test_bags_without_odometry_have_none(tmp_path):

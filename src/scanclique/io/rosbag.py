@@ -35,7 +35,8 @@ Conventions
 
 Errors
 ------
-A missing or unreadable bag, a topic that is not in the bag or not a LaserScan, a bag
+A missing or unreadable bag (a ROS 2 ``.db3`` or ``.mcap`` file whose ``metadata.yaml``
+is not beside it among them), a topic that is not in the bag or not a LaserScan, a bag
 with several LaserScan topics and no ``topic``, and a message that cannot be
 deserialised or is inconsistent (ranges of another length than the angles imply, non-
 finite angles) raise :class:`~scanclique.errors.ParseError` naming the bag, the topic and
@@ -219,6 +220,13 @@ def read_bag(
     if not p.exists():
         raise ParseError(name, None, "no such bag (file or ROS 2 bag directory)")
     bag = p.parent if p.is_file() and p.suffix in (".db3", ".mcap") else p
+    if bag is not p and not (bag / "metadata.yaml").is_file():
+        raise ParseError(
+            name, None,
+            f"a ROS 2 bag's {p.suffix} file without the bag's metadata.yaml beside it: "
+            "rosbags reads a ROS 2 bag as its directory; give the directory, or recreate "
+            f"metadata.yaml with 'ros2 bag reindex {bag}'",
+        )  # fmt: skip
     try:
         reader = AnyReader([bag])
         reader.open()
