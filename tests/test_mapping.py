@@ -96,26 +96,31 @@ def test_odometry_of_a_laser_mounted_turned_is_told(caplog):
     with caplog.at_level("WARNING", logger="scanclique"):
         r = map_scans(scans)
     assert "odometry's steps point" not in caplog.text
-    turn, n = odometry_turned(scans, r.poses, r.placed_by)
+    turn, n = r.odometry_check  # the result carries the check: median turn, steps
+    assert (turn, n) == odometry_turned(scans, r.poses, r.placed_by)
     assert abs(turn) < 5.0 and n >= 30  # the drive's own 4 % over-turn: about -2 deg
+    assert not r.odometry_check.turned
     M = Pose2(0.0, 0.0, math.pi / 2)
     robot = [dataclasses.replace(s, odometry=s.odometry @ M.inverse()) for s in scans]
     with caplog.at_level("WARNING", logger="scanclique"):
         r = map_scans(robot)
     assert "the odometry's steps point -92 deg away from the scans'" in caplog.text
     assert "mounted turned on the robot" in caplog.text
+    assert r.odometry_check.turned and round(r.odometry_check.median_turn_deg) == -92
     assert r.placed_by.count("match") >= 20
     caplog.clear()
     with caplog.at_level("WARNING", logger="scanclique"):
-        map_scans(robot, use_odometry=False)  # no odometry, nothing to tell
+        r = map_scans(robot, use_odometry=False)  # no odometry, nothing to tell
     assert "odometry's steps point" not in caplog.text
+    assert r.odometry_check is None
     from scanclique.mapping import OnlineMapper
 
     with caplog.at_level("WARNING", logger="scanclique"), OnlineMapper() as live:
         for s in robot:
             live.add(s)
-        live.finish()  # the finished map says it too
+        r = live.finish()  # the finished map says it too
     assert "mounted turned on the robot" in caplog.text
+    assert r.odometry_check.turned
 
 
 def test_loop_closures_on_a_circle():

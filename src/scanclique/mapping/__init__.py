@@ -13,7 +13,7 @@ scan's pose as soon as it comes.
 from .config import BackEndConfig, FrontEndConfig, LoopConfig, MapConfig, OccupancyConfig
 from .loops import LoopClosure
 from .online import OnlineMapper, OnlineRun, map_online
-from .pipeline import Edge, MapResult, map_scans
+from .pipeline import Edge, MapResult, OdometryCheck, map_scans
 from .run import MapRun, run_map
 
 __all__ = [
@@ -25,6 +25,7 @@ __all__ = [
     "MapConfig",
     "MapResult",
     "MapRun",
+    "OdometryCheck",
     "OnlineMapper",
     "OnlineRun",
     "OccupancyConfig",

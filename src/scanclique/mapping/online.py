@@ -47,8 +47,8 @@ from .pipeline import (
     MapResult,
     _Mapper,
     check_iterable_of_scans,
+    check_odometry,
     map_scans,
-    tell_turned_odometry,
 )
 
 __all__ = ["OnlineMapper", "OnlineRun", "map_online"]
@@ -227,7 +227,7 @@ class OnlineMapper:
             m.verifier.close()
         self._result = m.result(t - self._busy)
         if m.odo:
-            tell_turned_odometry(m.scans, self._result)
+            self._result = check_odometry(m.scans, self._result)
         return self._result
 
     def close(self) -> None:

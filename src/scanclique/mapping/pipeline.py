@@ -22,7 +22,8 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,7 +62,7 @@ from .pcm import pcm_select
 
 _K = kernel_module("scanclique.mapping._kernels")
 
-__all__ = ["Edge", "MapResult", "map_scans"]
+__all__ = ["Edge", "MapResult", "OdometryCheck", "map_scans"]
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,27 @@ class Edge:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "covariance", _ro(self.covariance))
+
+
+class OdometryCheck(NamedTuple):
+    """How far a map's odometry points from its scans (:func:`odometry_turned`).
+
+    ``median_turn_deg`` is the median angle (degrees, counter-clockwise) from each
+    odometry step's translation to the matched one, over ``steps`` consecutive pairs of
+    matched scans that both moved; 0 and 0 when none did. A laser mounted turned by
+    ``phi`` on a robot whose odometry is given as the laser's reads about ``-phi``.
+    """
+
+    median_turn_deg: float
+    steps: int
+
+    @property
+    def turned(self) -> bool:
+        """True when the odometry points more than :data:`ODOMETRY_CHECK_DEGREES` away,
+        over at least :data:`ODOMETRY_CHECK_STEPS` steps: the mapper warns."""
+        return self.steps >= ODOMETRY_CHECK_STEPS and abs(self.median_turn_deg) > (
+            ODOMETRY_CHECK_DEGREES
+        )
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -127,6 +149,9 @@ class MapResult:
         to its keyframe, to first order
         (:func:`~scanclique.uncertainty.compose_covariance`, taking the two as
         independent). None when not asked.
+    odometry_check : OdometryCheck or None
+        When the map used odometry: how far its steps point from the matched ones (the
+        mapper warns when :attr:`OdometryCheck.turned`); None otherwise.
     """
 
     poses: tuple
@@ -140,6 +165,7 @@ class MapResult:
     seconds: dict
     config: MapConfig = field(repr=False, default_factory=MapConfig)
     covariances: tuple | None = field(repr=False, default=None)
+    odometry_check: OdometryCheck | None = field(repr=False, default=None)
 
     @property
     def accepted_closures(self) -> tuple:
@@ -1054,9 +1080,7 @@ def map_scans(
     finally:
         m.verifier.close()
     result = m.result(t0)
-    if use_odometry:
-        tell_turned_odometry(scans, result)
-    return result
+    return check_odometry(scans, result) if use_odometry else result
 
 
 #: :func:`map_scans` warns when the odometry's steps point more than this many degrees away
@@ -1065,18 +1089,21 @@ ODOMETRY_CHECK_DEGREES = 10.0
 ODOMETRY_CHECK_STEPS = 20
 
 
-def tell_turned_odometry(scans, result: MapResult) -> None:
-    """Warn when the odometry's steps point more than :data:`ODOMETRY_CHECK_DEGREES` away
-    from the scans' (:func:`odometry_turned`): what a map made with odometry says of it."""
-    turn, n = odometry_turned(scans, result.poses, result.placed_by)
-    if n >= ODOMETRY_CHECK_STEPS and abs(turn) > ODOMETRY_CHECK_DEGREES:
+def check_odometry(scans, result: MapResult) -> MapResult:
+    """``result`` with its :attr:`~MapResult.odometry_check` (:func:`odometry_turned` of
+    ``scans`` against its poses), warning when the odometry's steps point more than
+    :data:`ODOMETRY_CHECK_DEGREES` away from the scans': what a map made with odometry
+    says of it."""
+    check = OdometryCheck(*odometry_turned(scans, result.poses, result.placed_by))
+    if check.turned:
         log.warning(
             "the odometry's steps point %.0f deg away from the scans' (median of %d steps): "
             "is the laser mounted turned on the robot? Scan.odometry must be the laser's "
             "pose (read_bag applies a bag's static transforms); use_odometry=False "
             "(--no-odometry) maps from the scans alone",
-            turn, n,
+            check.median_turn_deg, check.steps,
         )  # fmt: skip
+    return replace(result, odometry_check=check)
 
 
 def odometry_turned(scans, poses, placed_by, min_step: float = 0.05) -> tuple[float, int]:

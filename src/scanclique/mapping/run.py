@@ -21,7 +21,7 @@ from ..errors import ScanCliqueError
 from ..scan import Scan
 from ..uncertainty import constellation_std
 from .config import MapConfig
-from .pipeline import MapResult, map_scans, odometry_turned
+from .pipeline import MapResult, map_scans
 
 __all__ = [
     "MapRun",
@@ -307,10 +307,7 @@ def run_map(
             "finish_s": live.finish_seconds,
             "live_metrics": live_metrics[0],
         }
-    check = None
-    if result.used_odometry:
-        turn, n = odometry_turned(scans, result.poses, result.placed_by)
-        check = {"median_turn_deg": turn, "steps": n}
+    check = None if result.odometry_check is None else result.odometry_check._asdict()
     seconds = {"read": t_read, "map": result.seconds.get("total", 0.0), "outputs": t_out}
     seconds["total"] = time.perf_counter() - t0
     report = {
