@@ -112,6 +112,37 @@ def test_find_loops_bad_arguments():
     assert find_loops([], min_gap=1).loops == ()
 
 
+def _broken_task(token, chunk, *rest):
+    raise ModuleNotFoundError("No module named 'scanclique'")
+
+
+def test_find_loops_on_a_cluster_that_cannot_do_it(worlds, monkeypatch):
+    # a cluster without workers, and workers that fail (as one without scanclique
+    # would): named errors, not a wait without end or a worker's bare traceback
+    distributed = pytest.importorskip("distributed")
+    from scanclique import places
+    from scanclique.errors import ScanCliqueError
+
+    scans = worlds[0]
+    with (
+        distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster,
+        distributed.Client(cluster, timeout="2s") as client,  # the wait is the client's
+    ):
+        with pytest.raises(ScanCliqueError, match="has no worker to take the scans"):
+            find_loops(scans, min_gap=3, scheduler=client)
+        assert client.status == "running"  # the caller's client is left open
+    monkeypatch.setattr(places.loops, "_signature_task", _broken_task)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as cluster:
+        with pytest.raises(
+            ScanCliqueError, match=r"a Dask worker failed on _broken_task of chunk \d+ "
+            r"\(ModuleNotFoundError: No module named 'scanclique'\); each worker needs "
+            r"scanclique \S+ installed",
+        ):  # fmt: skip
+            find_loops(scans, min_gap=3, scheduler=cluster.scheduler_address)
+
+
 def test_hits_name_their_source_and_seeded_adds_only_triangle_candidates(tmp_path, worlds):
     from scanclique.places.database import SEED_MIN_VOTES
 

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import __version__
 from .._workers import RunState, check_workers, local_pool, new_token
 from ..config import (
     MatchConfig,
@@ -332,8 +333,18 @@ class _Runner:
                     f"cannot reach the Dask scheduler {scheduler}: {exc}"
                 ) from None
             self._own_client = not hasattr(scheduler, "submit")
-            self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
-            self.scans_future = self.client.scatter([list(scans)], broadcast=True)[0]
+            try:
+                self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+                # waits for a worker up to the client's connection timeout
+                self.scans_future = self.client.scatter([list(scans)], broadcast=True)[0]
+            except (OSError, TimeoutError) as exc:
+                address = scheduler if isinstance(scheduler, str) else "<scheduler address>"
+                self.close()
+                raise ScanCliqueError(
+                    f"the Dask scheduler {scheduler} has no worker to take the scans "
+                    f"({type(exc).__name__}: {exc}); start workers with "
+                    f"'dask worker {address}'"
+                ) from None
         elif workers > 1:
             self.backend = "processes"
             self.pool = local_pool(workers, _install, (self.token, list(scans), *self.args))
@@ -370,7 +381,18 @@ class _Runner:
             done_iter = as_completed(futs)
         for f in done_iter:
             k = index[f]
-            results[k] = f.result()
+            try:
+                results[k] = f.result()
+            except Exception as exc:
+                if self.backend != "dask":
+                    raise
+                # a worker's own failure (most often a worker without scanclique, or
+                # with another version) comes back here, with the worker's message
+                raise ScanCliqueError(
+                    f"a Dask worker failed on {fn.__name__} of chunk {k} "
+                    f"({type(exc).__name__}: {exc}); each worker needs scanclique "
+                    f"{__version__} installed"
+                ) from exc
             if progress:
                 progress(len(chunks[k]))
         return results
@@ -433,7 +455,9 @@ def find_loops(
     ArgumentError
         ``scans`` is not a sequence (None, a path, a generator).
     ScanCliqueError
-        The scheduler cannot be reached.
+        The scheduler cannot be reached, has no worker (within the client's 10 s
+        connection timeout), or a worker fails (a worker without scanclique, or with
+        another version: the message says which task and why).
     """
     require_count("find_loops: ", 1, candidates=candidates, min_gap=min_gap)
     require_callable("find_loops: ", progress=progress)
