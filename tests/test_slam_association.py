@@ -244,3 +244,34 @@ def test_compiled_correspondence_graph_matches_numpy(seed):
     o2, l2, A2 = A.correspondence_graph(np.asarray(z), Rk, d2, pred, cfg, _slow_graph=True)
     assert (o1 == o2).all() and (l1 == l2).all()
     assert (A1 == A2).all()
+
+
+def test_equally_good_cliques_that_agree_are_merged():
+    """Cliques that pair nothing differently and pass the joint gate together are one
+    hypothesis missing members (``ambiguity="merge"``): their union, no rival. A clique
+    that pairs an observation differently, or whose union the joint gate refuses, is a
+    rival."""
+    k = n = 4
+    nu = np.zeros((k, n, 2))
+    Sz = 0.01 * np.eye(2 * n)
+    R = np.repeat(0.01 * np.eye(2)[None], k, axis=0)
+    gate = A._gate_table(k, 0.99)
+    best, other = {(0, 0), (1, 1), (2, 2)}, {(0, 0), (1, 1), (3, 3)}
+    hyp, rivals = A._merged([best, other], nu, Sz, R, gate)
+    assert hyp == best | other and rivals == []
+    conflicting = {(0, 0), (1, 1), (2, 3)}  # observation 2 paired with another landmark
+    hyp, rivals = A._merged([best, conflicting, other], nu, Sz, R, gate)
+    assert hyp == best | other and rivals == [conflicting]
+    nu[3, 3] = (1.0, 1.0)  # pair (3, 3) far outside the joint gate with the others
+    hyp, rivals = A._merged([best, other], nu, Sz, R, gate)
+    assert hyp == best and rivals == [other]
+
+
+def test_merge_is_the_default_and_the_hybrid_reads_it_as_distinct():
+    cfg = slam.AssociationConfig()
+    assert cfg.ambiguity == "merge"
+    a, b = {(0, 0), (1, 1)}, {(0, 0), (2, 2)}  # no conflict: rivals for the hybrid
+    assert A._rivals(a, b, cfg)
+    assert not A._rivals(a, b, slam.AssociationConfig(ambiguity="conflict"))
+    with pytest.raises(Exception, match="ambiguity"):
+        slam.AssociationConfig(ambiguity="union")

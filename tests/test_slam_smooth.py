@@ -63,7 +63,8 @@ def test_smoothing_applies_the_filters_speed_scale(park):
     """A wheel radius 5 % off (every logged speed times 0.95), the filter with its
     speed-scale state: the smoother integrates the controls corrected by the filter's
     final scale. Without that correction its odometry factors pull the poses metres off
-    (5.2 m against 2.0 m on this park)."""
+    (2.74 m against 1.43 m on this park; 5.2 against 2.0 m before session 27's merged
+    cliques, whose filter run is nearer the truth: 1.57 m against 1.89)."""
     steps = [
         s if s.control is None else slam.Step(s.time, s.control * (0.95, 1.0), s.observations)
         for s in park.steps
@@ -73,8 +74,8 @@ def test_smoothing_applies_the_filters_speed_scale(park):
     obs = np.array([k for k, s in enumerate(park.steps) if s.n_observations])
     corrected = _pos_rmse(smooth(steps, slam.Ackermann(), r).poses, park.poses[obs])
     as_logged = smooth(steps, slam.Ackermann(), dataclasses.replace(r, speed_scale=None))
-    assert corrected < 0.5 * _pos_rmse(as_logged.poses, park.poses[obs])
-    assert corrected < 2.5
+    assert corrected < 0.6 * _pos_rmse(as_logged.poses, park.poses[obs])
+    assert corrected < 2.0
 
 
 def test_smoothing_applies_the_filters_control_bias(park):
@@ -92,8 +93,8 @@ def test_smoothing_applies_the_filters_control_bias(park):
     obs = np.array([k for k, s in enumerate(park.steps) if s.n_observations])
     corrected = _pos_rmse(smooth(steps, slam.Ackermann(), r).poses, park.poses[obs])
     as_logged = smooth(steps, slam.Ackermann(), dataclasses.replace(r, control_bias=None))
-    assert corrected < 0.5 * _pos_rmse(as_logged.poses, park.poses[obs])
-    assert corrected < 2.5
+    assert corrected < 0.6 * _pos_rmse(as_logged.poses, park.poses[obs])
+    assert corrected < 2.0
 
 
 def test_smoothing_takes_the_noise_the_filter_ended_with(park, run, monkeypatch):
