@@ -587,13 +587,14 @@ def _clique(z, R, d2, nu, pred: Predicted, cfg, attributes=None, verify="peel"):
     best = [p for p in best if p[1] - best[0][1] <= margin]  # as likely as the best
     if len(best) > 1 and size > 0 and cfg.ambiguity == "merge":
         hyp, rivals = _merged([_pair_set(oi[p[2]], lj[p[2]]) for p in best], nu, pred.Sz, R, gate)
+        blocked = ()
         if rivals:  # ambiguous: keep only the pairs the merged hypothesis and its rivals share
             common = set.intersection(hyp, *rivals)
             blocked = tuple({i for i, _ in set.union(hyp, *rivals) - common})
             hyp = common
         for i, j in sorted(hyp):
             out[i] = j
-        return out, C, int(res.omega), bool(rivals), blocked if rivals else ()
+        return out, C, int(res.omega), bool(rivals), blocked
     if len(best) > 1 and size > 0:
         shared = _shared_pairs([_pair_set(oi[p[2]], lj[p[2]]) for p in best], cfg)
         if shared is not None:
