@@ -263,6 +263,46 @@ def test_ros2_mcap_bag(tmp_path):
         read_bag(bare / file.name)
 
 
+def test_odometry_on_tf_under_other_frame_names(tmp_path, caplog):
+    # a robot whose tf names its frames odom_combined -> chassis: without the names the
+    # scans have no odometry, and the reader says which transforms it saw; with them
+    # (scanclique map --odom-frame --base-frame) the odometry is read
+    from rosbags.rosbag2 import Writer
+
+    from scanclique.mapping.run import load_map_log
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(7)
+    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 4, n_beams=181)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    laser, _, tf = _msgs(ts, ros1=False)
+    path = tmp_path / "frames"
+    with Writer(path, version=9) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        for k, s in enumerate(scans):
+            t_ns = int(s.timestamp * 1e9)
+            m = tf(s.timestamp, s.odometry, k)
+            tr = m.transforms[0]
+            tr.header.frame_id, tr.child_frame_id = "odom_combined", "chassis"
+            w.write(ct, t_ns, ts.serialize_cdr(T["tf2_msgs/msg/TFMessage"](transforms=[tr]),
+                                               "tf2_msgs/msg/TFMessage"))  # fmt: skip
+            w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+    with caplog.at_level("WARNING", logger="scanclique"):
+        back = read_bag(path)
+    assert [b.odometry for b in back] == [None] * 4
+    assert "tf has no odom -> base_link or base_footprint transform" in caplog.text
+    assert "its moving transforms: odom_combined -> chassis" in caplog.text
+    _same(scans, read_bag(path, odom_frame="odom_combined", base_frame="chassis"))
+    got, _ = load_map_log(path, odom_frame="odom_combined", base_frame="chassis")
+    _same(scans, got)
+    from scanclique.errors import ScanCliqueError
+
+    with pytest.raises(ScanCliqueError, match="--odom-frame applies to ROS bags only"):
+        load_map_log("intel", odom_frame="odom")
+
+
 def test_bags_without_odometry_have_none(tmp_path):
     from scanclique.sim import office_world, simulate_trajectory
 

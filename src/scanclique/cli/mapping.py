@@ -50,6 +50,21 @@ def map_cmd(
         str | None,
         typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one)."),
     ] = None,
+    odom_frame: Annotated[
+        str | None,
+        typer.Option(
+            "--odom-frame",
+            help="A ROS bag's tf frame of the odometry, when it has no nav_msgs/Odometry "
+            "topic (default: odom).",
+        ),
+    ] = None,
+    base_frame: Annotated[
+        str | None,
+        typer.Option(
+            "--base-frame",
+            help="A ROS bag's tf frame of the robot (default: base_link, else base_footprint).",
+        ),
+    ] = None,
     laser: Annotated[
         str | None,
         typer.Option(
@@ -156,6 +171,8 @@ def map_cmd(
                 use_odometry=None if odometry else False,
                 topic=topic,
                 laser=laser,
+                odom_frame=odom_frame,
+                base_frame=base_frame,
                 plot=plot,
                 progress=tick,
                 workers=workers,

@@ -275,6 +275,7 @@ def read_bag(
         static_c = [c for c in tf_all if c.topic.rstrip("/").endswith("tf_static")]
         o_times: list[float] = []
         o_poses: list[Pose2] = []
+        seen: set[tuple[str, str]] = set()  # (parent, child) frames of the moving transforms
         bases = (base_frame,) if base_frame else ("base_link", "base_footprint")
         links: dict = {}  # child frame -> (parent, R, t): the robot's fixed frames
         for c, _t_ns, raw in reader.messages(connections=static_c) if static_c else ():
@@ -304,6 +305,10 @@ def read_bag(
                     o_poses.append(Pose2(pp.position.x, pp.position.y, _yaw(pp.orientation)))
                 else:
                     for tr in msg.transforms:
+                        if c not in static_c and len(seen) < 20:
+                            seen.add(
+                                (tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))
+                            )
                         if c not in static_c and tr.child_frame_id.lstrip("/") not in bases:
                             _link(tr, links)  # a fixed frame published on /tf
                         if (
@@ -317,6 +322,14 @@ def read_bag(
                             )
             except ScanCliqueError as exc:
                 raise ParseError(name, None, f"{c.topic} message {k}: {exc}") from None
+        if tf_c and not o_poses:
+            pairs = ", ".join(f"{a} -> {b}" for a, b in sorted(seen)) or "none"
+            log.warning(
+                "%s: the bag's tf has no %s -> %s transform (its moving transforms: %s): "
+                "the scans have no odometry; name the frames with odom_frame= and "
+                "base_frame= (scanclique map --odom-frame, --base-frame)",
+                name, odom_frame, " or ".join(bases), pairs,
+            )  # fmt: skip
         order = np.argsort(o_times, kind="stable")
         o_times = [o_times[k] for k in order]
         o_poses = [o_poses[k] for k in order]

@@ -40,22 +40,34 @@ from ..io.rosbag import BAG_SUFFIXES, is_bag  # noqa: E402,F401 (re-exported)
 
 
 def load_map_log(
-    log_or_name: str | os.PathLike, topic: str | None = None, laser: str | None = None
+    log_or_name: str | os.PathLike,
+    topic: str | None = None,
+    laser: str | None = None,
+    *,
+    odom_frame: str | None = None,
+    base_frame: str | None = None,
 ) -> tuple[list[Scan], str]:
     """The scans of a CARMEN log, a registered data set name or a ROS bag, and a label.
 
-    ``topic``: a bag's LaserScan topic (default: its only one). ``laser``: a CARMEN log's
-    laser message type (default ``"main"``: its front laser when it holds several, see
-    :func:`scanclique.io.read_scans`), since a map is one sensor's."""
+    ``topic``: a bag's LaserScan topic (default: its only one); ``odom_frame``,
+    ``base_frame``: its tf frames of the odometry and the robot (default ``odom``, and
+    ``base_link`` or ``base_footprint``; :func:`scanclique.io.rosbag.read_bag`).
+    ``laser``: a CARMEN log's laser message type (default ``"main"``: its front laser when
+    it holds several, see :func:`scanclique.io.read_scans`), since a map is one sensor's."""
     s = str(log_or_name)
     if is_bag(s):
         if laser is not None:
             raise ScanCliqueError(f"--laser applies to CARMEN logs only; {s} is a bag (--topic)")
         from ..io.rosbag import read_bag  # noqa: PLC0415
 
-        return read_bag(s, topic=topic), Path(s).name
-    if topic is not None:
-        raise ScanCliqueError(f"--topic applies to ROS bags only; {s} is not a bag")
+        frames = {"base_frame": base_frame}
+        if odom_frame is not None:
+            frames["odom_frame"] = odom_frame
+        return read_bag(s, topic=topic, **frames), Path(s).name
+    for option, value in (("--topic", topic), ("--odom-frame", odom_frame),
+                          ("--base-frame", base_frame)):  # fmt: skip
+        if value is not None:
+            raise ScanCliqueError(f"{option} applies to ROS bags only; {s} is not a bag")
     return datasets.load_log(s, laser=laser or "main"), Path(s).name
 
 
@@ -213,6 +225,8 @@ def run_map(
     workers: int = 1,
     online: bool = False,
     laser: str | None = None,
+    odom_frame: str | None = None,
+    base_frame: str | None = None,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
     ``report.json`` (``map.png`` when ``plot``; ``covariances.csv`` when the
@@ -228,14 +242,17 @@ def run_map(
     :meth:`MapConfig.online`), except where the batch reads the whole log to tell whether
     the odometry reports backing up.
 
-    ``laser``: which laser of a CARMEN log that holds several (:func:`load_map_log`).
+    ``laser``: which laser of a CARMEN log that holds several; ``odom_frame``,
+    ``base_frame``: a bag's tf frames of the odometry and the robot (:func:`load_map_log`).
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
 
     t0 = time.perf_counter()
     cfg = config or (MapConfig.online() if online else MapConfig())
-    scans, label = load_map_log(log_or_name, topic, laser)
+    scans, label = load_map_log(
+        log_or_name, topic, laser, odom_frame=odom_frame, base_frame=base_frame
+    )
     t_read = time.perf_counter() - t0
     if not scans:
         raise ScanCliqueError(f"{log_or_name}: the log holds no laser scans")
