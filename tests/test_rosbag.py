@@ -303,6 +303,41 @@ def test_odometry_on_tf_under_other_frame_names(tmp_path, caplog):
         load_map_log("intel", odom_frame="odom")
 
 
+def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
+    # read_scans' laser (and the place commands' --laser) names a bag's LaserScan topic,
+    # as it names a CARMEN log's message type
+    from rosbags.rosbag2 import Writer
+    from typer.testing import CliRunner
+
+    import scanclique as sc
+    from scanclique import cli
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(11)
+    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 6, n_beams=181)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    laser, _, tf = _msgs(ts, ros1=False)
+    path = tmp_path / "two"
+    with Writer(path, version=9) as w:
+        front = w.add_connection("/front/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        rear = w.add_connection("/rear/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        for k, s in enumerate(scans):
+            t_ns = int(s.timestamp * 1e9)
+            w.write(front, t_ns, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+            if k % 2 == 0:
+                w.write(rear, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+    with pytest.raises(ParseError, match=r"several LaserScan topics .*read_scans' laser="):
+        sc.read_scans(path)
+    assert len(sc.read_scans(path, laser="/front/scan")) == 6
+    assert len(sc.read_scans(path, laser="/rear/scan")) == 3
+    with pytest.raises(ParseError, match="topic '/scan' is not in the bag"):
+        sc.read_scans(path, laser="/scan")
+    db = tmp_path / "p.db"
+    r = CliRunner().invoke(cli.app, ["places", "add", str(db), str(path), "--laser", "/rear/scan"])
+    assert r.exit_code == 0, r.output
+    assert "added 3 places" in r.output
+
+
 def test_bags_without_odometry_have_none(tmp_path):
     from scanclique.sim import office_world, simulate_trajectory
 

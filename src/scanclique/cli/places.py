@@ -45,7 +45,16 @@ places_app = typer.Typer(
 
 DbArg = Annotated[Path, typer.Argument(help="The place database (SQLite file; created by add).")]
 SourceArg = Annotated[
-    str, typer.Argument(help="A log (CARMEN, .npz, scan text) or a data set name (freiburg).")
+    str,
+    typer.Argument(help="A log (CARMEN, .npz, scan text, ROS bag) or a data set name (freiburg)."),
+]
+LaserOpt = Annotated[
+    str,
+    typer.Option(
+        "--laser",
+        help="Which laser of the log: a CARMEN message type (FLASER, RLASER, ROBOTLASER1, "
+        "RAWLASER1..4) or a ROS bag's LaserScan topic (/front/scan); default: the main one.",
+    ),
 ]
 
 
@@ -58,14 +67,14 @@ def _config(config, paper):
     return _guard(lambda: load_config(config, paper))
 
 
-def _check_start(source: str, start: int) -> None:
+def _check_start(source: str, start: int, laser: str = "main") -> None:
     """Refuse a ``--start`` at or beyond the end of the log before the database is opened
     (or created): one ``error:`` line, exit code 2, instead of "added 0 places". The log
     read here stays in :func:`scanclique.datasets.load_log`'s cache, where ``run_add``
     finds it (an empty log is left to ``run_add``, which says so)."""
     from .. import datasets
 
-    n = len(_guard(lambda: datasets.load_log(source, laser="main")))
+    n = len(_guard(lambda: datasets.load_log(source, laser=laser)))
     if 0 < n <= start:
         raise _fail(
             _escape(f"--start {start} is beyond the log: {source} has {n} scans (0..{n - 1})")
@@ -85,6 +94,7 @@ def add(
     stop: Annotated[
         int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")
     ] = None,
+    laser: LaserOpt = "main",
     config: ConfigOpt = None,
     paper: PaperOpt = False,
     json_out: JsonOpt = False,
@@ -108,12 +118,12 @@ def add(
     if stop is not None and stop <= start:
         raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
     if start > 0:
-        _check_start(source, start)
+        _check_start(source, start, laser)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
         task = bar.add_task("adding places", total=None)
         run = _guard(
             lambda: run_add(
-                db, source, every=every, start=start, stop=stop, config=cfg,
+                db, source, every=every, start=start, stop=stop, config=cfg, laser=laser,
                 progress=lambda d, t: bar.update(task, completed=d, total=t),
             )
         )  # fmt: skip
@@ -148,6 +158,7 @@ def query(
             "--min-features", min=2, help="Accept only matches mapping this many features (3)."
         ),
     ] = None,
+    laser: LaserOpt = "main",
     config: ConfigOpt = None,
     paper: PaperOpt = False,
     json_out: JsonOpt = False,
@@ -169,7 +180,7 @@ def query(
     ms = ACCEPT_MIN_SCORE if min_score is None else min_score
     mf = ACCEPT_MIN_FEATURES if min_features is None else min_features
     run = _guard(lambda: run_query(db, source, index, k=top, candidates=candidates, config=cfg,
-                                   min_score=ms, min_features=mf))  # fmt: skip
+                                   min_score=ms, min_features=mf, laser=laser))  # fmt: skip
     if json_out:
         _print_json(run.to_dict())
         return
@@ -252,6 +263,7 @@ def loops(
             "--out", "-o", help="Write every verified pair as JSON here (a file there is replaced)."
         ),
     ] = None,
+    laser: LaserOpt = "main",
     config: ConfigOpt = None,
     paper: PaperOpt = False,
     json_out: JsonOpt = False,
@@ -290,7 +302,7 @@ def loops(
         run = _guard(
             lambda: run_loops(
                 source, every=every, candidates=candidates, min_gap=min_gap, workers=workers,
-                scheduler=scheduler, config=cfg, out=out, progress=tick,
+                scheduler=scheduler, config=cfg, out=out, progress=tick, laser=laser,
             )
         )  # fmt: skip
     if json_out:

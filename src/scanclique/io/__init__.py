@@ -169,7 +169,8 @@ def read_scans(
     path : str or path-like
         A CARMEN log (plain, gzip or bzip2), a scan text file, an ``.npz`` archive, or a
         ROS bag (a ``.bag`` file or a ROS 2 bag directory, read by
-        :func:`~scanclique.io.rosbag.read_bag`: its only LaserScan topic); the format is
+        :func:`~scanclique.io.rosbag.read_bag`: its only LaserScan topic, or the one
+        ``laser`` names); the format is
         detected from the content (see the module docstring). Must be a regular file (or a
         ROS 2 bag directory): FIFOs and devices are refused.
     strict : bool
@@ -194,7 +195,8 @@ def read_scans(
         in file order, which is logged at warning level. ``"main"`` keeps the log's main
         laser (:data:`~scanclique.io.carmen.MAIN_LASER_ORDER`: FLASER first, RLASER last)
         and logs what it left out; a message type (``"RLASER"``) keeps that one's scans.
-        What the mapping and place commands read (``--laser``, default ``"main"``).
+        What the mapping and place commands read (``--laser``, default ``"main"``). A
+        ROS bag: the LaserScan topic (``"/front/scan"``); None or ``"main"``, its only one.
 
     Returns
     -------
@@ -216,13 +218,16 @@ def read_scans(
     read_carmen : the CARMEN reader, also returning PARAM values and skip counts.
     """
     spath = check_path(path)
-    _check_options(strict, max_beams, max_range, laser)
     from .rosbag import is_bag
 
-    if is_bag(spath):  # a ROS 1 .bag or a ROS 2 bag: its only LaserScan topic
+    if is_bag(spath):  # a ROS 1 .bag or a ROS 2 bag: the laser is a LaserScan topic
+        if laser is not None and not isinstance(laser, str):
+            raise ArgumentError(f"laser must be a LaserScan topic of the bag, got {laser!r}")
+        _check_options(strict, max_beams, max_range)
         from .rosbag import read_bag
 
-        return read_bag(spath)
+        return read_bag(spath, topic=None if laser in (None, "main") else laser)
+    _check_options(strict, max_beams, max_range, laser)
     fmt = detect_format(spath)
     if fmt == "npz":
         return read_scans_npz(spath, max_beams=max_beams)

@@ -255,7 +255,10 @@ def read_bag(
                 raise ParseError(name, None, "the bag holds no sensor_msgs/LaserScan topic")
             if len(topics) > 1:
                 raise ParseError(
-                    name, None, f"the bag holds several LaserScan topics {topics}: pass topic="
+                    name,
+                    None,
+                    f"the bag holds several LaserScan topics {topics}: name one (read_bag's "
+                    "topic=, read_scans' laser=, the CLI's --topic or --laser)",
                 )
             topic = topics[0]
         # odometry: nav_msgs/Odometry, else tf

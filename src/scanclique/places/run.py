@@ -38,13 +38,15 @@ RIGHT_TRANSLATION = 0.5  # metres
 RIGHT_ROTATION = 0.2  # radians
 
 
-def _scans(source) -> tuple[list[Scan], str]:
-    """The scans of a log (path or registered name), or a given sequence of scans."""
+def _scans(source, laser: str = "main") -> tuple[list[Scan], str]:
+    """The scans of a log (path or registered name; ``laser``: which laser, a CARMEN
+    message type or a ROS bag's LaserScan topic, default its main one), or a given
+    sequence of scans."""
     if isinstance(source, (str, os.PathLike)):
         from .. import datasets
 
         s = os.fspath(source)
-        scans = list(datasets.load_log(source, laser="main"))  # a log's one trajectory
+        scans = list(datasets.load_log(source, laser=laser))  # a log's one trajectory
         if not scans:
             raise ScanCliqueError(f"{s}: the log holds no laser scans")
         # a registered log is one log whether it is named or given by its path
@@ -104,12 +106,14 @@ def run_add(
     stop: int | None = None,
     config: MatchConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
+    laser: str = "main",
 ) -> AddRun:
     """Add every ``every``-th scan of ``source`` (``start`` to ``stop``) to the database
     at ``path`` as places named ``"<log>:<index>"`` (``<log>`` the registered name of a
     registered log, given by name or by path, else the file's name); scans whose name is
-    already there are skipped (so a run can be repeated or resumed)."""
-    scans, label = _scans(source)
+    already there are skipped (so a run can be repeated or resumed). ``laser``: which
+    laser of the log (:func:`scanclique.io.read_scans`)."""
+    scans, label = _scans(source, laser)
     idx = list(range(start, len(scans) if stop is None else min(stop, len(scans)), max(1, every)))
     t0 = time.perf_counter()
     loading = warm_up()  # loading the kernels is reported apart from the adds' times
@@ -204,11 +208,13 @@ def run_query(
     config: MatchConfig | None = None,
     min_score: float = ACCEPT_MIN_SCORE,
     min_features: int = ACCEPT_MIN_FEATURES,
+    laser: str = "main",
 ) -> QueryRun:
-    """Query the database at ``path`` with scan ``index`` of ``source``."""
+    """Query the database at ``path`` with scan ``index`` of ``source`` (of its laser
+    ``laser``, :func:`scanclique.io.read_scans`)."""
     from ..errors import ScanIndexError
 
-    scans, label = _scans(source)
+    scans, label = _scans(source, laser)
     if not 0 <= index < len(scans):
         raise ScanIndexError(
             f"{label}: scan index {index} out of range: the log has {len(scans)} scans "
@@ -289,13 +295,15 @@ def run_loops(
     min_score: float = ACCEPT_MIN_SCORE,
     out: str | os.PathLike | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    laser: str = "main",
 ) -> LoopsRun:
     """Every revisit of a log (:func:`.loops.find_loops`) on every ``every``-th scan
     (``min_gap`` counts scans of the full log); indices in the result are of the full
-    log. Writes the result as JSON to ``out`` when given."""
+    log (of its laser ``laser``, :func:`scanclique.io.read_scans`). Writes the result as
+    JSON to ``out`` when given."""
     import json
 
-    scans, label = _scans(source)
+    scans, label = _scans(source, laser)
     sel = scans[:: max(1, every)]
     gap = max(1, math.ceil(min_gap / max(1, every)))
     res = find_loops(
