@@ -81,6 +81,14 @@ def _msgs(ts, ros1: bool):
     return laser, odom, tf
 
 
+def _drive(seed: int, n: int):
+    """``n`` scans of a short simulated drive (181 beams) with odometry."""
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(seed)
+    return simulate_trajectory(rng, office_world(rng, length=12.0), n, n_beams=181)
+
+
 def _odo_samples(scans):
     """Odometry at the scans' times and half-way between them (the reader interpolates)."""
     out = []
@@ -246,10 +254,7 @@ def test_ros2_mcap_bag(tmp_path):
     # alike; the .mcap file without its metadata.yaml gets a named error saying so
     import shutil
 
-    from scanclique.sim import office_world, simulate_trajectory
-
-    rng = np.random.default_rng(5)
-    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 4, n_beams=181)
+    scans = _drive(5, 4)
     path = tmp_path / "sim_mcap"
     write_ros2(path, scans, storage="mcap")
     (file,) = path.glob("*.mcap")
@@ -270,10 +275,8 @@ def test_odometry_on_tf_under_other_frame_names(tmp_path, caplog):
     from rosbags.rosbag2 import Writer
 
     from scanclique.mapping.run import load_map_log
-    from scanclique.sim import office_world, simulate_trajectory
 
-    rng = np.random.default_rng(7)
-    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 4, n_beams=181)
+    scans = _drive(7, 4)
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     laser, _, tf = _msgs(ts, ros1=False)
@@ -311,10 +314,8 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
 
     import scanclique as sc
     from scanclique import cli
-    from scanclique.sim import office_world, simulate_trajectory
 
-    rng = np.random.default_rng(11)
-    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 6, n_beams=181)
+    scans = _drive(11, 6)
     ts = get_typestore(Stores.ROS2_HUMBLE)
     laser, _, tf = _msgs(ts, ros1=False)
     path = tmp_path / "two"
@@ -339,10 +340,7 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
 
 
 def test_bags_without_odometry_have_none(tmp_path):
-    from scanclique.sim import office_world, simulate_trajectory
-
-    rng = np.random.default_rng(2)
-    scans = simulate_trajectory(rng, office_world(rng, length=12.0), 4, n_beams=181)
+    scans = _drive(2, 4)
     path = tmp_path / "sim.bag"
     write_ros1(path, scans, odometry=False)
     back = read_bag(path)
