@@ -118,21 +118,32 @@ def write_ros1(path, scans, odometry=True):
             w.write(cs, t_ns + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
 
 
-def write_ros2(path, scans, storage="sqlite3"):
+def _write_bag2(path, rows, storage="sqlite3"):
+    """A ROS 2 bag of ``rows``: (topic, time ns, message) in writing order; a topic's
+    connection (of its message's type) is added when it first comes."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    laser, _, tf = _msgs(ts, ros1=False)
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as w:
-        cs = w.add_connection("/front/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
-        ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        conns = {}
+        for topic, t_ns, msg in rows:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, msg.__msgtype__, typestore=ts)
+            w.write(conns[topic], t_ns, ts.serialize_cdr(msg, msg.__msgtype__))
+
+
+def write_ros2(path, scans, storage="sqlite3"):
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    laser, _, tf = _msgs(ts, ros1=False)
+
+    def rows():
         for k, s in enumerate(scans):
             t_ns = int(s.timestamp * 1e9)
-            w.write(
-                ct, t_ns, ts.serialize_cdr(tf(s.timestamp, s.odometry, k), "tf2_msgs/msg/TFMessage")
-            )
-            w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+            yield "/tf", t_ns, tf(s.timestamp, s.odometry, k)
+            yield "/front/scan", t_ns + 1, laser(s, k)
+
+    _write_bag2(path, rows(), storage)
 
 
 def _same(scans, back):
@@ -272,26 +283,21 @@ def test_odometry_on_tf_under_other_frame_names(tmp_path, caplog):
     # a robot whose tf names its frames odom_combined -> chassis: without the names the
     # scans have no odometry, and the reader says which transforms it saw; with them
     # (scanclique map --odom-frame --base-frame) the odometry is read
-    from rosbags.rosbag2 import Writer
 
     from scanclique.mapping.run import load_map_log
 
     scans = _drive(7, 4)
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    T = ts.types
     laser, _, tf = _msgs(ts, ros1=False)
     path = tmp_path / "frames"
-    with Writer(path, version=9) as w:
-        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
-        ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
-        for k, s in enumerate(scans):
-            t_ns = int(s.timestamp * 1e9)
-            m = tf(s.timestamp, s.odometry, k)
-            tr = m.transforms[0]
-            tr.header.frame_id, tr.child_frame_id = "odom_combined", "chassis"
-            w.write(ct, t_ns, ts.serialize_cdr(T["tf2_msgs/msg/TFMessage"](transforms=[tr]),
-                                               "tf2_msgs/msg/TFMessage"))  # fmt: skip
-            w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+    rows = []
+    for k, s in enumerate(scans):
+        t_ns = int(s.timestamp * 1e9)
+        m = tf(s.timestamp, s.odometry, k)
+        m.transforms[0].header.frame_id = "odom_combined"
+        m.transforms[0].child_frame_id = "chassis"
+        rows += [("/tf", t_ns, m), ("/scan", t_ns + 1, laser(s, k))]
+    _write_bag2(path, rows)
     with caplog.at_level("WARNING", logger="scanclique"):
         back = read_bag(path)
     assert [b.odometry for b in back] == [None] * 4
@@ -309,7 +315,6 @@ def test_odometry_on_tf_under_other_frame_names(tmp_path, caplog):
 def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
     # read_scans' laser (and the place commands' --laser) names a bag's LaserScan topic,
     # as it names a CARMEN log's message type
-    from rosbags.rosbag2 import Writer
     from typer.testing import CliRunner
 
     import scanclique as sc
@@ -319,14 +324,13 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
     ts = get_typestore(Stores.ROS2_HUMBLE)
     laser, _, tf = _msgs(ts, ros1=False)
     path = tmp_path / "two"
-    with Writer(path, version=9) as w:
-        front = w.add_connection("/front/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
-        rear = w.add_connection("/rear/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
-        for k, s in enumerate(scans):
-            t_ns = int(s.timestamp * 1e9)
-            w.write(front, t_ns, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
-            if k % 2 == 0:
-                w.write(rear, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+    rows = []
+    for k, s in enumerate(scans):
+        t_ns = int(s.timestamp * 1e9)
+        rows.append(("/front/scan", t_ns, laser(s, k)))
+        if k % 2 == 0:
+            rows.append(("/rear/scan", t_ns + 1, laser(s, k)))
+    _write_bag2(path, rows)
     with pytest.raises(ParseError, match=r"several LaserScan topics .*read_scans' laser="):
         sc.read_scans(path)
     assert len(sc.read_scans(path, laser="/front/scan")) == 6
@@ -351,7 +355,6 @@ def _write_mounted(path, scans, chain, odom_child=None):
     """A ROS 2 bag of ``scans`` (frame ``laser``) with the odometry of ``base_link`` on
     ``/tf`` (or, with ``odom_child``, of that frame on an ``/odom`` topic) and, on
     ``/tf_static``, ``chain``: (parent, child, Pose2) links from the robot to the laser."""
-    from rosbags.rosbag2 import Writer
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     laser, odom, tf = _msgs(ts, ros1=False)
@@ -370,26 +373,18 @@ def _write_mounted(path, scans, chain, odom_child=None):
         )
         for parent, child, p in chain
     ]
-    with Writer(path, version=9) as w:
-        cst = w.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=ts)
+    rows = [("/tf_static", int(scans[0].timestamp * 1e9) - 1,
+             T["tf2_msgs/msg/TFMessage"](transforms=links))]  # fmt: skip
+    for k, s in enumerate(scans):
+        t_ns = int(s.timestamp * 1e9)
         if odom_child is None:
-            ct = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+            rows.append(("/tf", t_ns, tf(s.timestamp, s.odometry, k)))
         else:
-            ct = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
-        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
-        t0 = int(scans[0].timestamp * 1e9)
-        msg = T["tf2_msgs/msg/TFMessage"](transforms=links)
-        w.write(cst, t0 - 1, ts.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
-        for k, s in enumerate(scans):
-            t_ns = int(s.timestamp * 1e9)
-            if odom_child is None:
-                msg = tf(s.timestamp, s.odometry, k)
-                w.write(ct, t_ns, ts.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
-            else:
-                msg = odom(s.timestamp, s.odometry, k)
-                msg.child_frame_id = odom_child
-                w.write(ct, t_ns, ts.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
-            w.write(cs, t_ns + 1, ts.serialize_cdr(laser(s, k), "sensor_msgs/msg/LaserScan"))
+            msg = odom(s.timestamp, s.odometry, k)
+            msg.child_frame_id = odom_child
+            rows.append(("/odom", t_ns, msg))
+        rows.append(("/scan", t_ns + 1, laser(s, k)))
+    _write_bag2(path, rows)
 
 
 def test_the_mounting_chain_composes_in_the_plane():
