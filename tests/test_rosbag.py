@@ -337,6 +337,12 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
     assert len(sc.read_scans(path, laser="/rear/scan")) == 3
     with pytest.raises(ParseError, match="topic '/scan' is not in the bag"):
         sc.read_scans(path, laser="/scan")
+    from scanclique.errors import ScanCliqueError
+    from scanclique.mapping.run import load_map_log
+
+    assert len(load_map_log(path, laser="/rear/scan")[0]) == 3  # the map's --laser too
+    with pytest.raises(ScanCliqueError, match="name two topics"):
+        load_map_log(path, "/front/scan", "/rear/scan")
     db = tmp_path / "p.db"
     r = CliRunner().invoke(cli.app, ["places", "add", str(db), str(path), "--laser", "/rear/scan"])
     assert r.exit_code == 0, r.output

@@ -53,11 +53,18 @@ def load_map_log(
     ``base_frame``: its tf frames of the odometry and the robot (default ``odom``, and
     ``base_link`` or ``base_footprint``; :func:`scanclique.io.rosbag.read_bag`).
     ``laser``: a CARMEN log's laser message type (default ``"main"``: its front laser when
-    it holds several, see :func:`scanclique.io.read_scans`), since a map is one sensor's."""
+    it holds several, see :func:`scanclique.io.read_scans`), since a map is one sensor's;
+    for a bag, a LaserScan topic like ``topic``."""
     s = str(log_or_name)
     if is_bag(s):
-        if laser is not None:
+        from ..io.carmen import LASER_MESSAGES  # noqa: PLC0415
+
+        if laser in LASER_MESSAGES:
             raise ScanCliqueError(f"--laser applies to CARMEN logs only; {s} is a bag (--topic)")
+        if laser not in (None, "main"):  # a bag's laser is a LaserScan topic, as in read_scans
+            if topic not in (None, laser):
+                raise ScanCliqueError(f"--laser {laser} and --topic {topic} name two topics")
+            topic = laser
         from ..io.rosbag import read_bag  # noqa: PLC0415
 
         frames = {"base_frame": base_frame}
