@@ -10,8 +10,9 @@ require the two to agree to round-off on simulated scenes and real logs. A scan 
 hundred beams, so the cost of the NumPy versions was almost all per-call overhead (a few
 microseconds per small array operation, thousands of them per scan); here it is one call.
 
-Every kernel is ``numba.njit(cache=True)``: the first call in a fresh environment compiles
-(about half a minute), later processes load the cache from ``__pycache__`` (a second).
+Every kernel is ``njit(cache=True)`` (:mod:`scanclique._kernels.jit`): the first call in a
+fresh environment compiles (about half a minute), later processes load the cache from
+``__pycache__`` (a second).
 
 Line records live in parallel arrays indexed by a *slot*; the scan points behind a line are
 a sorted run of beam indices in one growing pool (``pool[start[s] : start[s] + count[s]]``),
@@ -25,8 +26,9 @@ import math
 import typing
 from typing import NamedTuple
 
-import numba
 import numpy as np
+
+from ._kernels.jit import njit
 
 #: point labels (the same values as :mod:`scanclique.features`, which is the public home)
 _FOREGROUND_POINT = 0
@@ -82,25 +84,25 @@ def params(cfg, ccfg) -> Params:
 # --------------------------------------------------------------------------------------
 # small helpers
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@njit(cache=True)
 def _max(a, b):
     """Python's ``max(a, b)``: ``a`` unless ``b > a``."""
     return b if b > a else a
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _min(a, b):
     """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
     return b if b < a else a
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _wrap(x):
     """``(x + pi) % (2 pi) - pi``: an angle difference in [-pi, pi)."""
     return (x + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _grown(a, need):
     """``a`` itself, or a copy at least ``need`` long (doubling) with ``a`` at its start."""
     if need <= a.size:
@@ -113,7 +115,7 @@ def _grown(a, need):
 # --------------------------------------------------------------------------------------
 # lines: total least squares (features.fit_line_tls) and recursive split
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@njit(cache=True)
 def _fit_line(xy, beams, lo, hi, sigma, out, o):
     """Total-least-squares fit to the points ``xy[beams[lo:hi]]`` (in that order).
 
@@ -178,7 +180,7 @@ def _fit_line(xy, beams, lo, hi, sigma, out, o):
     out[o, 9] = fy + (m + u_last) * ty
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _split(xy, ranges, beams, lo, hi, split_distance, split_ratio, pieces):
     """Recursive split (``features.split_and_merge``) of the chain ``beams[lo:hi]``.
 
@@ -234,7 +236,7 @@ def _split(xy, ranges, beams, lo, hi, split_distance, split_ratio, pieces):
 # --------------------------------------------------------------------------------------
 # point features
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@njit(cache=True)
 def _point_cov(r, a, sigma, beam_width, cov, o):
     """``features._point_cov`` into ``cov[o]``: range noise along the beam, half a beam
     width of bearing across it."""
@@ -250,7 +252,7 @@ def _point_cov(r, a, sigma, beam_width, cov, o):
     cov[o, 1, 1] = s2 * (uy * uy) + a2 * (vy * vy)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _continues(xy, start, stop, at_end, fx, fy):
     """``features._continues``: does the far point ``(fx, fy)`` continue the cluster's
     surface near one end?"""
@@ -272,7 +274,7 @@ def _continues(xy, start, stop, at_end, fx, fy):
     return perp < 0.05 + 0.1 * dist
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _neighbour_range(beam, valid, ranges, no_return):
     """Range beyond a cluster end (``beam`` already stepped past it): the beam's range if
     valid, inf for a no-return, NaN when unknown (scan border, other invalid returns)."""
@@ -288,7 +290,7 @@ def _neighbour_range(beam, valid, ranges, no_return):
 # --------------------------------------------------------------------------------------
 # the whole extraction
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@njit(cache=True)
 def extract(ranges, angles, valid, range_max, p):
     """Features of one scan; see ``features.extract_features``.
 
@@ -700,7 +702,7 @@ def extract(ranges, angles, valid, range_max, p):
 # --------------------------------------------------------------------------------------
 # feature graphs
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@njit(cache=True)
 def graph_layers(
     points_xy,
     points_label,

@@ -72,7 +72,7 @@ def _announce(name: str) -> None:
     _announced = True
     if cache_is_cold():
         log.warning(
-            "compiling the numba kernels: first run only, about 2-4 minutes on an idle "
+            "compiling the numba kernels: first run only, about 1-3 minutes on an idle "
             "2-core machine (longer when it is busy); later runs load them in about a second"
         )
 

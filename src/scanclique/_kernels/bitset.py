@@ -35,6 +35,7 @@ from numba.extending import intrinsic
 
 from .codes import FINISHED as _FINISHED
 from .codes import TIME_LIMIT as _TIME_LIMIT
+from .jit import njit
 
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
@@ -105,14 +106,14 @@ def _clock_monotonic(typingctx):
 
 if time.get_clock_info("perf_counter").implementation == "clock_gettime(CLOCK_MONOTONIC)":
 
-    @numba.njit(cache=True)
+    @njit(cache=True)
     def now():
         """``time.perf_counter()``, from compiled code."""
         return _clock_monotonic()
 
 else:  # pragma: no cover - not Linux
 
-    @numba.njit(cache=True)
+    @njit(cache=True)
     def now():
         """``time.perf_counter()``, from compiled code."""
         with numba.objmode(t="float64"):
@@ -120,7 +121,7 @@ else:  # pragma: no cover - not Linux
         return t
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def popcount(P, W):
     s = 0
     for w in range(W):
@@ -128,17 +129,17 @@ def popcount(P, W):
     return s
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def setbit(P, v):
     P[v >> 6] |= ONE << np.uint64(v & 63)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def clearbit(P, v):
     P[v >> 6] &= ~(ONE << np.uint64(v & 63))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def grow(a, k, cap):
     """A new array of length ``cap`` starting with ``a[:k]`` (explicit loops: slicing
     costs seconds of compilation)."""
@@ -148,19 +149,19 @@ def grow(a, k, cap):
     return out
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def head(a, k):
     """A new array holding ``a[:k]``."""
     return grow(a, k, k)
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def grow_pair(a, b, k, cap):
     """:func:`grow` of the two arrays of a branching list (vertices and their bounds)."""
     return grow(a, k, cap), grow(b, k, cap)
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def fill(P, n):
     """``P`` (``(n + 63) // 64`` words) becomes the set of all ``n`` vertices."""
     W = P.shape[0]
@@ -170,7 +171,7 @@ def fill(P, n):
         P[W - 1] = (ONE << np.uint64(n & 63)) - ONE
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def mapped_sorted(a, k, order):
     """``sorted(order[a[i]] for i < k)``: back to the caller's labels."""
     out = np.empty(k, np.int64)
@@ -178,7 +179,7 @@ def mapped_sorted(a, k, order):
     return out
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _insert(out, i, x):
     """Insert ``x`` into the sorted ``out[:i]`` (one step of an insertion sort)."""
     j = i
@@ -188,21 +189,21 @@ def _insert(out, i, x):
     out[j] = x
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def map_sorted_into(a, k, order, out):
     """``out[:k] = sorted(order[a[i]] for i < k)`` (insertion sort, cliques are short)."""
     for i in range(k):
         _insert(out, i, order[a[i]])
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def sorted_into(a, k, out):
     """``out[:k] = sorted(a[:k])`` (insertion sort, cliques are short)."""
     for i in range(k):
         _insert(out, i, a[i])
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def child_set(Pst, depth, B, v, W):
     """Branch on ``v`` at ``depth`` of a search stack: ``Pst[depth + 1] = Pst[depth] & N(v)``
     and ``v`` leaves ``Pst[depth]``. Returns ``|Pst[depth + 1]|``."""
@@ -215,7 +216,7 @@ def child_set(Pst, depth, B, v, W):
     return size
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def spent(nodes, node_limit, mask, deadline, over):
     """Whether a search must stop at node number ``nodes``: ``over`` (its status for an
     exhausted node budget) past ``node_limit``, ``Status.TIME_LIMIT`` when the kernel clock,
@@ -228,7 +229,7 @@ def spent(nodes, node_limit, mask, deadline, over):
     return _FINISHED
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def check_mask(n, W):
     """Nodes between two looks at the clock, minus one: about 2e5 word operations apart."""
     work = n * W + 1
@@ -238,7 +239,7 @@ def check_mask(n, W):
     return mask
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def pack_checked(adj):
     """Bitset rows of a boolean adjacency matrix, and its first defect.
 

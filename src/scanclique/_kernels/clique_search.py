@@ -29,7 +29,6 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import (
@@ -65,6 +64,7 @@ from .codes import OPT_MAXSAT as _OPT_MAXSAT
 from .codes import PHASE_BUDGET as _PHASE
 from .colouring import colour_classes, colour_word
 from .heuristics import greedy_by_degree, greedy_clique, local_search
+from .jit import njit
 from .maxsat import absorb, maxsat_scratch
 from .ordering import (
     degeneracy_order,
@@ -91,7 +91,7 @@ FIRST_TRY_NODES = 1000
 EMPTY = np.empty(0, np.int64)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _phase(budget, node_limit, used):
     """The node budget of a phase: its own ``budget``, or what is left of the caller's
     ``node_limit`` after ``used`` nodes when that is smaller. Returns ``(limit,
@@ -103,7 +103,7 @@ def _phase(budget, node_limit, used):
     return budget, False
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def bb_search(B, n, P0, init, floor, mode, limit, deadline, mask, maxsat, node_limit, depth_max):
     """Branch and bound for cliques larger than ``floor`` (mode MAXIMUM) or of size
     ``floor + 1`` (mode ENUMERATE).
@@ -232,7 +232,7 @@ def bb_search(B, n, P0, init, floor, mode, limit, deadline, mask, maxsat, node_l
     return best, nodes, status, out
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _bb_word(S, m, bar, deadline, best, node_limit, Pst):
     """:func:`bb_search` in mode 0 on at most 64 vertices (one-word sets, plain colouring
     bound, no MaxSAT filter): a clique larger than ``bar`` in ``S`` (all ``m`` vertices
@@ -316,7 +316,7 @@ def _bb_word(S, m, bar, deadline, best, node_limit, Pst):
     return bsize, nodes, status
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def search_until(A, n, floor, mode, limit, deadline, node_limit, opts):
     """The full search on bitset rows: order, renumber, initial clique, prune, search.
 
@@ -372,7 +372,7 @@ def search_until(A, n, floor, mode, limit, deadline, node_limit, opts):
     return mapped_sorted(best, best.shape[0], order), nodes, status, found_o, status_all
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _maximum(B, n, order, core, floor, deadline, opts, maxsat, mask, U, node_limit):
     """Mode MAXIMUM of :func:`search_until`: ``(clique, nodes, status)`` in the
     renumbered labels."""
@@ -417,7 +417,7 @@ def _maximum(B, n, order, core, floor, deadline, opts, maxsat, mask, U, node_lim
         reason = maxsat
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _full_maximum(A, n, floor, deadline, node_limit):
     """:func:`search_until` in mode MAXIMUM with the default options: ``(clique, nodes,
     status)``, the clique in ``A``'s labels (not sorted)."""
@@ -434,7 +434,7 @@ def _full_maximum(A, n, floor, deadline, node_limit):
     return best, nodes, status
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _degrees(A, n, starts, deg, top):
     """``deg[v]``, the degree of every vertex, and ``top[:ntop]``, the ``starts`` vertices
     of highest degree, highest first (the lower label first among equals). Returns
@@ -454,7 +454,7 @@ def _degrees(A, n, starts, deg, top):
     return ntop
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def maximum_word(A, n, floor, deadline, node_limit, out, dense_limit):
     """Mode MAXIMUM for at most 64 vertices: :func:`_bb_word` on the graph as it is
     (labels as given, no initial clique: on the pipeline's graphs the search finds one as
@@ -491,7 +491,7 @@ def maximum_word(A, n, floor, deadline, node_limit, out, dense_limit):
     return size, nodes, status
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def maximum_peeled(A, n, floor, deadline, node_limit, out, starts, sparse_nodes, dense_limit):
     """Mode 0 of :func:`solve` with elimination first, for the small sparse graphs of the
     pipeline (the full search's set-up costs more than their search).
@@ -598,7 +598,7 @@ def maximum_peeled(A, n, floor, deadline, node_limit, out, starts, sparse_nodes,
     return size, nodes, status
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def maximum_until(A, n, floor, deadline, node_limit, out):
     """A maximum clique of the graph with bitset rows ``A`` (``n >= 1`` vertices), the
     path of ``max_clique`` without weights: :func:`maximum_word` for at most 64 vertices,
@@ -616,19 +616,19 @@ def maximum_until(A, n, floor, deadline, node_limit, out):
 # --------------------------------------------------------------------------------------
 # Entry points from Python: time limits count from the start of the compiled body
 # --------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@njit(cache=True)
 def solve(A, n, floor, mode, limit, time_limit, node_limit, opts):
     """:func:`search_until` with a deadline ``time_limit`` seconds from now."""
     return search_until(A, n, floor, mode, limit, now() + time_limit, node_limit, opts)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def solve_packed(A, n, floor, time_limit, node_limit, out):
     """:func:`maximum_until` with a deadline ``time_limit`` seconds from now."""
     return maximum_until(A, n, floor, now() + time_limit, node_limit, out)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def solve_dense(adj, floor, time_limit, node_limit, out):
     """:func:`pack_checked` then :func:`maximum_until`, in one call: the lean path of
     ``max_clique`` for boolean matrices. Few arguments and no array crosses back into

@@ -19,13 +19,13 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import ONE, ZERO, cttz
+from .jit import njit
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _open_class(U, Q, W, w0):
     """Start a colour class: the first non-empty word of the uncoloured set ``U`` at or
     after ``w0`` (``W``: everything is coloured), and ``Q[w0:] = U[w0:]``, the vertices
@@ -37,7 +37,7 @@ def _open_class(U, Q, W, w0):
     return w0
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _take(U, Q, B, W, wq):
     """Add the lowest vertex ``v`` of ``Q`` (``Q[:wq]`` is empty) to the current class: it
     leaves ``U`` and ``Q``, and its neighbours leave ``Q``. Returns ``v``, ``-1`` when
@@ -59,7 +59,7 @@ def _take(U, Q, B, W, wq):
     return v
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def colour_classes(P, B, W, kmin, U, Q, CL, ord_v, ord_c, base, col):
     """Greedy sequential colouring of ``P`` in bit order (BBMC, San Segundo et al. 2011).
 
@@ -102,7 +102,7 @@ def colour_classes(P, B, W, kmin, U, Q, CL, ord_v, ord_c, base, col):
     return cnt
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def colour_count(P, B, W, U, Q):
     """Number of classes of the greedy colouring of ``P``: an upper bound on its clique."""
     for w in range(W):
@@ -122,7 +122,7 @@ def colour_count(P, B, W, U, Q):
             wq = v >> 6
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def colour_word(S, P, kmin, ord_v, ord_c, base):
     """:func:`colour_classes` for a one-word candidate set, without the class bitsets:
     the vertices of colour ``>= kmin`` go to ``ord_*[base:]``. Returns how many.
@@ -151,7 +151,7 @@ def colour_word(S, P, kmin, ord_v, ord_c, base):
     return cnt
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def colour_weighted(P, B, W, wt, need, U, Q, ord_v, ord_b, base):
     """Weighted colouring bound (Kumlander 2004): classes built as in BBMC; the bound of
     the ``i``-th vertex is the heaviest vertex of each earlier class plus the heaviest of

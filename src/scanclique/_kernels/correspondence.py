@@ -3,10 +3,10 @@
 
 import math
 
-import numba
+from .jit import njit
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def edges(ia, ib, inv_a, inv_b, tol_a, tol_b, circular, out):  # pragma: no cover - compiled
     """Fill ``out`` (n, n) bool: pairing u = (ia[u], ib[u]) is joined to v when
     ia[u] != ia[v], ib[u] != ib[v] and every invariant layer k that applies to both node

@@ -10,13 +10,13 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import ONE, ZERO, cttz, head, now, popcount
+from .jit import njit
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def greedy_clique(B, n, P, deadline, core):
     """Best of the greedy cliques grown from each vertex (until the kernel clock passes
     ``deadline``).
@@ -59,7 +59,7 @@ def greedy_clique(B, n, P, deadline, core):
     return head(best, bsize)
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def greedy_from(A, s, key, cur, P, bsize):
     """A greedy clique from ``s``, by ``key``: candidates ``N(s)``; repeatedly add the
     candidate of highest ``key`` (the lowest label among equals) and intersect, until no
@@ -97,7 +97,7 @@ def greedy_from(A, s, key, cur, P, bsize):
     return size
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def greedy_by_degree(A, deg, order, starts, best, cur, P):
     """Best of the greedy cliques grown from ``order[:starts]`` (highest degree first).
 
@@ -120,7 +120,7 @@ def greedy_by_degree(A, deg, order, starts, best, cur, P):
     return bsize
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _rand(state, k):
     """Uniform integer in ``[0, k)`` from a xorshift64 generator (Marsaglia 2003) kept in
     ``state[0]``: deterministic, and numba's global generator is left alone."""
@@ -132,7 +132,7 @@ def _rand(state, k):
     return int(x % np.uint64(k))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _ls_add(B, n, W, v, miss, sign):
     # every vertex u != v not adjacent to v gains (loses) one missing clique neighbour
     for w in range(W):
@@ -146,7 +146,7 @@ def _ls_add(B, n, W, v, miss, sign):
     miss[v] -= sign
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _ls_join(B, n, W, v, miss, inC, where, C, size):
     """``v`` joins the clique ``C[:size]``; returns the new size."""
     _ls_add(B, n, W, v, miss, 1)
@@ -156,7 +156,7 @@ def _ls_join(B, n, W, v, miss, inC, where, C, size):
     return size + 1
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _ls_leave(B, n, W, u, miss, inC, where, C, size):
     """``u`` leaves the clique ``C[:size]`` (the last vertex takes its place); returns the
     new size."""
@@ -169,7 +169,7 @@ def _ls_leave(B, n, W, u, miss, inC, where, C, size):
     return size
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def local_search(B, n, init, max_iter, stall, deadline, seed):
     """Tabu plateau search from ``init``: add moves, (1,1)-swaps, and drops when stuck.
 

@@ -10,7 +10,6 @@ from . import ensure_cache
 
 ensure_cache()
 
-import numba
 import numpy as np
 
 from .bitset import ctpop, now, setbit
@@ -18,12 +17,13 @@ from .clique_search import maximum_until, search_until
 from .codes import FINISHED as _FINISHED
 from .codes import NODE_LIMIT as _NODE_LIMIT
 from .codes import TIME_LIMIT as _TIME_LIMIT
+from .jit import njit
 from .ordering import induced_rows
 
-_njit = numba.njit(cache=True, nogil=True)
+_njit = njit(cache=True, nogil=True)
 #: for the helpers called once per point: inlined into the caller at numba IR level, so
 #: that the arrays they take are not reference-counted on every call
-_inline = numba.njit(cache=True, nogil=True, inline="always")
+_inline = njit(cache=True, nogil=True, inline="always")
 
 
 @_inline

@@ -10,13 +10,13 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import ONE, ZERO, clearbit, ctpop, cttz, setbit
+from .jit import njit
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def try_vertex(v, B, W, need, CL, P, S):
     """Can ``v`` join the ``need`` classes without raising their clique bound?
 
@@ -129,7 +129,7 @@ def try_vertex(v, B, W, need, CL, P, S):
     return 2
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def absorb(B, W, need, CL, P, ord_v, ord_c, base, cnt, S):
     """Drop from the branching list the vertices the MaxSAT-style reasoning absorbs.
 
@@ -176,7 +176,7 @@ def absorb(B, W, need, CL, P, ord_v, ord_c, base, cnt, S):
     return out
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def maxsat_scratch(n, W):
     """Scratch of :func:`absorb` and :func:`try_vertex` for ``n`` vertices and classes,
     sets of ``W`` words, in four allocations (row views of three blocks): the search

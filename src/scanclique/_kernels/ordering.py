@@ -11,13 +11,13 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import ONE, ZERO, clearbit, cttz, popcount, setbit
+from .jit import njit
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _swap(vert, pos, p, q):
     """Exchange the vertices at positions ``p`` and ``q`` of ``vert`` (``pos`` its inverse)."""
     x = vert[p]
@@ -28,7 +28,7 @@ def _swap(vert, pos, p, q):
     pos[x] = q
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def degeneracy_order(A, n):
     """Smallest-last order (densest core first) and each vertex's core number.
 
@@ -101,7 +101,7 @@ def degeneracy_order(A, n):
     return order, core
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _peel_exact(A, n, deg):
     """Smallest-last peeling by an argmin per step (see :func:`degeneracy_order`).
 
@@ -137,7 +137,7 @@ def _peel_exact(A, n, deg):
     return order, core
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def relabel(A, n, order):
     """Bitset rows of the graph renumbered so that new vertex ``i`` is old ``order[i]``."""
     W = A.shape[1]
@@ -156,7 +156,7 @@ def relabel(A, n, order):
     return B
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def peel_core(A, n, deg, k, alive, stack):
     """The ``k``-core: ``alive`` (all ``n`` bits set on entry) keeps the vertices with at
     least ``k`` neighbours among the kept ones; ``deg`` becomes their degree there.
@@ -190,7 +190,7 @@ def peel_core(A, n, deg, k, alive, stack):
     return left
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def sort_by_degree(items, m, deg, dmax, out):
     """``out[:m]`` = ``items[:m]`` in non-increasing ``deg`` (ties in the given order):
     a counting sort, O(m + dmax)."""
@@ -206,7 +206,7 @@ def sort_by_degree(items, m, deg, dmax, out):
         start[e] += 1
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def word_rows(A, verts, m, alive, pos, S):
     """``S[:m]``: one-word adjacency rows of the subgraph induced by ``verts[:m]``
     (``m <= 64``, ``alive`` their bitset), renumbered so that new vertex ``i`` is
@@ -227,7 +227,7 @@ def word_rows(A, verts, m, alive, pos, S):
     return S
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def induced_rows(A, verts, m, alive):
     """Multi-word rows of the subgraph induced by ``verts[:m]`` (``alive`` their
     bitset), renumbered so that new vertex ``i`` is ``verts[i]``."""

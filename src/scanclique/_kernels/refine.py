@@ -12,10 +12,10 @@ from . import ensure_cache
 
 ensure_cache()
 
-import numba
 import numpy as np
 
 from .icp import icp
+from .jit import njit
 from .pose import closed_form, lsq_pose
 from .score import pose_score
 
@@ -38,10 +38,10 @@ RefineParams = namedtuple(
 #: what :func:`refine_candidates` writes, one row per candidate (``maha`` per pair)
 RefineOut = namedtuple("RefineOut", "ok x_est info ssr used maha score_est x_icp score_icp")
 
-_njit = numba.njit(cache=True, nogil=True)
+_njit = njit(cache=True, nogil=True)
 #: for the helpers called once per point: inlined into the caller at numba IR level, so
 #: that the arrays they take are not reference-counted on every call
-_inline = numba.njit(cache=True, nogil=True, inline="always")
+_inline = njit(cache=True, nogil=True, inline="always")
 
 
 @_njit

@@ -12,15 +12,15 @@ from . import ensure_cache
 
 ensure_cache()
 
-import numba
 import numpy as np
 
 from .algebra import wrap
+from .jit import njit
 
-_njit = numba.njit(cache=True, nogil=True)
+_njit = njit(cache=True, nogil=True)
 #: for the helpers called once per point: inlined into the caller at numba IR level, so
 #: that the arrays they take are not reference-counted on every call
-_inline = numba.njit(cache=True, nogil=True, inline="always")
+_inline = njit(cache=True, nogil=True, inline="always")
 
 
 @_njit

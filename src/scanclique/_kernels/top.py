@@ -9,7 +9,6 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import (
@@ -30,10 +29,11 @@ from .bitset import (
 from .codes import FINISHED as _FINISHED
 from .codes import NODE_LIMIT as _NODE_LIMIT
 from .colouring import colour_count
+from .jit import njit
 from .ordering import degeneracy_order, relabel
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def solve_top(A, n, k, time_limit, node_limit):
     """Bron–Kerbosch with Tomita's pivot, pruned by the colouring bound once ``k``
     maximal cliques are held: a branch whose clique plus colour count cannot exceed the

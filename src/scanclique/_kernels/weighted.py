@@ -9,7 +9,6 @@ from . import ensure_cache
 
 ensure_cache()  # before any njit(cache=True) below picks its cache location
 
-import numba
 import numpy as np
 
 from .bitset import (
@@ -26,10 +25,11 @@ from .codes import FINISHED as _FINISHED
 from .codes import NODE_LIMIT as _NODE_LIMIT
 from .colouring import colour_weighted
 from .heuristics import greedy_from
+from .jit import njit
 from .ordering import degeneracy_order, relabel
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def solve_weighted(A, n, weights, time_limit, node_limit):
     """Maximum-weight clique by branch and bound with the weighted colouring bound.
 

@@ -19,11 +19,12 @@ from .._kernels import ensure_cache
 
 ensure_cache()
 
-import numba
 import numpy as np
 
+from .._kernels.jit import njit
 
-@numba.njit(cache=True, nogil=True)
+
+@njit(cache=True, nogil=True)
 def most_certain_paths(n, a, b, var_xy, var_theta, length, m, source):  # pragma: no cover
     """Summed ``(var_xy m², var_theta rad², length m)`` along the most certain path from
     node ``source`` to each of the nodes ``0 .. n - 1`` (module docstring), over the

@@ -47,7 +47,7 @@ def _kernel():
     use)."""
     global _KERNEL
     if _KERNEL is None:
-        from numba import njit  # noqa: PLC0415
+        from .._kernels.jit import njit  # noqa: PLC0415
 
         @njit(cache=True)
         def cast(grid, ox, oy, ex, ey, hit, l_hit, l_miss, clamp):  # pragma: no cover

@@ -10,7 +10,8 @@ longer adds two rows to the factor of its parent (O(d^2) per node, d the depth).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from .._kernels.jit import njit
 
 
 @njit(cache=True)
