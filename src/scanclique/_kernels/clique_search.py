@@ -88,8 +88,6 @@ DENSE_WORD_NODES = 200
 #: the local search and the MaxSAT-style filter
 FIRST_TRY_NODES = 1000
 
-EMPTY = np.empty(0, np.int64)
-
 
 @njit(cache=True)
 def _phase(budget, node_limit, used):
@@ -357,8 +355,11 @@ def search_until(A, n, floor, mode, limit, deadline, node_limit, opts):
         for i in range(n):
             if core[order[i]] >= floor:
                 setbit(P0, i)
+        # no initial clique: a fresh array (numba types a global array as read-only, and
+        # would compile bb_search a second time for it)
+        no_init = np.empty(0, np.int64)
         _, used, status_all, found = bb_search(
-            B, n, P0, EMPTY, floor, _ENUMERATE, limit, deadline, mask, maxsat,
+            B, n, P0, no_init, floor, _ENUMERATE, limit, deadline, mask, maxsat,
             node_limit - nodes, n + 1,
         )  # fmt: skip
         if status_all == _PHASE:
@@ -565,8 +566,9 @@ def maximum_peeled(A, n, floor, deadline, node_limit, out, starts, sparse_nodes,
         same = True
         if sparse:
             lim, binding = _phase(sparse_nodes, node_limit, 0)
+            no_init = np.empty(0, np.int64)  # a fresh array, as in search_until
             best, nodes, status, _ = bb_search(
-                A, A.shape[0], alive, EMPTY, bar, _MAXIMUM, 0, deadline, check_mask(n, W),
+                A, A.shape[0], alive, no_init, bar, _MAXIMUM, 0, deadline, check_mask(n, W),
                 False, lim, dcore + 1,
             )  # fmt: skip
             size = best.shape[0]
