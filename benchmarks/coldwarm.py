@@ -48,12 +48,8 @@ def _pairs(n: int) -> list[tuple[str, int, int]]:
     return out[: len(README_PAIRS) + n]
 
 
-def _run(pairs_file: str, out_file: str) -> None:
-    from numba.core import event
-
-    recorder = event.install_recorder("numba:compile")
-    compiled = recorder.__enter__()
-
+def _matches(pairs_file: str) -> tuple[bool, list[dict]]:
+    """Whether the kernel cache was cold, and a record of each match of ``pairs_file``."""
     from scanclique._lazy import cache_is_cold
     from scanclique.datasets import load_log
     from scanclique.match import match_scans
@@ -77,7 +73,16 @@ def _run(pairs_file: str, out_file: str) -> None:
                 "nodes": m.clique_nodes,
             }
         )
-    recorder.__exit__(None, None, None)
+    return cold, rows
+
+
+def _run(pairs_file: str, out_file: str) -> None:
+    """The child: the matches, and numba's compilation while they ran (seconds of the
+    outermost compile events, and every specialisation compiled)."""
+    from numba.core import event
+
+    with event.install_recorder("numba:compile") as compiled:
+        cold, rows = _matches(pairs_file)
     depth, compile_s, n_spec, start = 0, 0.0, 0, 0.0
     for t, ev in compiled.buffer:
         if ev.is_start:
