@@ -1,5 +1,6 @@
 """Kernels load on first use (scanclique._lazy): the stand-in, the load times, and the one
-warning a first (cold-cache) run gives before it compiles."""
+warning a first (cold-cache) run gives before it compiles; and they compile once per
+argument type (scanclique._kernels.jit): compiling is most of what a first run costs."""
 
 from __future__ import annotations
 
