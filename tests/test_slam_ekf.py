@@ -201,6 +201,17 @@ def test_cli_slam_on_simulated_directory(tmp_path, park):
     rep = json.loads(res.stdout)
     assert rep["method"] == "clique"
     assert rep["metrics"]["GPS RMSE (best SE(2) alignment)"]["value"] < 1.5
+    # what the filter leaves out by its max_range is counted, not lost silently
+    z = np.concatenate([s.observations for s in park.steps if s.n_observations])
+    assert rep["metrics"]["observations"]["value"] == len(z)
+    assert rep["metrics"]["observations beyond max_range (not used)"]["value"] == 0
+    (tmp_path / "near.toml").write_text("max_range = 15.0\n")
+    res = CliRunner().invoke(
+        app, ["slam", str(d), "-a", "nn", "-c", str(tmp_path / "near.toml"), "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    far = json.loads(res.stdout)["metrics"]["observations beyond max_range (not used)"]
+    assert far["value"] == np.count_nonzero(z[:, 0] > 15.0) > 0
     for f in ("trajectory.tum", "landmarks.csv", "report.json", "map.png"):
         assert (out / f).is_file()
     tum = np.loadtxt(out / "trajectory.tum")
