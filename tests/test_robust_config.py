@@ -436,6 +436,24 @@ def test_for_sensor_takes_numbers_only(args, kw):
         SlamConfig.for_sensor(*args, **kw)
 
 
+@pytest.mark.parametrize(
+    "kw, converted",
+    [
+        ({"sensor_fov": 180.0}, "3.14159"),  # half of it was 90 rad before: everything in view
+        ({"sigma_bearing": 3.0}, "0.0523599"),  # a bearing sigma of 172 deg before
+        ({"sensor_fov": 360.0}, "6.28319"),
+    ],
+)
+def test_degrees_given_for_radians_are_refused(kw, converted):
+    """sensor_fov above 2 pi and sigma_bearing above pi / 4 cannot be radians: refused,
+    with the value in radians in the message; the limits themselves are accepted."""
+    with pytest.raises(ConfigError, match=f"is in radians.*math.radians.*{converted}"):
+        SlamConfig(**kw)
+    with pytest.raises(ConfigError, match="in radians"):
+        SlamConfig.for_sensor(0.2, kw.get("sigma_bearing", 0.05), 5.0, kw.get("sensor_fov", 1.0))
+    assert SlamConfig(sensor_fov=2 * math.pi, sigma_bearing=math.pi / 4).sensor_fov == 2 * math.pi
+
+
 # --- s14: "must be a AssociationConfig": the article before a vowel ---------------------
 @pytest.mark.parametrize(
     "build, words",

@@ -275,6 +275,8 @@ class SlamConfig:
     Every field is checked when the record is built: a value of the wrong type, NaN, a
     noise or count out of range (sigmas of the sensor, ``sensor_fov``, ``confirm_hits``,
     ``max_misses``, ``tentative_scans``, ``update_iterations`` and ``noise_window`` > 0;
+    ``sensor_fov`` at most 2 pi and ``sigma_bearing`` at most pi / 4, so that degrees
+    given for radians are refused, with the value converted in the message;
     ``max_range``, ``visible_range`` and ``confirm_range`` > 0, +inf meaning no limit;
     the rates and the calibration sigmas >= 0; ``noise_window`` at most
     :data:`MAX_NOISE_WINDOW`; ``noise_trigger`` >= 1), or a
@@ -320,6 +322,17 @@ class SlamConfig:
             "sigma_theta_distance", "sigma_theta_turn", "control_bias_sigma",
             "control_bias_rate", "speed_scale_sigma", "bearing_bias_sigma",
         )  # fmt: skip
+        # radians: a value given in degrees is refused where the physics allows it
+        for name, top, what in (
+            ("sensor_fov", 2.0 * math.pi, "2 pi rad (360 deg)"),
+            ("sigma_bearing", math.pi / 4.0, "pi / 4 rad (45 deg)"),
+        ):
+            v = getattr(self, name)
+            if v > top * (1.0 + 1e-12):
+                raise ConfigError(
+                    f"SlamConfig.{name} is in radians and at most {what}, got {v!r}; if that "
+                    f"is degrees, give math.radians({v!r}) = {math.radians(v):.6g}"
+                )
         if not all(math.isfinite(s) and s >= 0 for s in self.initial_sigma):
             raise ConfigError(
                 f"SlamConfig.initial_sigma must be three numbers >= 0, got {self.initial_sigma!r}"
