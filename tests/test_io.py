@@ -500,6 +500,8 @@ def test_text_format_example(tmp_path):
         ("SCAN 1 0 0.1 0 10 2 1 2 REF 1 nan 0", "REF", "finite pose"),
         ("SCAN 1 0 0.1", None, "truncated"),
         ("SCAN 1 0 -0.1 0 10 2 1 2", None, "strictly increasing"),
+        # a field of view in degrees: -90 to 90 "rad" (increment 1 "rad", 181 beams)
+        ("SCAN 1 -90 1 0 10 181 " + " ".join(["1"] * 181), None, "span 180 rad"),
     ],
 )
 def test_text_format_errors(tmp_path, line, field, text):

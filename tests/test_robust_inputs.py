@@ -27,6 +27,7 @@ from scanclique.errors import (
     ParseError,
     PlaceDatabaseError,
     ScanCliqueError,
+    ScanError,
 )
 from scanclique.geometry import Pose2
 from scanclique.io import detect_format, write_scans_text
@@ -297,6 +298,19 @@ def test_a_scan_error_in_a_text_log_names_the_file_once(tmp_path):
     with pytest.raises(ParseError) as ei:
         sc.read_scans(p)
     assert str(ei.value) == f"{p}:1: beam angles must be strictly increasing"
+
+
+def test_beam_angles_in_degrees_are_refused():
+    """A scan whose beams span more than two turns holds degrees, not radians: a
+    ScanError that gives the span converted; a full turn, and a self-overlapping scan up to
+    two turns, are kept."""
+    from scanclique.scan import MAX_ANGLE_SPAN, Scan
+
+    with pytest.raises(ScanError, match=r"span 270 rad.*in radians is 4\.71239"):
+        Scan.from_ranges(np.ones(541), angle_min=-135.0, fov=270.0)
+    assert Scan.from_ranges(np.ones(360), angle_min=-math.pi, fov=2 * math.pi).n_beams == 360
+    s = Scan(np.ones(3), np.array([0.0, 1.0, MAX_ANGLE_SPAN]))
+    assert s.n_valid == 3
 
 
 def test_smoothing_a_run_without_observations_is_empty(tmp_path):

@@ -17,7 +17,7 @@ from ._records import readonly as _readonly
 from .errors import ScanError
 from .geometry import Pose2
 
-__all__ = ["Scan", "beam_angles", "MAX_POSE_COORDINATE"]
+__all__ = ["Scan", "beam_angles", "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE"]
 
 #: a scan's odometry or reference pose farther than this from its frame's origin (metres,
 #: in x or y) is refused: 10^9 m is beyond any robot's frame (UTM coordinates are below
@@ -31,6 +31,11 @@ def beam_angles(n: int, angle_min: float, angle_increment: float) -> np.ndarray:
     return angle_min + angle_increment * np.arange(n, dtype=float)
 
 
+#: the largest span of a scan's beam angles (rad): two turns, so that a scan that overlaps
+#: itself is kept, and a field of view in degrees (180, 270, 360) is refused
+MAX_ANGLE_SPAN = 4.0 * math.pi
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Scan:
     """One 2D range scan.
@@ -41,7 +46,8 @@ class Scan:
         Measured ranges in metres, as given (NaN/inf/out-of-limits are kept, and masked).
     angles : ndarray, shape (N,)
         Beam angles in radians in the sensor frame, counter-clockwise, x forward.
-        Must be strictly increasing (the clustering walks beams in this order).
+        Must be strictly increasing (the clustering walks beams in this order) and span at
+        most :data:`MAX_ANGLE_SPAN` (two turns: more is degrees given for radians).
     range_min, range_max : float
         Valid returns satisfy ``range_min < r < range_max`` (metres).
     timestamp : float or None
@@ -80,6 +86,11 @@ class Scan:
             raise ScanError(f"{where}beam angles must be finite")
         if a.size > 1 and not np.all(np.diff(a) > 0):
             raise ScanError(f"{where}beam angles must be strictly increasing")
+        if a.size > 1 and a[-1] - a[0] > MAX_ANGLE_SPAN:
+            raise ScanError(
+                f"{where}beam angles span {a[-1] - a[0]:g} rad, more than two turns: they are "
+                f"radians (degrees? the same span in radians is {math.radians(a[-1] - a[0]):g})"
+            )
         rmin, rmax = float(self.range_min), float(self.range_max)
         if not (math.isfinite(rmin) and rmin >= 0 and rmax > rmin):
             raise ScanError(f"{where}need 0 <= range_min < range_max, got {rmin}, {rmax}")
