@@ -322,7 +322,8 @@ class SlamConfig:
             "sigma_theta_distance", "sigma_theta_turn", "control_bias_sigma",
             "control_bias_rate", "speed_scale_sigma", "bearing_bias_sigma",
         )  # fmt: skip
-        # radians: a value given in degrees is refused where the physics allows it
+        # radians: a value that no field of view or bearing noise can have in radians is
+        # refused as degrees given for radians
         for name, top, what in (
             ("sensor_fov", 2.0 * math.pi, "2 pi rad (360 deg)"),
             ("sigma_bearing", math.pi / 4.0, "pi / 4 rad (45 deg)"),
@@ -815,7 +816,7 @@ def ekf_slam(
     obs_t, assoc_out, assoc_sec, jd2, jdof, amb = [], [], [], [], [], []
     Pvv = f.P[:nv, :nv].copy()
     Fcum = np.eye(nv)
-    half_fov = 0.5 * cfg.sensor_fov
+    half_fov = configured_half = 0.5 * cfg.sensor_fov
     # an observation beyond the candidates' window proves the sensor sees there: the
     # field of view widens to the bearings seen (a 360 deg sensor under the 180 deg default
     # otherwise starts a new landmark for every sighting behind the vehicle)
@@ -895,7 +896,7 @@ def ekf_slam(
             if len(z):
                 b_abs = np.abs(wrap(z[:, 1]))
                 n_bearings += len(z)
-                n_outside += int(np.count_nonzero(b_abs > 0.5 * cfg.sensor_fov + _FOV_MARGIN))
+                n_outside += int(np.count_nonzero(b_abs > configured_half + _FOV_MARGIN))
                 if n_outside:
                     half_fov = max(half_fov, float(b_abs.max()))
             # bring the cross-covariance up to date
