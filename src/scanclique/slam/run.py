@@ -195,6 +195,8 @@ def summarise(
         m["bearing sigma at the end"] = (math.degrees(result.observation_noise[1]), "deg")
         if not math.isnan(result.noise_raised):
             m["noise checks that raised it"] = (100.0 * result.noise_raised, "%")
+    if not math.isnan(result.attribute_scale):  # the clique's attribute gate, as checked
+        m["attribute gate widened by"] = (result.attribute_scale, "x")
     m["run time (CPU)"] = (result.cpu_seconds, "s")
     m["run time (wall)"] = (result.seconds, "s")
     return g, m, align
