@@ -161,6 +161,19 @@ def test_associate_refuses_what_is_not_finite():
         slam.associate(-z, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4)
 
 
+def test_bearings_in_degrees_are_refused():
+    """A bearing beyond two turns cannot be radians (a tree at 45 deg given as 45 was
+    wrapped to 45 rad = 2.0 rad, silently): refused, with its value in radians; bearings
+    in (-pi, pi], in [0, 2 pi) and up to two turns are accepted."""
+    with pytest.raises(StepError, match=r"observation 1 has bearing 45.0 rad.*0.785398 rad"):
+        Step(1.0, None, [[10.0, 0.1], [8.0, 45.0]])
+    with pytest.raises(StepError, match="associate: z: observation 0 has bearing -90.0 rad"):
+        slam.associate([[10.0, -90.0]], np.eye(2), np.zeros((0, 2)), np.zeros((0, 2, 2)),
+                       np.zeros(3), np.eye(3))  # fmt: skip
+    ok = Step(1.0, None, [[10.0, -math.pi], [8.0, 2 * math.pi - 0.1], [5.0, 4 * math.pi]])
+    assert ok.observations[:, 1].tolist() == [-math.pi, 2 * math.pi - 0.1, 4 * math.pi]
+
+
 @pytest.mark.parametrize(
     "make, says",
     [

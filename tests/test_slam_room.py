@@ -5,6 +5,7 @@ needed, each on its own."""
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -406,3 +407,27 @@ def test_a_biased_turn_rate_needs_the_control_bias_state():
     assert rmse(fixed) < 0.3
     est, sd = fixed.control_bias
     assert abs(est + b) < math.radians(0.3) and sd < math.radians(0.3)
+
+
+def test_ranges_beyond_max_range_are_said(caplog):
+    """Ranges in millimetres all lie beyond the configured max_range: the filter cannot use
+    them and says so (before: a map without a landmark, silently); a sensor within its
+    range gets no warning."""
+    run = simulate_room(2, duration=20.0, config=room_config())
+    mm = [
+        slam.Step(s.time, s.control, s.observations * (1000.0, 1.0), s.attributes)
+        for s in run.steps
+    ]
+    cfg = room_config()
+    with caplog.at_level(logging.WARNING):
+        r = slam.ekf_slam(mm, slam.Unicycle(), association="nn", config=cfg,
+                          initial_pose=run.poses[0])  # fmt: skip
+    assert len(r.landmarks) == 0
+    n = sum(s.n_observations for s in run.steps)
+    assert f"{n} of {n} observations (100 %) lay beyond SlamConfig.max_range" in caplog.text
+    assert "millimetres" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        slam.ekf_slam(run.steps, slam.Unicycle(), association="nn", config=cfg,
+                      initial_pose=run.poses[0])  # fmt: skip
+    assert "max_range" not in caplog.text

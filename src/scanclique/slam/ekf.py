@@ -848,6 +848,8 @@ def ekf_slam(
     # field of view widens to the bearings seen (a 360 deg sensor under the 180 deg default
     # otherwise starts a new landmark for every sighting behind the vehicle)
     n_outside = n_bearings = 0
+    n_far = n_all_obs = 0  # observations beyond max_range (not used), and all
+    far_ranges = []  # a sample of the ranges beyond it, for the warning
     slip = cfg.slip
     kern = None if nv > 3 else motion_model.kernel()
     q_bias = (cfg.control_bias_rate or 0.0) ** 2
@@ -918,8 +920,13 @@ def ekf_slam(
             keep = np.arange(n_all)
             if cfg.max_range is not None:
                 keep = np.flatnonzero(z[:, 0] <= cfg.max_range)
+                if len(keep) < n_all:
+                    n_far += n_all - len(keep)
+                    if len(far_ranges) < 1000:
+                        far_ranges.extend(np.delete(z[:, 0], keep).tolist())
                 z = z[keep]
                 att = None if att is None else att[keep]
+            n_all_obs += n_all
             if len(z):
                 b_abs = np.abs(wrap(z[:, 1]))
                 n_bearings += len(z)
@@ -1063,6 +1070,18 @@ def ekf_slam(
             math.degrees(cfg.sensor_fov),
             math.degrees(_FOV_MARGIN),
             math.degrees(half_fov),
+        )
+    if n_far > 0.5 * n_all_obs:
+        log.warning(
+            "%d of %d observations (%.0f %%) lay beyond SlamConfig.max_range (%.4g m), at a "
+            "median range of %.4g m: the filter did not use them. Are the ranges in metres "
+            "(not millimetres or centimetres)? A sensor that reaches further: give its "
+            "range (SlamConfig(max_range=...) or SlamConfig.for_sensor(max_range=...)).",
+            n_far,
+            n_all_obs,
+            100.0 * n_far / n_all_obs,
+            cfg.max_range,
+            float(np.median(far_ranges)),
         )
     if noise is not None and noise.checks and noise.raised_checks >= 0.5 * noise.checks:
         log.warning(

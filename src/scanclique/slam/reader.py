@@ -28,6 +28,7 @@ import numpy as np
 from .._records import readonly as _ro
 from ..errors import ArgumentError, ConfigError, DataNotFoundError, ParseError, StepError
 from ..io.text import plain_float
+from ..scan import MAX_ANGLE_SPAN
 
 __all__ = [
     "Step",
@@ -60,14 +61,27 @@ def as_numbers(values, where: str, field: str) -> np.ndarray:
 
 def as_observations(values, where: str, field: str) -> np.ndarray:
     """``values`` as a ``(k, 2)`` float array of range (m) and bearing (rad), or a
-    :class:`StepError` saying ``where`` which of ``field``'s observations is not finite or
-    has a negative range (the one check of a step's and ``associate``'s observations)."""
+    :class:`StepError` saying ``where`` which of ``field``'s observations is not finite,
+    has a negative range or a bearing beyond two turns (:data:`scanclique.scan.MAX_ANGLE_SPAN`:
+    degrees given for radians) (the one check of a step's and ``associate``'s
+    observations)."""
     obs = as_numbers(values, where, field)
     if obs.size % 2:
         raise StepError(f"{where}: {field} must be (k, 2) range and bearing, got shape {obs.shape}")
     obs = obs.reshape(-1, 2)
-    if not obs.size or (np.isfinite(obs).all() and obs[:, 0].min() >= 0.0):
+    if not obs.size or (
+        np.isfinite(obs).all()
+        and obs[:, 0].min() >= 0.0
+        and np.abs(obs[:, 1]).max() <= MAX_ANGLE_SPAN
+    ):
         return obs
+    if np.isfinite(obs).all() and obs[:, 0].min() >= 0.0:
+        i = int(np.flatnonzero(np.abs(obs[:, 1]) > MAX_ANGLE_SPAN)[0])
+        b = float(obs[i, 1])
+        raise StepError(
+            f"{where}: {field}: observation {i} has bearing {b} rad, more than two turns: "
+            f"bearings are radians (degrees? {b} deg is {math.radians(b):.6g} rad)"
+        )
     i = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] >= 0.0))[0])
     says = "is not finite" if not np.isfinite(obs[i]).all() else "has a negative range"
     raise StepError(
@@ -98,8 +112,9 @@ class Step:
     ------
     StepError
         A time, control, observation or attribute that is not a finite number, a negative
-        range, a control that is not two numbers, observations that are not pairs, or
-        attributes that do not match the observations one to one.
+        range, a bearing beyond two turns (4 pi: degrees given for radians), a control
+        that is not two numbers, observations that are not pairs, or attributes that do
+        not match the observations one to one.
     """
 
     time: float
