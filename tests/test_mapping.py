@@ -156,6 +156,76 @@ def test_one_scan_and_empty():
     assert e.poses == () and e.edges == ()
 
 
+def _odometry_of_kind(scans, kind):
+    """The scans with their odometry all zeros, frozen from the eleventh scan on, in
+    millimetres, or as it is."""
+    import dataclasses
+
+    def odo(k, s):
+        o = s.odometry
+        if kind == "zero":
+            return Pose2(0.0, 0.0, 0.0)
+        if kind == "frozen":
+            return scans[min(k, 10)].odometry
+        if kind == "millimetres":
+            return Pose2(1000.0 * o.x, 1000.0 * o.y, o.theta)
+        return o
+
+    return [dataclasses.replace(s, odometry=odo(k, s)) for k, s in enumerate(scans)]
+
+
+@pytest.mark.parametrize("kind", ["zero", "frozen", "millimetres"])
+def test_odometry_that_does_not_move_as_the_scans_is_set_aside(office_drive, caplog, kind):
+    """A converted log whose odometry is all zeros, an odometry that froze, or one in
+    millimetres (before: used, and a map 3 times worse on Intel, or GTSAM stopped): a
+    sample of matched consecutive pairs says so before mapping, and the map is made from
+    the scans alone, the same pose for pose, with a warning. Right odometry is used."""
+    scans = _odometry_of_kind(office_drive, kind)
+    with caplog.at_level("WARNING", logger="scanclique"):
+        r = map_scans(scans)
+    assert not r.used_odometry and r.odometry_scale.scaled
+    assert r.odometry_scale.steps >= 20
+    assert (r.odometry_scale.median_scale > 500) == (kind == "millimetres")
+    assert "Mapping from the scans alone" in caplog.text
+    alone = map_scans(scans, use_odometry=False)
+    assert r.poses == alone.poses
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="scanclique"):
+        right = map_scans(office_drive)
+    assert right.used_odometry and not right.odometry_scale.scaled
+    assert 0.9 < right.odometry_scale.median_scale < 1.1
+    assert "times as far" not in caplog.text
+
+
+def test_odometry_forced_in_millimetres_is_told_after(office_drive, caplog):
+    """``use_odometry=True`` uses it anyway; the finished map says how far off it moved
+    (or, where the solver cannot take it, a PoseGraphError says why)."""
+    from scanclique.errors import PoseGraphError
+
+    scans = _odometry_of_kind(office_drive, "millimetres")
+    with caplog.at_level("WARNING", logger="scanclique"):
+        try:
+            r = map_scans(scans, use_odometry=True)
+        except PoseGraphError as e:
+            assert "in metres" in str(e)
+            return
+    assert r.used_odometry and r.odometry_scale.scaled
+    assert "the odometry moves 1e+03 times as far as the scans" in caplog.text
+
+
+def test_solver_failures_are_named():
+    """GTSAM's RuntimeError (an indeterminate system) becomes a PoseGraphError naming what
+    was solved; other errors pass as they are."""
+    from scanclique.errors import PoseGraphError
+    from scanclique.mapping.backend import solving
+
+    with pytest.raises(PoseGraphError, match=r"map_scans \(iSAM2\): GTSAM could not .*\(Indet"):
+        with solving("map_scans (iSAM2)"):
+            raise RuntimeError("\nIndeterminate linear system detected\nThrown when ...")
+    with pytest.raises(KeyError), solving("x"):
+        raise KeyError(1)
+
+
 def test_scans_that_never_match_give_odometry_poses_and_reasons():
     # every beam is a no-return: no features, no points; odometry moves 0.2 m per scan
     angles = np.linspace(-math.pi / 2, math.pi / 2, 181)

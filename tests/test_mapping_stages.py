@@ -1078,3 +1078,29 @@ def test_map_png_draws_the_covariance_ellipses(tmp_path):
         green.sum() > 100
         and not ((plain[..., 1] > 0.4) & (plain[..., 0] < 0.3) & (plain[..., 2] < 0.3)).any()
     )
+
+
+def test_intel_with_odometry_in_millimetres(log_path):
+    """Intel's first 600 scans with their odometry in millimetres: set aside before
+    mapping (the map is the scans-alone one); forced, GTSAM cannot solve the graph, and
+    says so by a PoseGraphError, not its own RuntimeError."""
+    import dataclasses
+
+    from scanclique import read_scans
+    from scanclique.errors import PoseGraphError
+    from scanclique.mapping import map_scans
+
+    scans = [
+        dataclasses.replace(
+            s, odometry=Pose2(1e3 * s.odometry.x, 1e3 * s.odometry.y, s.odometry.theta)
+        )
+        for s in read_scans(log_path("intel"))[:600]
+    ]
+    r = map_scans(scans)
+    assert not r.used_odometry and r.odometry_scale.median_scale > 500
+    try:
+        forced = map_scans(scans, use_odometry=True)
+    except PoseGraphError as e:
+        assert "Is the odometry in metres" in str(e)
+    else:
+        assert forced.odometry_scale.scaled

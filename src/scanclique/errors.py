@@ -19,6 +19,7 @@ __all__ = [
     "PlaceDatabaseError",
     "ArgumentError",
     "StepError",
+    "PoseGraphError",
 ]
 
 
@@ -87,3 +88,10 @@ class StepError(ScanCliqueError, ValueError):
     observation or attribute that is not finite, a negative range, a shape that does not
     fit, steps out of time order, or an association's arrays that are not finite. The
     message names the step (its time, or its index in the sequence) and the field."""
+
+
+class PoseGraphError(ScanCliqueError, RuntimeError):
+    """The pose graph of a map could not be solved (GTSAM found its linear system
+    indeterminate): an edge's uncertainty so far from the others' that the solver loses
+    the scale, as odometry in millimetres gives. The message names what was being solved
+    and GTSAM's words."""

@@ -13,7 +13,7 @@ scan's pose as soon as it comes.
 from .config import BackEndConfig, FrontEndConfig, LoopConfig, MapConfig, OccupancyConfig
 from .loops import LoopClosure
 from .online import OnlineMapper, OnlineRun, map_online
-from .pipeline import Edge, MapResult, OdometryCheck, map_scans
+from .pipeline import Edge, MapResult, OdometryCheck, OdometryScale, map_scans
 from .run import MapRun, run_map
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "MapResult",
     "MapRun",
     "OdometryCheck",
+    "OdometryScale",
     "OnlineMapper",
     "OnlineRun",
     "OccupancyConfig",

@@ -195,6 +195,60 @@ def odometry_sees_reversing(
     return watch.sees_reversing
 
 
+def step_scale(steps, min_step: float = 0.05) -> tuple[float, int]:
+    """The median ratio of the odometry's step length to the scans' over ``steps``, pairs
+    ``(scan_step, odometry_step)`` of :class:`Pose2` increments, counting those whose scan
+    step moves at least ``min_step`` m; ``(nan, 0)`` when none does. About 1 for right
+    odometry (the shared logs: 0.92-1.03), 0 for one that never moves or stopped
+    changing, about 1000 for one in millimetres.
+
+    >>> step_scale([(Pose2(0.2, 0.0, 0.0), Pose2(0.19, 0.01, 0.0)),
+    ...             (Pose2(0.01, 0.0, 0.0), Pose2(0.0, 0.0, 0.0))])   # the second: too short
+    (0.951315, 1)
+    """
+    r = [
+        math.hypot(o.x, o.y) / math.hypot(s.x, s.y)
+        for s, o in steps
+        if math.hypot(s.x, s.y) >= min_step
+    ]
+    return (round(float(np.median(r)), 6), len(r)) if r else (math.nan, 0)
+
+
+def sample_odometry_scale(
+    scans: Sequence[Scan],
+    prepare,
+    config: MatchConfig,
+    enough: int = 30,
+    tries: int = 240,
+    min_step: float = 0.05,
+) -> tuple[float, int]:
+    """:func:`step_scale` of consecutive pairs of scans spread over the log, each matched
+    with no prior and accepted by its own validation (paper §7: no rival, enough
+    features; the odometry plays no part), against the scans' odometry: ``(median ratio,
+    pairs)``. It tries up to ``tries`` pairs evenly spaced over the log, in an order that
+    spreads any prefix of them over the whole log, until ``enough`` have moved at least
+    ``min_step`` m. ``prepare`` maps a :class:`Scan` to its :class:`PreparedScan`. What
+    :func:`~scanclique.mapping.map_scans` checks before it trusts a log's odometry: a
+    converted log whose odometry is all zeros, an odometry that froze, or one in
+    millimetres."""
+    n = len(scans)
+    if n < 2:
+        return math.nan, 0
+    grid = np.unique(np.linspace(0, n - 2, min(tries, n - 1)).astype(int))
+    order = grid[np.argsort((np.arange(len(grid)) * 0.6180339887498949) % 1.0, kind="stable")]
+    steps = []
+    for k in order.tolist():
+        a, b = scans[k], scans[k + 1]
+        if a.odometry is None or b.odometry is None:
+            continue
+        v = validate_match(match_prepared(prepare(a), prepare(b), config))
+        if v.accepted and v.pose is not None and math.hypot(v.pose.x, v.pose.y) >= min_step:
+            steps.append((v.pose, a.odometry.inverse() @ b.odometry))
+            if len(steps) >= enough:
+                break
+    return step_scale(steps, min_step)
+
+
 def refine_pose(pa: PreparedScan, pb: PreparedScan, pose: Pose2, fe) -> Pose2:
     """``pose`` (maps B into A) refined by point-to-line ICP of all of B's valid points onto
     A's full cloud (``fe`` a :class:`~scanclique.mapping.config.FrontEndConfig`); the

@@ -130,6 +130,10 @@ class MapRun:
     """With odometry: how far its steps point from the matched ones
     (:func:`~scanclique.mapping.pipeline.odometry_turned`: ``median_turn_deg`` over
     ``steps``; a laser mounted turned on the robot shows as minus its turn); else None."""
+    odometry_scale: dict | None = None
+    """With odometry, or when the mapper set the log's odometry aside: how far its steps
+    move against the matched ones (:class:`~scanclique.mapping.pipeline.OdometryScale`:
+    ``median_scale`` over ``steps``; about 1 for right odometry); else None."""
 
     def rows(self) -> list[tuple[str, str, str]]:
         """Metric / Value / Units rows for the command's table."""
@@ -155,6 +159,11 @@ class MapRun:
             rows.append(
                 ("odometry's turn from the scans (median)",
                  f"{self.odometry_check['median_turn_deg']:.1f}", "deg")
+            )  # fmt: skip
+        if self.odometry_scale and self.odometry_scale["steps"]:
+            rows.append(
+                ("odometry's step / the scans' (median)",
+                 f"{self.odometry_scale['median_scale']:.3g}", "")
             )  # fmt: skip
         rows += [
             ("mapping time", f"{self.result.seconds.get('total', math.nan):.1f}", "s"),
@@ -332,6 +341,7 @@ def run_map(
             "live_metrics": live_metrics[0],
         }
     check = None if result.odometry_check is None else result.odometry_check._asdict()
+    scale = None if result.odometry_scale is None else result.odometry_scale._asdict()
     seconds = {"read": t_read, "map": result.seconds.get("total", 0.0), "outputs": t_out}
     seconds["total"] = time.perf_counter() - t0
     report = {
@@ -339,6 +349,7 @@ def run_map(
         "config": outputs.map_config_dict(cfg),
         "used_odometry": result.used_odometry,
         "odometry_check": check,
+        "odometry_scale": scale,
         "workers": workers,
         "online": online_summary,
         "counts": result.counts(),
@@ -354,7 +365,7 @@ def run_map(
     files["report"] = outdir / "report.json"
     return MapRun(
         label, result, {k: str(v) for k, v in files.items()}, metrics, seconds, removed,
-        online_summary, check,
+        online_summary, check, scale,
     )  # fmt: skip
 
 
