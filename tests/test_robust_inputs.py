@@ -632,3 +632,26 @@ def test_a_non_ascii_host_name_in_a_carmen_line_is_kept(tmp_path):
     p = tmp_path / "host.log"
     p.write_text(_OK.replace("host", "h\u00f6st-\u0661"), encoding="utf-8")
     assert sc.read_scans(p)[0].ranges.tolist() == [1.0] * 4
+
+
+def test_a_scan_without_features_says_what_it_lacks():
+    """The match of a scan with no features says why: no beams, no valid return, or every
+    beam beyond range_max (ranges in millimetres: before, only "has no features")."""
+    from scanclique.sim import simulate_pair
+
+    p = simulate_pair(np.random.default_rng(0))
+    mm = sc.Scan.from_ranges(p.scan_a.ranges * 1000.0, angle_min=-math.pi / 2, fov=math.pi)
+    r = sc.match_scans(mm, p.scan_b)
+    assert r.pose is None
+    assert r.reason == (
+        "scan A has no features: none of its 361 beams returns below range_max (80 m); "
+        "are its ranges in metres?"
+    )
+    nan = sc.Scan.from_ranges(np.full(10, np.nan), angle_min=0.0, fov=1.0)
+    assert sc.match_scans(p.scan_a, nan).reason.endswith(
+        "none of its 10 beams is a valid return (0 at or beyond range_max)"
+    )
+    assert (
+        sc.match_scans(p.scan_a, sc.Scan([], [])).reason
+        == "scan B has no features: it has no beams"
+    )

@@ -428,6 +428,23 @@ def near_rival(h: Hypothesis, best: Hypothesis, config: MatchConfig | None = Non
     return h.score >= r.ambiguous_score * best.score and h.clique_size >= best.clique_size - 1
 
 
+def _why_none(scan: Scan) -> str:
+    """What a scan without features lacks, for the match's reason: beams, or valid
+    returns (and whether they all lie at or beyond ``range_max``, as ranges in
+    millimetres do); empty when it has valid returns (a featureless view)."""
+    if scan.n_beams == 0:
+        return ": it has no beams"
+    if scan.n_valid:
+        return ""
+    n, far = scan.n_beams, int(scan.no_return.sum())
+    if far == n:
+        return (
+            f": none of its {n} beams returns below range_max ({scan.range_max:g} m); "
+            "are its ranges in metres?"
+        )
+    return f": none of its {n} beams is a valid return ({far} at or beyond range_max)"
+
+
 def _empty(
     pa: PreparedScan,
     pb: PreparedScan,
@@ -750,8 +767,8 @@ def match_prepared(
     fa, fb = pa.features, pb.features
     min_pairs = cfg.pose.min_pairs
     if len(fa) == 0 or len(fb) == 0:
-        which = "A" if len(fa) == 0 else "B"
-        return _empty(pa, pb, cfg, f"scan {which} has no features", seconds)
+        which, s = ("A", pa.scan) if len(fa) == 0 else ("B", pb.scan)
+        return _empty(pa, pb, cfg, f"scan {which} has no features{_why_none(s)}", seconds)
 
     # 1. correspondence graph (paper §5.2)
     t = time.perf_counter()
