@@ -161,6 +161,26 @@ def test_associate_refuses_what_is_not_finite():
         slam.associate(-z, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4)
 
 
+@pytest.mark.parametrize(
+    ("model", "turn", "says"),
+    [
+        (slam.Ackermann(), 5.0, r"steering angle \(rad\) 5.0 is at or beyond 1.5708.*0.0872665"),
+        (slam.Unicycle(), 30.0, r"turn rate \(rad/s\) 30.0 is at or beyond 12.566.*0.523599"),
+    ],
+)
+def test_controls_in_degrees_are_refused(model, turn, says):
+    """A steering angle at or beyond pi/2 (tan infinite: wheels sideways) or a turn rate
+    of two turns a second or more is degrees given for radians: refused before the first
+    step, naming the step; a plausible control runs."""
+    steps = [Step(0.0, (1.0, 0.1), []), Step(0.1, (1.0, turn), []), Step(0.2, None, [])]
+    with pytest.raises(StepError, match=r"steps\[1\] at t=0.1: control \[1.0, " + f"{turn}\\]"):
+        slam.ekf_slam(steps, model)
+    with pytest.raises(StepError, match=says):
+        slam.ekf_slam(steps, model)
+    ok = [Step(0.0, (1.0, 0.1), []), Step(0.1, (1.0, -1.5), []), Step(0.2, None, [])]
+    assert slam.ekf_slam(ok, model).poses.shape == (3, 3)
+
+
 def test_bearings_in_degrees_are_refused():
     """A bearing beyond two turns cannot be radians (a tree at 45 deg given as 45 was
     wrapped to 45 rad = 2.0 rad, silently): refused, with its value in radians; bearings

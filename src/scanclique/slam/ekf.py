@@ -789,6 +789,14 @@ def ekf_slam(
     if not np.isfinite(pose0).all():
         raise ArgumentError(f"ekf_slam: initial_pose {pose0.tolist()} is not finite")
     require_model("ekf_slam: ", "motion_model", motion_model)
+    given = [k for k, s in enumerate(steps) if s.control is not None]
+    bad = motion_model.implausible_control(np.array([steps[k].control for k in given]))
+    if bad is not None:
+        k = given[bad[0]]
+        raise StepError(
+            f"ekf_slam: steps[{k}] at t={steps[k].time}: control {steps[k].control.tolist()} "
+            f"for {type(motion_model).__name__}: {bad[1]}"
+        )
     if association not in METHODS:
         raise ConfigError(
             f"association method must be one of {', '.join(METHODS)}, got {association!r}"

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 
@@ -111,6 +112,26 @@ class MotionModel:
         """``(kind, params)`` of the compiled prediction, or None (Python steps)."""
         return None
 
+    #: the bound on the second control's magnitude (None: no bound), and what it is
+    control_bound: ClassVar[tuple[float, str] | None] = None
+
+    def implausible_control(self, controls: np.ndarray) -> tuple[int, str] | None:
+        """The first of ``controls`` (M, 2) whose second component lies beyond this
+        model's :attr:`control_bound` (an angle given in degrees), as ``(index, what is
+        wrong)``, or None."""
+        if self.control_bound is None or not len(controls):
+            return None
+        bound, what = self.control_bound
+        bad = np.flatnonzero(np.abs(controls[:, 1]) >= bound)
+        if not len(bad):
+            return None
+        k = int(bad[0])
+        v = float(controls[k, 1])
+        return k, (
+            f"{what} {v} is at or beyond {bound:.5g}: radians? ({v} in degrees is "
+            f"{math.radians(v):.6g})"
+        )
+
     def moving(self, control) -> bool:
         """Whether the vehicle moves under ``control`` (the filter's additive slip
         noise applies only then): a speed other than zero."""
@@ -178,6 +199,8 @@ class Ackermann(MotionModel):
     sigma_speed: float = 0.05
     sigma_speed_rel: float = 0.05
     sigma_steering: float = math.radians(1.0)
+    #: a steering angle of pi/2 turns the wheels sideways (tan is infinite there)
+    control_bound = (math.pi / 2, "steering angle (rad)")
     _ALIASES = {"sensor_x": "laser_a", "sensor_y": "laser_b"}  # the constructor's names
 
     def __init__(
@@ -280,6 +303,8 @@ class Unicycle(MotionModel):
     sigma_v: float = 0.05
     sigma_v_rel: float = 0.05
     sigma_omega: float = math.radians(2.0)
+    #: two turns a second (720 deg/s): no wheeled robot of a SLAM log turns faster
+    control_bound = (4.0 * math.pi, "turn rate (rad/s)")
 
     def predict(self, state, control, dt):
         """One Euler step of ``dt`` s: ``(new_state, F (3,3), G (3,2))``."""
