@@ -431,3 +431,21 @@ def test_ranges_beyond_max_range_are_said(caplog):
         slam.ekf_slam(run.steps, slam.Unicycle(), association="nn", config=cfg,
                       initial_pose=run.poses[0])  # fmt: skip
     assert "max_range" not in caplog.text
+
+
+def test_times_in_milliseconds_are_said(caplog):
+    """Step times in milliseconds make the controls move the robot 35 m between frames
+    (the room's sensor reaches 5 m): the filter says so before it runs; in seconds
+    (0.035 m) it is quiet."""
+    run = simulate_room(1, duration=20.0, config=room_config())
+    ms = [slam.Step(1e3 * s.time, s.control, s.observations) for s in run.steps]
+    with caplog.at_level(logging.WARNING):
+        slam.ekf_slam(ms, slam.Unicycle(), association="nn", config=room_config(),
+                      initial_pose=run.poses[0])  # fmt: skip
+    assert "between consecutive observations (median), farther than" in caplog.text
+    assert "step times in seconds" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        slam.ekf_slam(run.steps, slam.Unicycle(), association="nn", config=room_config(),
+                      initial_pose=run.poses[0])  # fmt: skip
+    assert "between consecutive observations" not in caplog.text
