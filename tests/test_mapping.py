@@ -421,3 +421,21 @@ def test_a_badly_calibrated_odometry_does_not_pull_the_matches(office_drive):
         for a, b, s, u in zip(odo, odo[1:], bad, bad[1:], strict=False)
     ]
     assert np.median(t_odo) > 0.03  # the corruption is what it says
+
+
+def test_a_log_placed_mostly_by_its_prior_is_said(office_drive, caplog):
+    """Ranges in millimetres lie beyond range_max: no scan has features, every scan is
+    placed by its odometry, and the map says so with the commonest reason (before: a
+    map of dead reckoning, silently). A matched log is quiet."""
+    import dataclasses
+
+    mm = [dataclasses.replace(s, ranges=1000.0 * s.ranges) for s in office_drive]
+    with caplog.at_level("WARNING", logger="scanclique"):
+        r = map_scans(mm)
+    assert r.placed_by.count("odometry") == len(mm) - 1
+    assert f"{len(mm) - 1} of {len(mm)} scans were placed by their prior" in caplog.text
+    assert "are its ranges in metres?" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="scanclique"):
+        map_scans(office_drive)
+    assert "placed by their prior" not in caplog.text

@@ -49,6 +49,7 @@ from .pipeline import (
     check_iterable_of_scans,
     check_odometry,
     map_scans,
+    warn_unmatched,
 )
 
 __all__ = ["OnlineMapper", "OnlineRun", "map_online"]
@@ -226,6 +227,7 @@ class OnlineMapper:
         finally:
             m.verifier.close()
         self._result = m.result(t - self._busy)
+        warn_unmatched(self._result)
         if m.odo:
             self._result = check_odometry(m.scans, self._result)
         return self._result

@@ -21,6 +21,7 @@ import logging
 import math
 import os
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
@@ -1115,9 +1116,32 @@ def map_scans(
     finally:
         m.verifier.close()
     result = m.result(t0)
+    warn_unmatched(result)
     if aside is not None:
         return replace(result, odometry_scale=aside)
     return check_odometry(scans, result) if use_odometry else result
+
+
+#: :func:`map_scans` warns when more than this fraction of a log's scans (10 or more) were
+#: placed by their prior (odometry or constant velocity), not by matching
+UNMATCHED_WARNING = 0.5
+
+
+def warn_unmatched(result: MapResult) -> None:
+    """Warn when most scans of ``result`` (more than :data:`UNMATCHED_WARNING` of 10 or
+    more) were placed by their prior, not matched, with the commonest reason: a map of
+    dead reckoning is not a map of the scans (ranges in millimetres all lie beyond
+    ``range_max``: every scan has no features, and the map was the odometry, silently)."""
+    n = len(result.placed_by)
+    prior = [k for k, p in enumerate(result.placed_by) if p in (ODOMETRY, CONSTANT_VELOCITY)]
+    if n < 10 or len(prior) <= UNMATCHED_WARNING * n:
+        return
+    why, count = Counter(result.reasons.get(k, "") for k in prior).most_common(1)[0]
+    log.warning(
+        "%d of %d scans were placed by their prior (odometry or constant velocity), not by "
+        "matching; the commonest reason (%d scans): %s",
+        len(prior), n, count, why,
+    )  # fmt: skip
 
 
 #: :func:`map_scans` warns when the odometry's steps point more than this many degrees away
