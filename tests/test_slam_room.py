@@ -449,3 +449,32 @@ def test_times_in_milliseconds_are_said(caplog):
         slam.ekf_slam(run.steps, slam.Unicycle(), association="nn", config=room_config(),
                       initial_pose=run.poses[0])  # fmt: skip
     assert "between consecutive observations" not in caplog.text
+
+
+def test_bearings_that_turn_against_the_controls_are_said(caplog):
+    """Clockwise bearings (or a turn rate of the other sign) make the room's map fall apart
+    (pose RMSE 0.13 -> 2.8 m, 30 landmarks for 15, said only as a noisier sensor): carried
+    through the robot's turns, the mirrored bearings explain the next frames, and the
+    filter says so before it runs. Right bearings, and wide or cluttered rooms, are
+    quiet."""
+    from scanclique.slam.checks import bearing_turns, mirrored
+
+    cfg = room_config()
+    run = simulate_room(0, duration=120.0, config=cfg)
+    sig = (cfg.sigma_range, cfg.sigma_bearing)
+    cw = [slam.Step(s.time, s.control, s.observations * (1.0, -1.0)) for s in run.steps]
+    given, mirror = bearing_turns(run.steps, slam.Unicycle(), sig, cfg.max_range)
+    assert given >= 30 and mirror < given / 5 and not mirrored((given, mirror))
+    assert bearing_turns(cw, slam.Unicycle(), sig, cfg.max_range) == (mirror, given)
+    assert mirrored((mirror, given))
+    with caplog.at_level(logging.WARNING):
+        slam.ekf_slam(cw, slam.Unicycle(), association="nn", config=cfg,
+                      initial_pose=run.poses[0])  # fmt: skip
+    assert "bearings turn against the controls" in caplog.text
+    caplog.clear()
+    cluttered = simulate_room(1, duration=120.0, config=cfg, clutter=1.0)
+    with caplog.at_level(logging.WARNING):
+        for r in (run, cluttered):
+            slam.ekf_slam(r.steps, slam.Unicycle(), association="nn", config=cfg,
+                          initial_pose=r.poses[0])  # fmt: skip
+    assert "turn against" not in caplog.text

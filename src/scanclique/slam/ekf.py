@@ -58,6 +58,7 @@ from .association import (
     associate_predicted,
     chi2_bound,
 )
+from .checks import bearing_turns, far_between, mirrored
 from .models import MotionModel, inverse_observe, observe, require_model, wrap
 from .reader import Step
 
@@ -694,6 +695,34 @@ class _Filter:
         self.n = len(keep_l)
 
 
+def _check_log(steps, model, cfg: SlamConfig, held, dts, obs_steps) -> None:
+    """Warn, before the filter runs, of what the log's units or conventions make
+    impossible (:mod:`scanclique.slam.checks`): controls that carry the vehicle beyond
+    the sensor's reach between consecutive observations, and bearings that turn against
+    the controls' turns."""
+    far = far_between(held, dts, obs_steps)
+    if cfg.max_range is not None and far > cfg.max_range:
+        log.warning(
+            "the controls move the vehicle %.4g m between consecutive observations (median), "
+            "farther than the sensor reaches (max_range %.4g m): no landmark of one batch "
+            "can be in view at the next. Are the step times in seconds (not milliseconds or "
+            "nanoseconds) and the speeds in m/s?",
+            far,
+            cfg.max_range,
+        )
+    counts = bearing_turns(steps, model, (cfg.sigma_range, cfg.sigma_bearing), cfg.max_range)
+    if mirrored(counts):
+        log.warning(
+            "the observations' bearings turn against the controls: carried through the "
+            "vehicle's turns, %d of them are explained with their bearings mirrored and %d "
+            "as given. Bearings are counter-clockwise from the heading (a clockwise sensor's "
+            "need their sign changed), and the second control turns the vehicle to the left "
+            "when positive (steering angle, turn rate); the map will not hold together.",
+            counts[1],
+            counts[0],
+        )
+
+
 def held_controls(steps: Sequence[Step]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The motion between consecutive steps, as the filter integrates it.
 
@@ -851,7 +880,7 @@ def ekf_slam(
     poses = np.empty((N, 3))
     pcovs = np.empty((N, 3, 3))
     obs_steps = [k for k, s in enumerate(steps) if s.n_observations]
-    _warn_far_between(held, dts, obs_steps, cfg.max_range)
+    _check_log(steps, motion_model, cfg, held, dts, obs_steps)
     obs_t, assoc_out, assoc_sec, jd2, jdof, amb = [], [], [], [], [], []
     Pvv = f.P[:nv, :nv].copy()
     Fcum = np.eye(nv)
@@ -1153,30 +1182,6 @@ def ekf_slam(
         noise.raised_checks / noise.checks if noise is not None and noise.checks else math.nan,
         math.nan if attr is None or not attr.checks else attr.scale,
     )
-
-
-def _warn_far_between(held, dts, obs_steps, max_range) -> float:
-    """Warn when the vehicle travels (by its first control, the speed, integrated over
-    the steps' times) farther than ``max_range`` between consecutive observations, in the
-    median over the intervals in which it moves: nothing seen in one batch would be in
-    view at the next, which times in milliseconds or nanoseconds (or a speed not in m/s)
-    give. Returns that median distance (m; 0 when it never moves)."""
-    if max_range is None or len(obs_steps) < 3:
-        return 0.0
-    run = np.concatenate([[0.0], np.cumsum(np.nan_to_num(np.abs(held[:, 0])) * dts)])
-    gaps = np.diff(run[np.asarray(obs_steps) + 1])
-    gaps = gaps[gaps > 0]
-    far = float(np.median(gaps)) if len(gaps) else 0.0
-    if far > max_range:
-        log.warning(
-            "the controls move the vehicle %.4g m between consecutive observations (median), "
-            "farther than the sensor reaches (max_range %.4g m): no landmark of one batch "
-            "can be in view at the next. Are the step times in seconds (not milliseconds or "
-            "nanoseconds) and the speeds in m/s?",
-            far,
-            max_range,
-        )
-    return far
 
 
 class _MatchedAttribute:
