@@ -1104,3 +1104,21 @@ def test_intel_with_odometry_in_millimetres(log_path):
         assert "Is the odometry in metres" in str(e)
     else:
         assert forced.odometry_scale.scaled
+
+
+def test_intel_start_with_zero_odometry(log_path):
+    """The raw Intel log's first 300 scans barely move (7 steps of 5 cm or more): the check before
+    mapping counts steps of 2 cm, so a log converted with zeros for its odometry is still
+    caught, and mapped from the scans alone."""
+    import dataclasses
+
+    from scanclique import read_scans
+    from scanclique.mapping import map_scans
+
+    scans = [
+        dataclasses.replace(s, odometry=Pose2(0.0, 0.0, 0.0))
+        for s in read_scans(log_path("intel-raw"))[:300]
+    ]
+    r = map_scans(scans)
+    assert not r.used_odometry
+    assert r.odometry_scale.median_scale == 0.0 and r.odometry_scale.steps >= 20

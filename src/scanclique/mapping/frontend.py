@@ -195,11 +195,11 @@ def odometry_sees_reversing(
     return watch.sees_reversing
 
 
-def step_scale(steps, min_step: float = 0.05) -> tuple[float, int]:
+def step_scale(steps, min_step: float = 0.02) -> tuple[float, int]:
     """The median ratio of the odometry's step length to the scans' over ``steps``, pairs
     ``(scan_step, odometry_step)`` of :class:`Pose2` increments, counting those whose scan
     step moves at least ``min_step`` m; ``(nan, 0)`` when none does. About 1 for right
-    odometry (the shared logs: 0.92-1.03), 0 for one that never moves or stopped
+    odometry (the shared logs: 0.92-1.06), 0 for one that never moves or stopped
     changing, about 1000 for one in millimetres.
 
     >>> step_scale([(Pose2(0.2, 0.0, 0.0), Pose2(0.19, 0.01, 0.0)),
@@ -220,7 +220,7 @@ def sample_odometry_scale(
     config: MatchConfig,
     enough: int = 30,
     tries: int = 240,
-    min_step: float = 0.05,
+    min_step: float = 0.02,
 ) -> tuple[float, int]:
     """:func:`step_scale` of consecutive pairs of scans spread over the log, each matched
     with no prior and accepted by its own validation (paper §7: no rival, enough

@@ -98,7 +98,7 @@ class OdometryScale(NamedTuple):
 
     ``median_scale`` is the median ratio of the odometry's step length to the matched
     one, over ``steps`` consecutive pairs of matched scans whose match moved (NaN and 0
-    when none did): about 1 for right odometry (the shared logs 0.92-1.03), 0 for one
+    when none did): about 1 for right odometry (the shared logs 0.92-1.06), 0 for one
     that does not move (all zeros, or frozen), 1000 for millimetres.
     """
 
@@ -1159,7 +1159,7 @@ def _odometry_aside(scans, cfg: MapConfig) -> OdometryScale | None:
     (:func:`~scanclique.mapping.frontend.sample_odometry_scale`) when it says the odometry
     does not move as the scans do (logged: the map is then made from the scans alone),
     else None. A log converted with zeros for its odometry, or whose odometry froze, was
-    otherwise mapped with it: the first 600 scans of Intel 0.0845 m of error over 10 scans
+    otherwise mapped with it: the first 600 scans of intel-raw 0.0845 m of error over 10 scans
     against 0.0285 m from the scans alone; one in millimetres stopped GTSAM."""
     scale, n = sample_odometry_scale(scans, lambda s: prepare_scan(s, cfg.match), cfg.match)
     check = OdometryScale(scale, n)
