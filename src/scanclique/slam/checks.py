@@ -11,6 +11,7 @@ the log itself and said in a warning.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -42,6 +43,7 @@ def bearing_turns(
     max_range: float | None,
     *,
     frames: int = 200,
+    max_steps: int = 200_000,
 ) -> tuple[int, int]:
     """How many observations of a frame an earlier frame's explain, carried by the controls
     through a turn, with the bearings as given and mirrored: ``(as given, mirrored)``, over
@@ -56,7 +58,8 @@ def bearing_turns(
     carried observation lies within 3 ``sigmas`` (range m, bearing rad) of it. Only a
     turn tells the two apart: a mirrored world drives straight the same way. Bearings
     as :class:`~scanclique.slam.Step` says give far more of the first count, mirrored
-    ones the reverse (:func:`mirrored`)."""
+    ones the reverse (:func:`mirrored`). It reads at most ``max_steps`` steps (the
+    prediction is Python's: about 2 s)."""
     tol_r, tol_b = 3.0 * sigmas[0], 3.0 * sigmas[1]
     reach = (max_range if max_range is not None else 30.0) / 3.0
     sx, sy = model.sensor_x, model.sensor_y
@@ -66,7 +69,7 @@ def bearing_turns(
     counts = np.zeros(2, np.int64)
     used = 0
     t_prev = None
-    for s in steps:
+    for s in itertools.islice(steps, max_steps):
         if t_prev is not None and control is not None and s.time > t_prev:
             pose = model.predict(pose, control, s.time - t_prev)[0]
         t_prev = s.time
