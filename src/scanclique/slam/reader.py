@@ -80,7 +80,8 @@ def as_observations(values, where: str, field: str) -> np.ndarray:
         b = float(obs[i, 1])
         raise StepError(
             f"{where}: {field}: observation {i} has bearing {b} rad, more than two turns: "
-            f"bearings are radians (degrees? {b} deg is {math.radians(b):.6g} rad)"
+            f"bearings are radians (degrees? {b} deg is {math.radians(b):.6g} rad; or are "
+            "the observations x, y and not range, bearing?)"
         )
     i = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] >= 0.0))[0])
     says = "is not finite" if not np.isfinite(obs[i]).all() else "has a negative range"
