@@ -177,7 +177,7 @@ def _odometry_of_kind(scans, kind):
 @pytest.mark.parametrize("kind", ["zero", "frozen", "millimetres"])
 def test_odometry_that_does_not_move_as_the_scans_is_set_aside(office_drive, caplog, kind):
     """A converted log whose odometry is all zeros, an odometry that froze, or one in
-    millimetres (before: used, and a map 3 times worse on Intel, or GTSAM stopped): a
+    millimetres (before: used, and a map 3 times worse on intel-raw, or GTSAM stopped): a
     sample of matched consecutive pairs says so before mapping, and the map is made from
     the scans alone, the same pose for pose, with a warning. Right odometry is used."""
     scans = _odometry_of_kind(office_drive, kind)
