@@ -424,6 +424,7 @@ def test_ranges_beyond_max_range_are_said(caplog):
                           initial_pose=run.poses[0])  # fmt: skip
     assert len(r.landmarks) == 0
     n = sum(s.n_observations for s in run.steps)
+    assert r.beyond_max_range == (n, n)
     assert f"{n} of {n} observations (100 %) lay beyond SlamConfig.max_range" in caplog.text
     assert "millimetres" in caplog.text
     caplog.clear()

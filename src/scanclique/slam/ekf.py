@@ -524,6 +524,10 @@ class SlamResult:
         NaN when not checked (no attributes, no ``attribute_sigma``, no ``noise_window``,
         the ``nn`` and ``jcbb`` methods, which do not use attributes, or fewer pairs than
         a quarter window).
+    beyond_max_range : (int, int)
+        The observations farther than :attr:`SlamConfig.max_range`, which the filter did
+        not use, and all observations (Victoria Park under the default 25 m: 24518 of
+        52974); a run with more than half beyond warns.
     """
 
     times: np.ndarray
@@ -549,6 +553,7 @@ class SlamResult:
     observation_noise: tuple[float, float] | None = None
     noise_raised: float = float("nan")
     attribute_scale: float = float("nan")
+    beyond_max_range: tuple[int, int] = (0, 0)
 
     def __post_init__(self) -> None:
         for name in (
@@ -1181,6 +1186,7 @@ def ekf_slam(
         None if noise is None else tuple(float(v) for v in np.sqrt(np.diag(R))),
         noise.raised_checks / noise.checks if noise is not None and noise.checks else math.nan,
         math.nan if attr is None or not attr.checks else attr.scale,
+        (n_far, n_all_obs),
     )
 
 

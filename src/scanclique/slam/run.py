@@ -139,7 +139,7 @@ def summarise(
     no fix (outliers excepted) falls within the run's time span; the latter is logged
     (unless ``warn`` is false: :func:`summarise_smoothed`, whose filter run said it).
     ``beyond``: observations beyond ``SlamConfig.max_range`` (which the filter does not
-    use) and all observations, shown as two rows (:func:`beyond_max_range`).
+    use) and all observations, shown as two rows (:attr:`SlamResult.beyond_max_range`).
     """
     pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
     g = None
@@ -200,16 +200,6 @@ def summarise(
     m["run time (CPU)"] = (result.cpu_seconds, "s")
     m["run time (wall)"] = (result.seconds, "s")
     return g, m, align
-
-
-def beyond_max_range(steps, max_range: float | None) -> tuple[int, int]:
-    """``(observations farther than max_range, all observations)`` of ``steps``: what the
-    filter leaves out by its :attr:`SlamConfig.max_range` (Victoria Park under the
-    default 25 m: 24518 of 52974)."""
-    ranges = [s.observations[:, 0] for s in steps if s.n_observations]
-    r = np.concatenate(ranges) if ranges else np.zeros(0)
-    far = 0 if max_range is None else int(np.count_nonzero(r > max_range))
-    return far, len(r)
 
 
 def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clutter: int = 0):
@@ -306,9 +296,7 @@ def run_slam(
         )
     model = victoria_park_model()
     result = ekf_slam(steps, model, association=association, config=cfg, progress=progress)
-    g, m, align = summarise(
-        result, model, gps, clutter, beyond=beyond_max_range(steps, cfg.max_range)
-    )
+    g, m, align = summarise(result, model, gps, clutter, beyond=result.beyond_max_range)
     sm = None
     if smooth:
         from .smooth import smooth as _smooth
