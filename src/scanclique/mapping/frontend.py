@@ -27,7 +27,7 @@ import numpy as np
 
 from ..config import MatchConfig
 from ..geometry import Pose2, rotation_matrix
-from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
+from ..match import PreparedScan, distinct_poses, match_prepared, pose_score, prepare_scan
 from ..refine import icp_covariance, icp_point_to_line, weak_direction
 from ..scan import Scan
 from ..uncertainty import pose_difference
@@ -216,7 +216,6 @@ def step_scale(steps, min_step: float = 0.02) -> tuple[float, int]:
 
 def sample_odometry_scale(
     scans: Sequence[Scan],
-    prepare,
     config: MatchConfig,
     enough: int = 30,
     tries: int = 240,
@@ -227,7 +226,7 @@ def sample_odometry_scale(
     features; the odometry plays no part), against the scans' odometry: ``(median ratio,
     pairs)``. It tries up to ``tries`` pairs evenly spaced over the log, in an order that
     spreads any prefix of them over the whole log, until ``enough`` have moved at least
-    ``min_step`` m. ``prepare`` maps a :class:`Scan` to its :class:`PreparedScan`. What
+    ``min_step`` m, each scan prepared with ``config``. What
     :func:`~scanclique.mapping.map_scans` checks before it trusts a log's odometry: a
     converted log whose odometry is all zeros, an odometry that froze, or one in
     millimetres."""
@@ -241,7 +240,7 @@ def sample_odometry_scale(
         a, b = scans[k], scans[k + 1]
         if a.odometry is None or b.odometry is None:
             continue
-        v = validate_match(match_prepared(prepare(a), prepare(b), config))
+        v = validate_match(match_prepared(prepare_scan(a, config), prepare_scan(b, config)))
         if v.accepted and v.pose is not None and math.hypot(v.pose.x, v.pose.y) >= min_step:
             steps.append((v.pose, a.odometry.inverse() @ b.odometry))
             if len(steps) >= enough:

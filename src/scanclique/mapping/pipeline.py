@@ -1161,7 +1161,7 @@ def _odometry_aside(scans, cfg: MapConfig) -> OdometryScale | None:
     else None. A log converted with zeros for its odometry, or whose odometry froze, was
     otherwise mapped with it: the first 600 scans of intel-raw 0.0845 m of error over 10 scans
     against 0.0285 m from the scans alone; one in millimetres stopped GTSAM."""
-    scale, n = sample_odometry_scale(scans, lambda s: prepare_scan(s, cfg.match), cfg.match)
+    scale, n = sample_odometry_scale(scans, cfg.match)
     check = OdometryScale(scale, n)
     if not check.scaled:
         return None
