@@ -216,13 +216,13 @@ def test_odometry_forced_in_millimetres_is_told_after(office_drive, caplog):
 def test_solver_failures_are_named():
     """GTSAM's RuntimeError (an indeterminate system) becomes a PoseGraphError naming what
     was solved; other errors pass as they are."""
-    from scanclique.errors import PoseGraphError
-    from scanclique.mapping.backend import solving
+    from scanclique.errors import PoseGraphError, solving
+    from scanclique.mapping.backend import ODOMETRY_HINT
 
     with pytest.raises(PoseGraphError, match=r"map_scans \(iSAM2\): GTSAM could not .*\(Indet"):
-        with solving("map_scans (iSAM2)"):
+        with solving("map_scans (iSAM2)", ODOMETRY_HINT):
             raise RuntimeError("\nIndeterminate linear system detected\nThrown when ...")
-    with pytest.raises(KeyError), solving("x"):
+    with pytest.raises(KeyError), solving("x", ""):
         raise KeyError(1)
 
 

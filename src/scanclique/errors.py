@@ -8,6 +8,8 @@ and say what was expected and what was found, e.g.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 __all__ = [
     "ScanCliqueError",
     "ParseError",
@@ -20,6 +22,7 @@ __all__ = [
     "ArgumentError",
     "StepError",
     "PoseGraphError",
+    "solving",
 ]
 
 
@@ -91,7 +94,22 @@ class StepError(ScanCliqueError, ValueError):
 
 
 class PoseGraphError(ScanCliqueError, RuntimeError):
-    """The pose graph of a map could not be solved (GTSAM found its linear system
-    indeterminate): an edge's uncertainty so far from the others' that the solver loses
-    the scale, as odometry in millimetres gives. The message names what was being solved
-    and GTSAM's words."""
+    """The pose graph of a map (or the EKF-SLAM smoother's factor graph) could not be
+    solved (GTSAM found its linear system indeterminate): an edge's uncertainty so far
+    from the others' that the solver loses the scale, as odometry in millimetres gives.
+    The message names what was being solved, GTSAM's words and what to check."""
+
+
+@contextmanager
+def solving(what: str, hint: str):
+    """Run GTSAM's solver calls in the block; its ``RuntimeError`` (an indeterminate
+    linear system) becomes a :class:`PoseGraphError` naming ``what``, GTSAM's first line
+    and ``hint`` (what the user should check)."""
+    try:
+        yield
+    except RuntimeError as e:
+        says = next((line.strip() for line in str(e).splitlines() if line.strip()), "")
+        raise PoseGraphError(
+            f"{what}: GTSAM could not solve the pose graph ({says}): one edge's uncertainty "
+            f"is too far from the others' for the solver. {hint}"
+        ) from e

@@ -15,11 +15,10 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
-from contextlib import contextmanager
 
 import numpy as np
 
-from ..errors import PoseGraphError
+from ..errors import solving
 from ..geometry import Pose2
 
 __all__ = [
@@ -35,22 +34,11 @@ log = logging.getLogger(__name__)
 #: variance standing in for an infinite one (a direction a match does not fix)
 BIG_VARIANCE = 1e4
 
-
-@contextmanager
-def solving(what: str):
-    """Run GTSAM's solver calls in the block; its ``RuntimeError`` (an indeterminate
-    linear system) becomes a :class:`~scanclique.errors.PoseGraphError` naming ``what``
-    and GTSAM's first line."""
-    try:
-        yield
-    except RuntimeError as e:
-        says = next((line.strip() for line in str(e).splitlines() if line.strip()), "")
-        raise PoseGraphError(
-            f"{what}: GTSAM could not solve the pose graph ({says}): one edge's uncertainty "
-            "is too far from the others' for the solver. Is the odometry in metres and "
-            "radians (Scan.odometry)? use_odometry=False (--no-odometry) maps from the "
-            "scans alone."
-        ) from e
+#: what a map's :class:`~scanclique.errors.PoseGraphError` asks the user to check
+ODOMETRY_HINT = (
+    "Is the odometry in metres and radians (Scan.odometry)? use_odometry=False "
+    "(--no-odometry) maps from the scans alone."
+)
 
 
 def _gtsam():
@@ -183,7 +171,7 @@ class PoseGraph:
         params.setMaxIterations(int(max_iterations))
         params.setRelativeErrorTol(1e-6)
         params.setAbsoluteErrorTol(1e-6)
-        with solving("PoseGraph.optimize"):
+        with solving("PoseGraph.optimize", ODOMETRY_HINT):
             result = gtsam.LevenbergMarquardtOptimizer(self.graph, self.values, params).optimize()
         self.result = result
         keys = list(gtsam.KeyVector(result.keys()))
@@ -200,7 +188,7 @@ class PoseGraph:
         result = self.result
         if result is None:
             raise RuntimeError("PoseGraph.covariances: optimize() first")
-        with solving("PoseGraph.covariances"):
+        with solving("PoseGraph.covariances", ODOMETRY_HINT):
             marginals = gtsam.Marginals(self.graph, result)
         keys = [int(k) for k in gtsam.KeyVector(result.keys())]
         arr = gtsam.utilities.extractPose2(result)

@@ -32,14 +32,20 @@ from .._lazy import kernel_module
 from .._records import readonly
 from .._workers import check_workers
 from ..config import require_callable, require_config, require_flag
-from ..errors import ArgumentError, ScanError
+from ..errors import ArgumentError, ScanError, solving
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
 from ..scan import Scan
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
 from . import loops as _loops
-from .backend import PoseGraph, _gtsam, solving, tangent_covariance, tangent_covariances
+from .backend import (
+    ODOMETRY_HINT,
+    PoseGraph,
+    _gtsam,
+    tangent_covariance,
+    tangent_covariances,
+)
 from .config import MapConfig
 from .frontend import (
     CONSTANT_VELOCITY,
@@ -717,7 +723,7 @@ class _Mapper:
         self.seconds["pcm"] += time.perf_counter() - t
         t = time.perf_counter()
         if self.new_factors.size() or self.new_values.size():
-            with solving("map_scans (iSAM2)"):
+            with solving("map_scans (iSAM2)", ODOMETRY_HINT):
                 self.isam.update(self.new_factors, self.new_values)
             self.new_factors = self.gtsam.NonlinearFactorGraph()
             self.new_values = self.gtsam.Values()

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import require_config, require_count
-from ..errors import ArgumentError, StepError
+from ..errors import ArgumentError, StepError, solving
 from .association import NEW
 from .ekf import SlamConfig, SlamResult, held_controls, slip_variance
 from .models import require_model
@@ -256,7 +256,10 @@ def smooth(
     e0 = graph.error(init)
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(int(max_iterations))
-    est = gtsam.LevenbergMarquardtOptimizer(graph, init, params).optimize()
+    with solving(
+        "slam.smooth", "Are the controls and observations in metres, seconds and radians?"
+    ):
+        est = gtsam.LevenbergMarquardtOptimizer(graph, init, params).optimize()
     e1 = graph.error(est)
     inv = mount.inverse()
     poses = np.empty((len(obs_steps), 3))
