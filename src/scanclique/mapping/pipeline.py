@@ -1187,7 +1187,8 @@ def check_odometry(scans, result: MapResult) -> MapResult:
     odometry's steps point more than :data:`ODOMETRY_CHECK_DEGREES` away from the scans',
     or move less than half or more than twice as far: what a map made with odometry
     says of it."""
-    scale = OdometryScale(*step_scale(matched_steps(scans, result.poses, result.placed_by)))
+    steps = matched_steps(scans, result.poses, result.placed_by)
+    scale = OdometryScale(*step_scale(steps))
     if scale.scaled:
         log.warning(
             "the odometry moves %.3g times as far as the scans (median of %d steps; right "
@@ -1195,7 +1196,7 @@ def check_odometry(scans, result: MapResult) -> MapResult:
             "(--no-odometry) maps from the scans alone",
             scale.median_scale, scale.steps,
         )  # fmt: skip
-    check = OdometryCheck(*odometry_turned(scans, result.poses, result.placed_by))
+    check = OdometryCheck(*step_turn(steps))
     if check.turned:
         log.warning(
             "the odometry's steps point %.0f deg away from the scans' (median of %d steps): "
@@ -1236,9 +1237,14 @@ def odometry_turned(scans, poses, placed_by, min_step: float = 0.05) -> tuple[fl
     >>> odometry_turned(scans, back, ["first", "match", "match", "icp"])
     (180.0, 3)
     """
+    return step_turn(matched_steps(scans, poses, placed_by), min_step)
+
+
+def step_turn(steps, min_step: float = 0.05) -> tuple[float, int]:
+    """:func:`odometry_turned` of ``steps``, :func:`matched_steps`' pairs."""
     d = [
         math.atan2(s.y, s.x) - math.atan2(o.y, o.x)
-        for s, o in matched_steps(scans, poses, placed_by)
+        for s, o in steps
         if math.hypot(s.x, s.y) >= min_step and math.hypot(o.x, o.y) >= min_step
     ]
     if not d:
