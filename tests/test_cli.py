@@ -633,3 +633,35 @@ def test_clique_finds_a_shared_graph_by_its_bare_name(data_dir, tmp_path, monkey
     assert json.loads(r.stdout)["omega"] == 32
     assert_clean_error(invoke("clique", "no-such-graph.clq"), "no-such-graph.clq")
     assert_clean_error(invoke("clique", tmp_path / "hamming6-2.clq"), "hamming6-2.clq")
+
+
+def test_map_odometry_is_checked_by_default_and_forced_by_the_flag(tmp_path):
+    """``scanclique map`` without a flag sets a zero odometry aside (the sample of matched
+    pairs says it does not move), in the batch and the online mode alike; ``--odometry``
+    maps with it as it is (before, the flag was the automatic choice and nothing could
+    force the odometry); ``--no-odometry`` maps from the scans alone."""
+    import dataclasses
+
+    from scanclique.mapping.run import run_map
+
+    rng = np.random.default_rng(11)
+    scans = sc.sim.simulate_trajectory(rng, sc.sim.office_world(rng, length=16.0), 40, step=0.25)
+    zero = sc.Pose2(0.0, 0.0, 0.0)
+    log = tmp_path / "zeros.txt"
+    write_scans_text(log, [dataclasses.replace(s, odometry=zero) for s in scans])
+
+    def report(*flags):
+        out = tmp_path / f"run{len(list(tmp_path.iterdir()))}"
+        r = invoke("map", log, "--out", out, "--json", *flags)
+        assert r.exit_code == 0, r.output
+        return json.loads((out / "report.json").read_text())
+
+    auto = report()
+    assert auto["used_odometry"] is False
+    assert auto["odometry_scale"]["median_scale"] < 0.5 and auto["odometry_scale"]["steps"] >= 20
+    forced = report("--odometry")
+    assert forced["used_odometry"] is True
+    none = report("--no-odometry")
+    assert none["used_odometry"] is False and none["odometry_scale"] is None
+    online = run_map(log, tmp_path / "online", plot=False, online=True)
+    assert not online.result.used_odometry and online.result.odometry_scale.scaled

@@ -39,13 +39,16 @@ def map_cmd(
     ],
     out: Annotated[str, typer.Option("--out", "-o", help="Output directory.")],
     odometry: Annotated[
-        bool,
+        bool | None,
         typer.Option(
             "--odometry/--no-odometry",
-            help="Use the log's odometry when every scan has it (default); --no-odometry "
-            "maps from the scans alone.",
+            help="--no-odometry maps from the scans alone; --odometry uses the log's "
+            "odometry as it is. Default: use it when every scan has it and a sample of "
+            "matched pairs says it moves as the scans do (zeros, frozen or millimetres are "
+            "set aside, with a warning).",
+            show_default=False,
         ),
-    ] = True,
+    ] = None,
     topic: Annotated[
         str | None,
         typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one)."),
@@ -169,7 +172,7 @@ def map_cmd(
             lambda: run_map(
                 log,
                 out,
-                use_odometry=None if odometry else False,
+                use_odometry=odometry,
                 topic=topic,
                 laser=laser,
                 odom_frame=odom_frame,

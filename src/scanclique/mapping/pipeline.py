@@ -1107,12 +1107,7 @@ def map_scans(
     if not scans:
         covs = () if cfg.back_end.covariances else None
         return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg, covs)
-    aside = None
-    if use_odometry is None:
-        use_odometry = all(s.odometry is not None for s in scans)
-        if use_odometry and len(scans) > 1:
-            aside = _odometry_aside(scans, cfg)
-            use_odometry = aside is None
+    use_odometry, aside = choose_odometry(scans, use_odometry, cfg)
     blind = bool(use_odometry) and not odometry_sees_reversing(scans)
     if blind:
         log.info("the odometry never moves backwards: a match it rejects is tried reversed")
@@ -1159,6 +1154,23 @@ ODOMETRY_CHECK_STEPS = 20
 ODOMETRY_SCALE_RANGE = (0.5, 2.0)
 
 
+def choose_odometry(
+    scans: Sequence[Scan], use_odometry: bool | None, cfg: MapConfig
+) -> tuple[bool, OdometryScale | None]:
+    """Whether to map ``scans`` with their odometry, as :func:`map_scans` decides it:
+    ``(use, aside)``. ``use_odometry`` True or False is kept (``aside`` None); None uses
+    the odometry when every scan carries it and a sample of matched consecutive pairs
+    says it moves as the scans do; else ``aside`` is that sample's
+    :class:`OdometryScale` (logged as a warning) and the map is made from the scans
+    alone."""
+    if use_odometry is not None:
+        return bool(use_odometry), None
+    if not all(s.odometry is not None for s in scans):
+        return False, None
+    aside = _odometry_aside(scans, cfg) if len(scans) > 1 else None
+    return aside is None, aside
+
+
 def _odometry_aside(scans, cfg: MapConfig) -> OdometryScale | None:
     """Before mapping with the scans' odometry (``use_odometry=None``): the
     :class:`OdometryScale` of a sample of matched consecutive pairs
@@ -1174,8 +1186,8 @@ def _odometry_aside(scans, cfg: MapConfig) -> OdometryScale | None:
     log.warning(
         "the scans' odometry moves %.3g times as far as the scans do (median of %d "
         "sampled consecutive pairs; right odometry gives about 1): is it all zeros, "
-        "frozen, or not in metres? Mapping from the scans alone (use_odometry=True uses "
-        "it anyway).",
+        "frozen, or not in metres? Mapping from the scans alone (use_odometry=True, "
+        "--odometry, uses it anyway).",
         scale, n,
     )  # fmt: skip
     return check

@@ -10,7 +10,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +21,7 @@ from ..errors import ScanCliqueError
 from ..scan import Scan
 from ..uncertainty import constellation_std
 from .config import MapConfig
-from .pipeline import MapResult, map_scans
+from .pipeline import MapResult, choose_odometry, map_scans
 
 __all__ = [
     "MapRun",
@@ -276,12 +276,12 @@ def run_map(
     if online:
         from .online import map_online  # noqa: PLC0415
 
-        if use_odometry is None:  # as map_scans decides it, from the whole log
-            use_odometry = all(s.odometry is not None for s in scans)
-        orun = map_online(
-            scans, use_odometry=use_odometry, config=cfg, progress=progress, workers=workers
-        )
+        # as map_scans decides it, from the whole log (a live robot could not sample it)
+        use, aside = choose_odometry(scans, use_odometry, cfg)
+        orun = map_online(scans, use_odometry=use, config=cfg, progress=progress, workers=workers)
         result, live = orun.result, orun
+        if aside is not None:
+            result = replace(result, odometry_scale=aside)
     else:
         result = map_scans(
             scans, use_odometry=use_odometry, config=cfg, progress=progress, workers=workers
