@@ -1,4 +1,5 @@
-"""The ``scanclique slam`` command: EKF-SLAM with batch association on Victoria Park."""
+"""The ``scanclique slam`` command: EKF-SLAM with batch association on Victoria Park or
+a landmark log in plain text."""
 
 from __future__ import annotations
 
@@ -31,7 +32,13 @@ METHODS = ("clique", "clique-jcbb", "jcbb", "nn")
 def slam(
     data: Annotated[
         str,
-        typer.Argument(help="'victoria-park' (in the shared data directory) or its directory."),
+        typer.Argument(
+            help="'victoria-park' (in the shared data directory) or its directory, or a "
+            "landmark log: a directory with controls.txt (time c1 c2) and "
+            "observations.txt (time range bearing [attribute]), optionally truth.txt "
+            "(time x y theta), landmarks.txt (x y) and model.toml (kind = 'unicycle' or "
+            "'ackermann' and its parameters)."
+        ),
     ] = "victoria-park",
     association: Annotated[
         str, typer.Option("--association", "-a", help="clique, clique-jcbb (hybrid), jcbb or nn.")
@@ -72,12 +79,13 @@ def slam(
     save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
-    """EKF-SLAM of tree landmarks, each scan associated with the map as a whole.
+    """EKF-SLAM of point landmarks (Victoria Park's trees, or one's own landmark log),
+    each scan associated with the map as a whole.
 
     Association by the maximum clique of the correspondence graph between the scan's trees
     and the predicted map (paper section 2 and 5), or by JCBB or nearest neighbour. Ends
-    with a Metric / Value / Units table (GPS error in both alignments, landmarks,
-    duplicates, association time).
+    with a Metric / Value / Units table (GPS error in both alignments, or the error
+    against a landmark log's truth.txt; landmarks, duplicates, association time).
 
     **Examples**
 
@@ -87,6 +95,7 @@ def slam(
     scanclique slam victoria-park --association jcbb --json
     scanclique slam /data/victoria-park -a nn --clutter 5
     scanclique slam victoria-park -a clique --smooth
+    scanclique slam runs/my-robot --out runs/mine   # controls.txt, observations.txt, truth.txt
     scanclique config --for slam > slam.toml     # every key of SlamConfig, to edit
     scanclique slam victoria-park -c slam.toml --save-config used.toml
     ```

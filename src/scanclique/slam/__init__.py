@@ -23,7 +23,15 @@ from .association import (
 )
 from .ekf import SlamConfig, SlamResult, ekf_slam
 from .models import Ackermann, MotionModel, Unicycle, wrap
-from .reader import Step, read_gps, read_victoria_park, resolve_victoria_park, steps_from_arrays
+from .reader import (
+    LandmarkLog,
+    Step,
+    read_gps,
+    read_landmark_log,
+    read_victoria_park,
+    resolve_victoria_park,
+    steps_from_arrays,
+)
 
 __all__ = [
     "METHODS",
@@ -40,8 +48,10 @@ __all__ = [
     "MotionModel",
     "Unicycle",
     "wrap",
+    "LandmarkLog",
     "Step",
     "read_gps",
+    "read_landmark_log",
     "read_victoria_park",
     "resolve_victoria_park",
     "steps_from_arrays",

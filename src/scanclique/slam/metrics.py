@@ -1,4 +1,4 @@
-"""Error of an estimated trajectory against GPS fixes, and map statistics.
+"""Error of an estimated trajectory against GPS fixes or ground truth, and map statistics.
 
 The estimated position compared with a fix is the sensor's (the laser's) position,
 interpolated linearly to the fix's time: in the Victoria Park vehicle model of Guivant and
@@ -33,6 +33,8 @@ __all__ = [
     "nees",
     "TruthScore",
     "score_against_truth",
+    "TruthError",
+    "truth_error",
 ]
 
 
@@ -274,3 +276,112 @@ def score_against_truth(landmark_ids, associations, truth) -> TruthScore:
         spurious=sum(t < 0 for t in final),
         seen=len(seen),
     )
+
+
+@dataclass(frozen=True, slots=True)
+class TruthError:
+    """A run's vehicle poses and map against ground truth (:func:`truth_error`).
+
+    Attributes
+    ----------
+    rmse_start, max_start : float
+        Position error (m) in the start alignment: the estimate's frame moved so that its
+        pose at the first true pose's time is that true pose (nothing moves when the filter
+        started at the true pose); the drift of the whole run.
+    rmse_best, max_best : float
+        Position error (m) after the least-squares SE(2) alignment of all positions.
+    heading_rmse : float
+        Heading error (rad), start alignment.
+    anees : float
+        Mean pose NEES (3 degrees of freedom; 3 for a consistent filter), start alignment.
+    poses : int
+        Estimated poses compared (those within the truth's time span).
+    landmarks_true, landmarks_mapped : int
+        True landmarks, and those with an estimated landmark within 1 m, each other's
+        nearest (start alignment); 0 without true landmarks.
+    landmark_rmse : float
+        Position error (m) of the mapped ones (NaN when none).
+    landmarks_spurious : int
+        Estimated landmarks with no true one within 1 m (0 without true landmarks).
+    """
+
+    rmse_start: float
+    max_start: float
+    rmse_best: float
+    max_best: float
+    heading_rmse: float
+    anees: float
+    poses: int
+    landmarks_true: int = 0
+    landmarks_mapped: int = 0
+    landmark_rmse: float = math.nan
+    landmarks_spurious: int = 0
+
+
+def truth_error(times, poses, covariances, truth, landmarks=None, true_landmarks=None):
+    """The :class:`TruthError` of estimated vehicle poses ``(N, 3)`` at ``times`` (s),
+    with their covariances ``(N, 3, 3)``, against true poses ``(T, 4)`` rows ``time x y
+    theta`` (interpolated to ``times``; estimates outside the truth's span are left out),
+    and of the estimated ``landmarks`` ``(n, 2)`` against ``true_landmarks`` ``(L, 2)``.
+
+    Returns None when no estimate falls within the truth's time span.
+    """
+    from .models import wrap
+    from .reader import interpolate_poses
+
+    times = np.asarray(times, float)
+    truth = np.asarray(truth, float)
+    if not len(truth) or not len(times):
+        return None
+    inside = (times >= truth[0, 0]) & (times <= truth[-1, 0])
+    if not inside.any():
+        return None
+    est = np.asarray(poses, float)[inside]
+    cov = np.asarray(covariances, float)[inside]
+    ref = interpolate_poses(truth, times[inside])
+    # start alignment: est[0] onto ref[0]
+    dth = float(wrap(ref[0, 2] - est[0, 2]))
+    c, s = math.cos(dth), math.sin(dth)
+    Rs = np.array([[c, -s], [s, c]])
+    ts = ref[0, :2] - Rs @ est[0, :2]
+    e_xy = est[:, :2] @ Rs.T + ts - ref[:, :2]
+    e_th = wrap(est[:, 2] + dth - ref[:, 2])
+    d_start = np.hypot(e_xy[:, 0], e_xy[:, 1])
+    Rb, tb, _ = align_se2(est[:, :2], ref[:, :2])
+    e_b = est[:, :2] @ Rb.T + tb - ref[:, :2]
+    d_best = np.hypot(e_b[:, 0], e_b[:, 1])
+    # the covariances turn with the estimate's frame
+    R3 = np.eye(3)
+    R3[:2, :2] = Rs
+    errs = np.column_stack([e_xy, e_th])
+    with np.errstate(all="ignore"):
+        an = nees(errs, R3 @ cov @ R3.T)
+    out = dict(
+        rmse_start=float(np.sqrt(np.mean(d_start**2))),
+        max_start=float(d_start.max()),
+        rmse_best=float(np.sqrt(np.mean(d_best**2))),
+        max_best=float(d_best.max()),
+        heading_rmse=float(np.sqrt(np.mean(e_th**2))),
+        anees=float(np.mean(an[np.isfinite(an)])) if np.isfinite(an).any() else math.nan,
+        poses=int(inside.sum()),
+    )
+    if true_landmarks is not None and len(true_landmarks):
+        tl = np.asarray(true_landmarks, float).reshape(-1, 2)
+        lm = np.asarray(landmarks, float).reshape(-1, 2) @ Rs.T + ts
+        mapped, err = 0, []
+        near_true = np.zeros(len(lm), bool)
+        if len(lm):
+            D = np.hypot(*(tl[:, None, :] - lm[None, :, :]).transpose(2, 0, 1))
+            near_true = (D <= 1.0).any(axis=0)
+            j = D.argmin(axis=1)  # each true landmark's nearest estimate
+            for i in range(len(tl)):
+                if D[i, j[i]] <= 1.0 and D[:, j[i]].argmin() == i:
+                    mapped += 1
+                    err.append(D[i, j[i]])
+        out.update(
+            landmarks_true=len(tl),
+            landmarks_mapped=mapped,
+            landmark_rmse=float(np.sqrt(np.mean(np.square(err)))) if err else math.nan,
+            landmarks_spurious=int((~near_true).sum()),
+        )
+    return TruthError(**out)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_tum", "write_landmarks", "write_report", "plot_maps"]
+__all__ = ["write_tum", "write_landmarks", "write_report", "plot_maps", "write_landmark_log"]
 
 
 def write_tum(path, times, poses) -> Path:
@@ -50,6 +50,57 @@ def write_landmarks(path, ids, landmarks, covariances, hits) -> Path:
     return p
 
 
+def write_landmark_log(directory, steps, *, model=None, truth=None, landmarks=None) -> Path:
+    """Write ``steps`` as a landmark log in plain text, the format
+    :func:`~scanclique.slam.read_landmark_log` reads (``controls.txt``,
+    ``observations.txt``; ``truth.txt`` from ``truth`` ``(T, 4)`` rows ``time x y theta``,
+    ``landmarks.txt`` from ``landmarks`` ``(L, 2)``, ``model.toml`` from ``model``, when
+    given), numbers to 17 significant digits so that reading gives the same steps back.
+    Returns the directory (created when absent).
+
+    Steps with the same time as another are merged by the reader (a control and a batch
+    at one time are one step); an observation batch's attributes are written when every
+    step that has observations has them.
+    """
+    from dataclasses import fields
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    with_att = all(s.attributes is not None for s in steps if s.n_observations)
+    with open(d / "controls.txt", "w") as fh:
+        fh.write("# time c1 c2\n")
+        for s in steps:
+            if s.control is not None:
+                c0, c1 = s.control.tolist()
+                fh.write(f"{float(s.time)!r} {c0!r} {c1!r}\n")
+    with open(d / "observations.txt", "w") as fh:
+        fh.write("# time range bearing" + (" attribute" if with_att else "") + "\n")
+        for s in steps:
+            for i, (r, b) in enumerate(s.observations.tolist()):
+                att = f" {float(s.attributes[i])!r}" if with_att else ""
+                fh.write(f"{float(s.time)!r} {r!r} {b!r}{att}\n")
+    if truth is not None:
+        rows = np.asarray(truth, float).reshape(-1, 4).tolist()
+        (d / "truth.txt").write_text(
+            "# time x y theta\n" + "".join(" ".join(repr(v) for v in r) + "\n" for r in rows)
+        )
+    if landmarks is not None:
+        rows = np.asarray(landmarks, float).reshape(-1, 2).tolist()
+        (d / "landmarks.txt").write_text("# x y\n" + "".join(f"{x!r} {y!r}\n" for x, y in rows))
+    if model is not None:
+        from .models import Ackermann  # noqa: PLC0415
+
+        kind = "ackermann" if isinstance(model, Ackermann) else "unicycle"
+        alias = getattr(model, "_ALIASES", {})
+        lines = [f'kind = "{kind}"']
+        lines += [
+            f"{alias.get(f.name, f.name)} = {float(getattr(model, f.name))!r}"
+            for f in fields(model)
+        ]
+        (d / "model.toml").write_text("\n".join(lines) + "\n")
+    return d
+
+
 def _plain(obj):
     if is_dataclass(obj) and not isinstance(obj, type):
         return {k: _plain(v) for k, v in asdict(obj).items()}
@@ -79,9 +130,19 @@ def _ellipse(ax, m, c, color, nsig=3.0):
     ax.plot(pts[:, 0], pts[:, 1], color=color, lw=0.5)
 
 
-def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park", errors=None):
+def plot_maps(
+    path,
+    runs,
+    gps=None,
+    title="EKF-SLAM on Victoria Park",
+    errors=None,
+    reference_label="GPS",
+    true_landmarks=None,
+):
     """One panel per run: GPS fixes, trajectory and landmarks (3-sigma ellipses), all
     in the GPS frame; with ``errors``, a panel below of each run's error at every fix.
+    ``reference_label`` names the ``gps`` track in the legend ("truth" for a landmark
+    log's true poses); ``true_landmarks`` ``(L, 2)``, when given, are drawn too.
 
     Parameters
     ----------
@@ -109,7 +170,10 @@ def plot_maps(path, runs, gps=None, title="EKF-SLAM on Victoria Park", errors=No
         axes, eax = list(ax2[0]), None
     for ax, (label, pos, lms, covs, (Rm, t)) in zip(axes, runs, strict=False):
         if gps is not None:
-            ax.plot(gps[:, 1], gps[:, 2], ".", color="0.6", ms=1.5, label="GPS")
+            ax.plot(gps[:, 1], gps[:, 2], ".", color="0.6", ms=1.5, label=reference_label)
+        if true_landmarks is not None and len(true_landmarks):
+            tl = np.asarray(true_landmarks, float)
+            ax.plot(tl[:, 0], tl[:, 1], "o", mfc="none", color="0.3", ms=5, label="true landmarks")
         p = pos @ Rm.T + t
         ax.plot(p[:, 0], p[:, 1], "-", color="tab:blue", lw=0.7, label="estimate")
         lm = lms @ Rm.T + t

@@ -1,4 +1,5 @@
-"""Reader of the ACFR Victoria Park data set (trees as point features).
+"""Readers of the ACFR Victoria Park data set (trees as point features) and of landmark
+logs in plain text (:func:`read_landmark_log`: one's own data, with ground truth).
 
 The three text files of the data set (see ``data/README.md`` of the shared data):
 
@@ -31,8 +32,12 @@ from ..io.text import plain_float
 from ..scan import MAX_ANGLE_SPAN
 
 __all__ = [
+    "LandmarkLog",
     "Step",
     "VictoriaPark",
+    "interpolate_poses",
+    "is_landmark_log",
+    "read_landmark_log",
     "read_victoria_park",
     "read_table",
     "resolve_victoria_park",
@@ -205,26 +210,37 @@ def resolve_victoria_park(source: str | os.PathLike = DATASET_NAME) -> Path:
     else:
         d = Path(s).expanduser()
         looked = str(d)
-    if not d.is_dir():
-        raise DataNotFoundError(
-            f"Victoria Park data not found: looked for the directory {looked} "
-            f"(holding {', '.join(FILES)}). Set {datasets.ENV_VAR} to the shared data "
-            f"directory or give the directory; the data are public: {SOURCE}."
-        )
-    missing = [f for f in FILES if not (d / f).is_file()]
-    if missing:
-        raise DataNotFoundError(
-            f"Victoria Park data incomplete: {d} lacks {', '.join(missing)} "
-            f"(expected {', '.join(FILES)}); the data are public: {SOURCE}."
-        )
+    _require_files(
+        d,
+        FILES,
+        "Victoria Park data",
+        f"looked for the directory {looked} (holding {', '.join(FILES)}). Set "
+        f"{datasets.ENV_VAR} to the shared data directory or give the directory; the data "
+        f"are public: {SOURCE}.",
+        f"(expected {', '.join(FILES)}); the data are public: {SOURCE}.",
+    )
     return d
 
 
-def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
+def _require_files(d: Path, files, what: str, not_found: str, expected: str) -> None:
+    """A :class:`DataNotFoundError` ("``what`` not found: ``not_found``") when ``d`` is not
+    a directory, or ("``what`` incomplete: ``d`` lacks ... ``expected``") when it lacks
+    one of ``files``."""
+    if not d.is_dir():
+        raise DataNotFoundError(f"{what} not found: {not_found}")
+    missing = [f for f in files if not (d / f).is_file()]
+    if missing:
+        raise DataNotFoundError(f"{what} incomplete: {d} lacks {', '.join(missing)} {expected}")
+
+
+def read_table(
+    path: str | os.PathLike, columns: tuple[str, ...], *, ordered: bool = True
+) -> np.ndarray:
     """A whitespace-separated table of floats, one row per non-empty line.
 
     Lines starting with ``#`` and blank lines are skipped. Every row must hold
-    ``len(columns)`` finite numbers and the first column (time) must not decrease.
+    ``len(columns)`` finite numbers and, when ``ordered``, the first column (time) must
+    not decrease.
 
     Raises
     ------
@@ -255,7 +271,8 @@ def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
             arr = np.loadtxt(io.StringIO(text), dtype=float, comments="#", ndmin=2)
         if arr.size == 0:
             arr = arr.reshape(0, n)
-        if arr.shape[1] == n and np.isfinite(arr).all() and (np.diff(arr[:, 0]) >= 0).all():
+        in_order = not ordered or (np.diff(arr[:, 0]) >= 0).all()
+        if arr.shape[1] == n and np.isfinite(arr).all() and in_order:
             return arr
     except ValueError:
         pass
@@ -279,7 +296,7 @@ def read_table(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
             if not math.isfinite(v):
                 raise ParseError(str(path), lineno, f"not finite: {p!r}", field=name)
             vals.append(v)
-        if vals[0] < last_t:
+        if ordered and vals[0] < last_t:
             raise ParseError(
                 str(path), lineno, f"time goes back: {vals[0]} after {last_t}", field=columns[0]
             )
@@ -425,3 +442,210 @@ def read_gps(source: str | os.PathLike = DATASET_NAME) -> np.ndarray:
     """The GPS fixes ``(G, 3)``: time (s), x, y (m)."""
     d = resolve_victoria_park(source)
     return _ro(read_table(d / "gps.dat", ("time", "x", "y")))
+
+
+#: The files of a landmark log in plain text (:func:`read_landmark_log`): the two it
+#: needs, then the optional ones.
+LOG_FILES = ("controls.txt", "observations.txt")
+LOG_OPTIONAL = ("truth.txt", "landmarks.txt", "model.toml")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LandmarkLog:
+    """A landmark log read from its directory (:func:`read_landmark_log`).
+
+    Attributes
+    ----------
+    steps : list of Step
+        Controls and observations merged in time order (:func:`steps_from_arrays`).
+    model : MotionModel
+        From ``model.toml``; :class:`~scanclique.slam.Unicycle` with its defaults when the
+        directory has none.
+    truth : (T, 4) float64 ndarray, read-only, or None
+        ``time x y theta`` of the vehicle's true pose (s, m, rad), from ``truth.txt``.
+    landmarks : (L, 2) float64 ndarray, read-only, or None
+        True landmark positions ``x y`` (m, the truth's frame), from ``landmarks.txt``.
+    directory : Path
+    """
+
+    steps: list
+    model: object
+    truth: np.ndarray | None
+    landmarks: np.ndarray | None
+    directory: Path
+
+    def __post_init__(self) -> None:
+        for name in ("truth", "landmarks"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _ro(getattr(self, name)))
+
+    def true_pose(self, t: float) -> np.ndarray | None:
+        """The true pose ``(x, y, theta)`` at time ``t`` (s), interpolated (the heading
+        along the shorter arc), or None without truth or outside its time span."""
+        if self.truth is None or not len(self.truth):
+            return None
+        tt = self.truth[:, 0]
+        if not tt[0] <= t <= tt[-1]:
+            return None
+        return interpolate_poses(self.truth, np.array([t]))[0]
+
+
+def interpolate_poses(truth, times) -> np.ndarray:
+    """Poses ``(N, 3)`` at ``times`` (s) from ``(T, 4)`` rows ``time x y theta``: x and y
+    linear, the heading along the shorter arc, wrapped to (-pi, pi]; times outside the
+    rows' span take the nearest row's pose."""
+    from .models import wrap
+
+    truth = np.asarray(truth, float)
+    times = np.asarray(times, float)
+    th = np.unwrap(truth[:, 3])
+    return np.column_stack(
+        [
+            np.interp(times, truth[:, 0], truth[:, 1]),
+            np.interp(times, truth[:, 0], truth[:, 2]),
+            wrap(np.interp(times, truth[:, 0], th)),
+        ]
+    )
+
+
+def is_landmark_log(source) -> bool:
+    """Whether ``source`` is a directory holding a landmark log's ``controls.txt`` and
+    ``observations.txt`` (:func:`read_landmark_log`)."""
+    if not isinstance(source, (str, os.PathLike)):
+        return False
+    d = Path(os.fspath(source)).expanduser()
+    return d.is_dir() and all((d / f).is_file() for f in LOG_FILES)
+
+
+def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
+    """A landmark log in plain text: the way to bring one's own range-bearing data (a
+    robot's wheel odometry and a detector's landmarks, with ground truth when there is
+    some) to :func:`~scanclique.slam.ekf_slam` and ``scanclique slam DIR``.
+
+    The directory holds (whitespace-separated numbers, one row per line, ``#`` comments,
+    times in seconds and not decreasing):
+
+    * ``controls.txt``: ``time c1 c2``, each control holding until the next: ``(v m/s,
+      omega rad/s)`` of a :class:`~scanclique.slam.Unicycle` (the default model), or
+      ``(speed m/s, steering rad)`` of an :class:`~scanclique.slam.Ackermann`;
+    * ``observations.txt``: ``time range bearing [attribute]``, range in metres, bearing
+      in radians counter-clockwise from the vehicle's heading, in the sensor's frame
+      (where ``model.toml`` puts it on the vehicle); rows with the same time are one
+      batch observation (the clique associates a batch as a whole); the optional fourth
+      column a scalar per landmark (a tree's diameter);
+    * ``truth.txt`` (optional): ``time x y theta``, the vehicle's true pose (the pose the
+      model moves: a unicycle's centre, an Ackermann's rear axle);
+    * ``landmarks.txt`` (optional): ``x y``, the true landmark positions, in the truth's
+      frame;
+    * ``model.toml`` (optional): ``kind = "unicycle"`` or ``"ackermann"`` and the
+      model's parameters by name (``sensor_x``, ``sensor_y``, ``sigma_v``, ... for a
+      unicycle; ``wheelbase``, ``encoder_offset``, ``laser_a``, ``laser_b``,
+      ``sigma_speed``, ... for an Ackermann).
+
+    Raises
+    ------
+    DataNotFoundError
+        The directory, ``controls.txt`` or ``observations.txt`` is missing.
+    ParseError
+        A malformed row (file, line and field named), a negative range, a bearing beyond
+        two turns (degrees given for radians), observation rows of three and four numbers
+        mixed, or a ``model.toml`` that is not TOML.
+    ConfigError
+        ``model.toml`` names an unknown kind or parameter, or a parameter out of range
+        (the file and the key named).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "controls.txt").write_text("0.0 0.5 0.0\\n")
+    >>> _ = (d / "observations.txt").write_text("0.1 4.0 0.2\\n0.1 6.0 -0.3\\n")
+    >>> log = read_landmark_log(d)
+    >>> [s.n_observations for s in log.steps], type(log.model).__name__, log.truth
+    ([0, 2], 'Unicycle', None)
+    """
+    if not isinstance(directory, (str, os.PathLike)):
+        raise ArgumentError(f"expected a directory path, got {type(directory).__name__}")
+    d = Path(os.fspath(directory)).expanduser()
+    holds = f"{', '.join(LOG_FILES)}, and optionally {', '.join(LOG_OPTIONAL)}"
+    _require_files(
+        d,
+        LOG_FILES,
+        "landmark log",
+        f"{d} is not a directory (expected one holding {holds})",
+        f"(expected {holds})",
+    )
+    controls = read_table(d / "controls.txt", ("time", "c1", "c2"))
+    obs_path = d / "observations.txt"
+    cols = ("time", "range", "bearing")
+    if _first_row_width(obs_path) == 4:
+        cols = (*cols, "attribute")
+    meas = read_table(obs_path, cols)
+    bad = np.flatnonzero((meas[:, 1] < 0) | (np.abs(meas[:, 2]) > MAX_ANGLE_SPAN))
+    if len(bad):
+        i = int(bad[0])
+        r, b = meas[i, 1], meas[i, 2]
+        what = (
+            f"range must be >= 0 m, found {r}"
+            if r < 0
+            else f"bearing {b} is more than two turns: radians? ({b} deg is "
+            f"{math.radians(b):.6g} rad)"
+        )
+        raise ParseError(
+            str(obs_path), _line_of(obs_path, i), what, field="range" if r < 0 else "bearing"
+        )
+    truth = landmarks = None
+    if (d / "truth.txt").is_file():
+        truth = read_table(d / "truth.txt", ("time", "x", "y", "theta"))
+    if (d / "landmarks.txt").is_file():
+        landmarks = read_table(d / "landmarks.txt", ("x", "y"), ordered=False)
+    model = _read_model(d / "model.toml")
+    return LandmarkLog(steps_from_arrays(controls, meas), model, truth, landmarks, d)
+
+
+def _first_row_width(path: Path) -> int:
+    """Fields on the first data line of ``path`` (0 for a file without one)."""
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
+            for line in fh:
+                s = line.strip()
+                if s and not s.startswith("#"):
+                    return len(s.split())
+    except OSError:
+        return 0  # read_table says why
+    return 0
+
+
+def _read_model(path: Path):
+    """The motion model ``path`` (``model.toml``) describes; a default
+    :class:`~scanclique.slam.Unicycle` when there is no such file."""
+    import inspect
+
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+
+    from .models import Ackermann, Unicycle
+
+    if not path.is_file():
+        return Unicycle()
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ParseError(str(path), None, f"not TOML ({exc})") from None
+    kinds = {"unicycle": Unicycle, "ackermann": Ackermann}
+    kind = table.pop("kind", "unicycle")
+    if not isinstance(kind, str) or kind not in kinds:
+        raise ConfigError(f"{path}: kind must be one of {', '.join(kinds)}, got {kind!r}")
+    cls = kinds[kind]
+    known = set(inspect.signature(cls).parameters)
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise ConfigError(
+            f"{path}: unknown {kind} parameter {unknown[0]!r} (known: {', '.join(sorted(known))})"
+        )
+    try:
+        return cls(**table)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None

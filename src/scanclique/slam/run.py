@@ -20,9 +20,25 @@ import numpy as np
 from .._outdir import remove_earlier_output
 from ..errors import ConfigError, ParseError
 from .ekf import SlamConfig, SlamResult, ekf_slam
-from .metrics import GpsError, align_se2, duplicate_pairs, gps_error, gps_outliers, sensor_positions
+from .metrics import (
+    GpsError,
+    TruthError,
+    align_se2,
+    duplicate_pairs,
+    gps_error,
+    gps_outliers,
+    sensor_positions,
+    truth_error,
+)
 from .models import Ackermann
-from .reader import Step, read_gps, read_victoria_park, resolve_victoria_park
+from .reader import (
+    Step,
+    is_landmark_log,
+    read_gps,
+    read_landmark_log,
+    read_victoria_park,
+    resolve_victoria_park,
+)
 
 __all__ = [
     "MAX_CLUTTER",
@@ -91,6 +107,9 @@ class SlamRun:
     removed : tuple of str
         Files of an earlier run in ``out`` that this one removed (a ``map.png`` of an
         earlier run, when this one draws none: it would show another map).
+    truth : TruthError or None
+        Error against the ground truth of a landmark log that has one
+        (:func:`~scanclique.slam.read_landmark_log`'s ``truth.txt``).
     """
 
     result: SlamResult
@@ -99,6 +118,7 @@ class SlamRun:
     files: dict = field(default_factory=dict)
     alignment: tuple = (np.eye(2), np.zeros(2))
     removed: tuple = ()
+    truth: TruthError | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready: method, metrics (value, units), GPS errors, ambiguous steps' times,
@@ -118,6 +138,7 @@ class SlamRun:
                 "max_best": self.gps.max_best,
                 "fixes": self.gps.fixes,
             },
+            "truth": None if self.truth is None else dataclasses.asdict(self.truth),
             "ambiguous_times": r.observation_times[r.ambiguous].tolist(),
             "files": {k: str(v) for k, v in self.files.items()},
             "removed": list(self.removed),
@@ -222,6 +243,24 @@ def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clut
     return g, m, align
 
 
+def truth_rows(te: TruthError) -> dict:
+    """The table rows (name -> (value, units)) of an error against ground truth."""
+    m = {
+        "pose RMSE (start alignment)": (te.rmse_start, "m"),
+        "pose max (start alignment)": (te.max_start, "m"),
+        "pose RMSE (best SE(2) alignment)": (te.rmse_best, "m"),
+        "pose max (best SE(2) alignment)": (te.max_best, "m"),
+        "heading RMSE": (math.degrees(te.heading_rmse), "deg"),
+        "pose ANEES (3 dof; 3 if consistent)": (te.anees, ""),
+        "poses compared with the truth": (te.poses, ""),
+    }
+    if te.landmarks_true:
+        m["true landmarks mapped (within 1 m)"] = (te.landmarks_mapped, f"of {te.landmarks_true}")
+        m["landmark RMSE (mapped)"] = (te.landmark_rmse, "m")
+        m["landmarks not within 1 m of a true one"] = (te.landmarks_spurious, "")
+    return m
+
+
 MAX_CLUTTER = 100
 """Most spurious detections :func:`run_slam` injects per scan: Victoria Park's scans see
 about 10 trees, the benchmarks add 5 or 10; 10**5 ran out of memory in the association
@@ -251,7 +290,15 @@ def run_slam(
     plot: bool = False,
     smooth: bool = False,
 ) -> SlamRun:
-    """Run EKF-SLAM on the Victoria Park data (a name or a directory) and measure it.
+    """Run EKF-SLAM on the Victoria Park data (a name or a directory), or on a landmark
+    log (a directory with ``controls.txt`` and ``observations.txt``,
+    :func:`~scanclique.slam.read_landmark_log`), and measure it.
+
+    A landmark log is run with the motion model of its ``model.toml`` (a
+    :class:`~scanclique.slam.Unicycle` without one) and, when its ``truth.txt`` covers the
+    first step, from the true pose there (else from the origin); its metrics are then the
+    error against the truth (:func:`~scanclique.slam.metrics.truth_error`) instead of
+    the GPS's.
 
     Parameters
     ----------
@@ -282,21 +329,48 @@ def run_slam(
             to = f"from 0 to {hi}" if hi else ">= 0"
             raise ConfigError(f"run_slam: {name} must be an integer {to}, got {v!r}")
     cfg = config or SlamConfig()
-    steps = read_victoria_park(source)
+    own = read_landmark_log(source) if is_landmark_log(source) else None
+    pose0 = None
+    if own is not None:
+        steps, model, gps, name = own.steps, own.model, None, own.directory.name
+        where, files_ = own.directory, "controls.txt and observations.txt"
+        pose0 = own.true_pose(steps[0].time) if steps else None
+    else:
+        steps, model, name = read_victoria_park(source), victoria_park_model(), "Victoria Park"
+        where, files_ = resolve_victoria_park(source), "measurements.dat and inputs.dat"
+        gps = read_gps(source)
     if not steps:
-        raise ParseError(
-            os.fspath(resolve_victoria_park(source)),
-            None,
-            "holds no steps: measurements.dat and inputs.dat have no rows",
-        )
-    gps = read_gps(source)
+        raise ParseError(os.fspath(where), None, f"holds no steps: {files_} have no rows")
     if clutter:
         steps = inject_clutter(
             steps, clutter, max_range=cfg.max_range or 30.0, fov=cfg.sensor_fov, seed=seed
         )
-    model = victoria_park_model()
-    result = ekf_slam(steps, model, association=association, config=cfg, progress=progress)
+    result = ekf_slam(
+        steps,
+        model,
+        association=association,
+        config=cfg,
+        progress=progress,
+        initial_pose=(0.0, 0.0, 0.0) if pose0 is None else pose0,
+    )
     g, m, align = summarise(result, model, gps, clutter, beyond=result.beyond_max_range)
+    te = None
+    if own is not None and own.truth is not None:
+        te = truth_error(
+            result.times,
+            result.poses,
+            result.pose_covariances,
+            own.truth,
+            result.landmarks,
+            own.landmarks,
+        )
+        if te is None:
+            log.warning(
+                "%s: no step falls within truth.txt's time span: no error against the truth",
+                where,
+            )
+        else:
+            m = {**truth_rows(te), **m}
     sm = None
     if smooth:
         from .smooth import smooth as _smooth
@@ -312,8 +386,15 @@ def run_slam(
         ):
             if k in ms:
                 m["smoothed " + k] = ms[k]
+        if te is not None:
+            st = truth_error(
+                sm.times, sm.poses, np.broadcast_to(np.eye(3), (len(sm.times), 3, 3)), own.truth
+            )
+            if st is not None:
+                m["smoothed pose RMSE (start alignment)"] = (st.rmse_start, "m")
+                m["smoothed pose RMSE (best SE(2) alignment)"] = (st.rmse_best, "m")
         m["smoothing time"] = ms["smoothing time"]  # the pass's own: no prefix
-    run = SlamRun(result, g, m, {}, align)
+    run = SlamRun(result, g, m, {}, align, truth=te)
     if out is not None:
         d = Path(out)
         d.mkdir(parents=True, exist_ok=True)
@@ -334,12 +415,22 @@ def run_slam(
                 d / "trajectory-smoothed.tum", sm.times, sm.poses
             )
         if plot:
-            pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
+            if own is None:
+                pos, ref, label = (
+                    sensor_positions(result.poses, model.sensor_x, model.sensor_y),
+                    gps,
+                    "GPS",
+                )
+            else:  # the vehicle's, as the truth's; drawn when the filter started from it
+                pos, label = result.poses[:, :2], "truth"
+                ref = None if te is None or pose0 is None else own.truth[:, :3]
             files["map"] = plot_maps(
                 d / "map.png",
                 [(f"{association}", pos, result.landmarks, result.landmark_covariances, align)],
-                gps,
-                title=f"EKF-SLAM ({association}) on Victoria Park",
+                ref,
+                title=f"EKF-SLAM ({association}) on {name}",
+                reference_label=label,
+                true_landmarks=None if own is None or ref is None else own.landmarks,
             )
         elif (gone := remove_earlier_output(d, "map.png")) is not None:
             run = dataclasses.replace(run, removed=(str(gone),))

@@ -1,0 +1,183 @@
+"""Landmark logs in plain text: one's own range-bearing data with ground truth, read by
+``slam.read_landmark_log`` and run by ``run_slam`` / ``scanclique slam DIR``."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import assert_clean_error
+from typer.testing import CliRunner
+
+from scanclique import cli, slam
+from scanclique.errors import ConfigError, DataNotFoundError, ParseError
+from scanclique.slam.metrics import truth_error
+from scanclique.slam.outputs import write_landmark_log
+from scanclique.slam.run import run_slam, victoria_park_model
+from scanclique.slam.sim import room_config, simulate_room
+
+
+@pytest.fixture(scope="module")
+def room():
+    return simulate_room(0, duration=90.0, config=room_config())
+
+
+@pytest.fixture(scope="module")
+def room_log(room, tmp_path_factory):
+    truth = np.column_stack([room.times, room.poses])
+    d = tmp_path_factory.mktemp("room")
+    return write_landmark_log(
+        d, room.steps, model=slam.Unicycle(), truth=truth, landmarks=room.landmarks
+    )
+
+
+def _events(steps):
+    """The steps that carry something (frames that saw nothing have no row in the files)."""
+    return [s for s in steps if s.control is not None or s.n_observations]
+
+
+def test_a_written_log_reads_back_the_same_steps(room, room_log):
+    log = slam.read_landmark_log(room_log)
+    want = _events(room.steps)
+    assert len(log.steps) == len(want)
+    for a, b in zip(log.steps, want, strict=True):
+        assert a.time == b.time
+        assert (a.control is None) == (b.control is None)
+        if a.control is not None:
+            assert np.array_equal(a.control, b.control)
+        assert np.array_equal(a.observations, b.observations)
+        assert a.attributes is None and b.attributes is None
+    assert log.model == slam.Unicycle()
+    assert log.truth.shape == (len(room.times), 4) and not log.truth.flags.writeable
+    assert np.array_equal(log.landmarks, room.landmarks)
+    assert np.allclose(log.true_pose(room.times[5]), room.poses[5])
+    assert log.true_pose(room.times[-1] + 1.0) is None
+
+
+def test_run_slam_on_a_landmark_log_measures_against_the_truth(room, room_log, tmp_path):
+    cfg = room_config()
+    run = run_slam(room_log, config=cfg, out=tmp_path / "out", plot=True)
+    te = run.truth
+    assert te is not None and te.poses == len(_events(room.steps))
+    # the same run as the filter on the read steps, started from the true pose
+    log = slam.read_landmark_log(room_log)
+    direct = slam.ekf_slam(log.steps, log.model, config=cfg, initial_pose=room.poses[0])
+    assert np.array_equal(direct.poses, run.result.poses)
+    e = direct.poses[:, :2] - slam.reader.interpolate_poses(log.truth, direct.times)[:, :2]
+    assert te.rmse_start == pytest.approx(math.sqrt(np.mean(np.sum(e**2, 1))))
+    assert te.rmse_start < 0.3 and te.rmse_best <= te.rmse_start
+    assert 1.0 < te.anees < 6.0
+    assert te.landmarks_true == 15 and te.landmarks_mapped >= 12 and te.landmark_rmse < 0.4
+    assert run.gps is None and "GPS RMSE (start alignment)" not in run.metrics
+    assert run.metrics["true landmarks mapped (within 1 m)"] == (te.landmarks_mapped, "of 15")
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["truth"]["rmse_start"] == pytest.approx(te.rmse_start)
+    assert (tmp_path / "out" / "map.png").stat().st_size > 1000
+
+
+def test_truth_error_moves_the_estimate_onto_the_first_true_pose():
+    """A filter started at the origin is compared in the truth's frame (start alignment);
+    a turned and shifted copy of the truth has no error."""
+    t = np.linspace(0.0, 10.0, 50)
+    truth = np.column_stack([t, 3.0 + t, 2.0 + np.sin(t), 0.1 * t])
+    c, s = math.cos(0.7), math.sin(0.7)
+    xy = (truth[:, 1:3] - truth[0, 1:3]) @ np.array([[c, -s], [s, c]]).T
+    est = np.column_stack([xy, slam.wrap(truth[:, 3] - truth[0, 3] + 0.7)])
+    covs = np.broadcast_to(np.eye(3) * 0.01, (len(t), 3, 3))
+    te = truth_error(t, est, covs, truth, est[:, :2][:3], np.array([[50.0, 50.0]]))
+    assert te.rmse_start < 1e-9 and te.rmse_best < 1e-9 and te.heading_rmse < 1e-9
+    assert te.landmarks_true == 1 and te.landmarks_mapped == 0 and te.landmarks_spurious == 3
+    assert truth_error(t + 100.0, est, covs, truth) is None
+
+
+def test_the_command_runs_a_landmark_log(room_log, tmp_path):
+    out = tmp_path / "cli"
+    r = CliRunner().invoke(cli.app, ["slam", str(room_log), "--out", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    report = json.loads(r.stdout)
+    assert report["truth"]["landmarks_true"] == 15
+    assert "pose RMSE (start alignment)" in report["metrics"]
+    assert (out / "map.png").exists() and (out / "trajectory.tum").exists()
+
+
+def test_an_ackermann_model_reads_back(tmp_path):
+    m = slam.Ackermann(wheelbase=2.5, encoder_offset=0.5, laser_a=1.0, laser_b=0.2, sigma_speed=0.1)
+    step = slam.Step(0.0, np.array([1.0, 0.1]), np.array([[5.0, 0.3]]), np.array([0.4]))
+    d = write_landmark_log(tmp_path, [step], model=m)
+    log = slam.read_landmark_log(d)
+    assert log.model == m and log.truth is None and log.landmarks is None
+    assert np.array_equal(log.steps[0].attributes, [0.4])
+    (d / "model.toml").write_text('kind = "ackermann"\n')  # the defaults: Victoria Park's car
+    assert slam.read_landmark_log(d).model == victoria_park_model()
+
+
+def _log(tmp_path, observations="0.1 4.0 0.2\n", **files):
+    (tmp_path / "controls.txt").write_text("0.0 0.5 0.0\n")
+    (tmp_path / "observations.txt").write_text(observations)
+    for name, text in files.items():
+        (tmp_path / name.replace("_", ".")).write_text(text)
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    ("observations", "files", "words"),
+    [
+        ("0.1 4.0 45.0\n", {}, ("observations.txt:1", "bearing", "radians", "0.785398")),
+        ("0.1 -4.0 0.2\n", {}, ("observations.txt:1", "range must be >= 0")),
+        ("# t r b a\n0.1 4 0.2 0.3\n0.2 4 0.2\n", {}, ("observations.txt:3", "expected 4")),
+        ("0.1 4 nan\n", {}, ("observations.txt:1", "bearing", "not finite")),
+        ("0.2 4 0.1\n0.1 4 0.1\n", {}, ("observations.txt:2", "time goes back")),
+        ("0.1 4 0.2\n", {"landmarks_txt": "1 2\n3 x\n"}, ("landmarks.txt:2", "y", "not a number")),
+        ("0.1 4 0.2\n", {"truth_txt": "0 1 2\n"}, ("truth.txt:1", "expected 4")),
+        ("0.1 4 0.2\n", {"model_toml": "kind = \n"}, ("model.toml", "not TOML")),
+    ],
+)
+def test_malformed_files_name_the_file_line_and_field(tmp_path, observations, files, words):
+    d = _log(tmp_path, observations, **files)
+    with pytest.raises(ParseError) as e:
+        slam.read_landmark_log(d)
+    for w in words:
+        assert w in str(e.value)
+
+
+@pytest.mark.parametrize(
+    ("model", "words"),
+    [
+        ('kind = "bicycle"\n', ("model.toml", "kind must be one of unicycle, ackermann")),
+        ("kind = [1]\n", ("model.toml", "kind must be one of")),
+        ("sigma_speed = 0.1\n", ("model.toml", "unknown unicycle parameter 'sigma_speed'")),
+        ("sigma_v = -1.0\n", ("model.toml", "sigma_v must be >= 0")),
+        ('kind = "ackermann"\nwheelbase = 0\n', ("model.toml", "wheelbase must be > 0")),
+    ],
+)
+def test_a_wrong_model_names_the_file_and_the_key(tmp_path, model, words):
+    d = _log(tmp_path, model_toml=model)
+    with pytest.raises(ConfigError) as e:
+        slam.read_landmark_log(d)
+    for w in words:
+        assert w in str(e.value)
+
+
+def test_a_missing_file_says_what_a_landmark_log_holds(tmp_path):
+    (tmp_path / "controls.txt").write_text("0 0 0\n")
+    with pytest.raises(DataNotFoundError, match="lacks observations.txt"):
+        slam.read_landmark_log(tmp_path)
+    with pytest.raises(DataNotFoundError, match="not a directory"):
+        slam.read_landmark_log(tmp_path / "nope")
+    assert not slam.reader.is_landmark_log(tmp_path) and not slam.reader.is_landmark_log(3)
+    # the command: not a landmark log, so read as Victoria Park, which says what it lacks
+    r = CliRunner().invoke(cli.app, ["slam", str(tmp_path)])
+    assert_clean_error(r, "measurements.dat")
+
+
+def test_a_log_with_no_rows_and_truth_beside_the_run(tmp_path, caplog):
+    d = _log(tmp_path, "# nothing\n")
+    (d / "controls.txt").write_text("# nothing\n")
+    with pytest.raises(ParseError, match="controls.txt and observations.txt have no rows"):
+        run_slam(d)
+    d = _log(tmp_path, "0.1 4.0 0.2\n0.2 4.0 0.2\n", truth_txt="50 0 0 0\n60 1 0 0\n")
+    with caplog.at_level("WARNING", logger="scanclique"):
+        run = run_slam(d)
+    assert run.truth is None and "no step falls within truth.txt" in caplog.text
