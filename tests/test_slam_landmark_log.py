@@ -181,3 +181,16 @@ def test_a_log_with_no_rows_and_truth_beside_the_run(tmp_path, caplog):
     with caplog.at_level("WARNING", logger="scanclique"):
         run = run_slam(d)
     assert run.truth is None and "no step falls within truth.txt" in caplog.text
+
+
+def test_gps_fixes_of_a_landmark_log_are_measured_as_victoria_parks(room, tmp_path):
+    """A log with ``gps.txt`` and no truth: the filter starts at the origin and the GPS
+    rows measure it in the GPS's frame (the start and the best SE(2) alignment)."""
+    keep = np.flatnonzero(np.diff(np.floor(room.times), prepend=-1.0) > 0)  # 1 Hz fixes
+    fixes = np.column_stack([room.times[keep], room.poses[keep, :2]])
+    d = write_landmark_log(tmp_path, room.steps)
+    np.savetxt(d / "gps.txt", fixes)
+    run = run_slam(d, config=room_config(), out=tmp_path / "out", plot=True)
+    assert run.truth is None and run.gps is not None and run.gps.fixes == len(keep)
+    assert run.gps.rmse_best < 0.3 and run.gps.rmse_start < 0.5
+    assert "GPS RMSE (best SE(2) alignment)" in run.metrics

@@ -447,7 +447,7 @@ def read_gps(source: str | os.PathLike = DATASET_NAME) -> np.ndarray:
 #: The files of a landmark log in plain text (:func:`read_landmark_log`): the two it
 #: needs, then the optional ones.
 LOG_FILES = ("controls.txt", "observations.txt")
-LOG_OPTIONAL = ("truth.txt", "landmarks.txt", "model.toml")
+LOG_OPTIONAL = ("truth.txt", "landmarks.txt", "gps.txt", "model.toml")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -466,6 +466,8 @@ class LandmarkLog:
     landmarks : (L, 2) float64 ndarray, read-only, or None
         True landmark positions ``x y`` (m, the truth's frame), from ``landmarks.txt``.
     directory : Path
+    gps : (G, 3) float64 ndarray, read-only, or None
+        ``time x y`` position fixes of the sensor (s, m), from ``gps.txt``.
     """
 
     steps: list
@@ -473,9 +475,10 @@ class LandmarkLog:
     truth: np.ndarray | None
     landmarks: np.ndarray | None
     directory: Path
+    gps: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in ("truth", "landmarks"):
+        for name in ("truth", "landmarks", "gps"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _ro(getattr(self, name)))
 
@@ -537,6 +540,9 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
       model moves: a unicycle's centre, an Ackermann's rear axle);
     * ``landmarks.txt`` (optional): ``x y``, the true landmark positions, in the truth's
       frame;
+    * ``gps.txt`` (optional): ``time x y``, position fixes of the sensor, measured as
+      Victoria Park's (:mod:`scanclique.slam.metrics`: the start and the best SE(2)
+      alignment) where there is no ``truth.txt``;
     * ``model.toml`` (optional): ``kind = "unicycle"`` or ``"ackermann"`` and the
       model's parameters by name (``sensor_x``, ``sensor_y``, ``sigma_v``, ... for a
       unicycle; ``wheelbase``, ``encoder_offset``, ``laser_a``, ``laser_b``,
@@ -600,7 +606,8 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     if (d / "landmarks.txt").is_file():
         landmarks = read_table(d / "landmarks.txt", ("x", "y"), ordered=False)
     model = _read_model(d / "model.toml")
-    return LandmarkLog(steps_from_arrays(controls, meas), model, truth, landmarks, d)
+    gps = read_table(d / "gps.txt", ("time", "x", "y")) if (d / "gps.txt").is_file() else None
+    return LandmarkLog(steps_from_arrays(controls, meas), model, truth, landmarks, d, gps)
 
 
 def _first_row_width(path: Path) -> int:

@@ -332,7 +332,7 @@ def run_slam(
     own = read_landmark_log(source) if is_landmark_log(source) else None
     pose0 = None
     if own is not None:
-        steps, model, gps, name = own.steps, own.model, None, own.directory.name
+        steps, model, gps, name = own.steps, own.model, own.gps, own.directory.name
         where, files_ = own.directory, "controls.txt and observations.txt"
         pose0 = own.true_pose(steps[0].time) if steps else None
     else:
@@ -415,22 +415,23 @@ def run_slam(
                 d / "trajectory-smoothed.tum", sm.times, sm.poses
             )
         if plot:
-            if own is None:
-                pos, ref, label = (
-                    sensor_positions(result.poses, model.sensor_x, model.sensor_y),
-                    gps,
-                    "GPS",
-                )
-            else:  # the vehicle's, as the truth's; drawn when the filter started from it
+            pos, ref, label = (
+                sensor_positions(result.poses, model.sensor_x, model.sensor_y),
+                gps,
+                "GPS",
+            )
+            if (
+                te is not None
+            ):  # the vehicle's, as the truth's; drawn when the filter started from it
                 pos, label = result.poses[:, :2], "truth"
-                ref = None if te is None or pose0 is None else own.truth[:, :3]
+                ref = None if pose0 is None else own.truth[:, :3]
             files["map"] = plot_maps(
                 d / "map.png",
                 [(f"{association}", pos, result.landmarks, result.landmark_covariances, align)],
                 ref,
                 title=f"EKF-SLAM ({association}) on {name}",
                 reference_label=label,
-                true_landmarks=None if own is None or ref is None else own.landmarks,
+                true_landmarks=None if te is None or ref is None else own.landmarks,
             )
         elif (gone := remove_earlier_output(d, "map.png")) is not None:
             run = dataclasses.replace(run, removed=(str(gone),))
