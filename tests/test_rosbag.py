@@ -118,6 +118,11 @@ def write_ros1(path, scans, odometry=True):
             w.write(cs, t_ns + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
 
 
+def _ros2_msgs():
+    """:func:`_msgs` of ROS 2 (Humble): the laser, odometry and tf message makers."""
+    return _msgs(get_typestore(Stores.ROS2_HUMBLE), ros1=False)
+
+
 def _write_bag2(path, rows, storage="sqlite3"):
     """A ROS 2 bag of ``rows``: (topic, time ns, message) in writing order; a topic's
     connection (of its message's type) is added when it first comes."""
@@ -134,8 +139,7 @@ def _write_bag2(path, rows, storage="sqlite3"):
 
 
 def write_ros2(path, scans, storage="sqlite3"):
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    laser, _, tf = _msgs(ts, ros1=False)
+    laser, _, tf = _ros2_msgs()
 
     def rows():
         for k, s in enumerate(scans):
@@ -287,8 +291,7 @@ def test_odometry_on_tf_under_other_frame_names(tmp_path, caplog):
     from scanclique.mapping.run import load_map_log
 
     scans = _drive(7, 4)
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    laser, _, tf = _msgs(ts, ros1=False)
+    laser, _, tf = _ros2_msgs()
     path = tmp_path / "frames"
     rows = []
     for k, s in enumerate(scans):
@@ -321,8 +324,7 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
     from scanclique import cli
 
     scans = _drive(11, 6)
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    laser, _, tf = _msgs(ts, ros1=False)
+    laser, _, tf = _ros2_msgs()
     path = tmp_path / "two"
     rows = []
     for k, s in enumerate(scans):
