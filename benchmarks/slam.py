@@ -15,6 +15,13 @@ share of wrong associations.
     python benchmarks/slam.py                 # full: clutter 0, 5, 10; 5 simulated parks; rooms
     python benchmarks/slam.py --clutter 0 --sims 2 --jobs 2
     python benchmarks/slam.py --sections room --out /tmp/slam-room   # the rooms only
+    python benchmarks/slam.py --sections logs --logs DIR1,DIR2 [--log-config slam.toml]
+
+``--logs``: landmark logs of one's own (``scanclique.slam.read_landmark_log``: controls,
+observations, truth): every method on each, side by side against the truth (pose error in
+both alignments, heading, ANEES, true landmarks mapped), with the clique methods' ratios to
+the better of NN and JCBB; ``--log-config`` the SlamConfig (TOML) for them (default
+``SlamConfig()``).
 
 Each filter run is followed by the optional smoothing pass (scanclique.slam.smooth: a GTSAM
 pose graph with the filter's associations), reported on its own rows ("nn + smoothing", ...;
@@ -141,6 +148,66 @@ def _vp_worker(args):
             ),
         }
     ] + extra
+
+
+LOG_COLUMNS = (
+    ("pose RMSE (start alignment)", "pose RMSE start [m]"),
+    ("pose RMSE (best SE(2) alignment)", "pose RMSE SE(2) [m]"),
+    ("pose max (start alignment)", "pose max start [m]"),
+    ("heading RMSE", "heading RMSE [deg]"),
+    ("pose ANEES (3 dof; 3 if consistent)", "ANEES"),
+    ("true landmarks mapped (within 1 m)", "true landmarks mapped"),
+    ("landmark RMSE (mapped)", "landmark RMSE [m]"),
+    ("landmarks", "landmarks"),
+    ("duplicate pairs (< 1 m)", "duplicate pairs"),
+    ("association median", "assoc. median [ms]"),
+    ("run time (CPU)", "CPU [s]"),
+)
+
+
+def _log_worker(args):
+    """One method on one landmark log: its metrics against the log's truth."""
+    log_dir, method, config_path = args
+    _warm_up(method)
+    from scanclique.io.config import read_config
+    from scanclique.slam import SlamConfig
+    from scanclique.slam.run import run_slam
+
+    cfg = read_config(config_path, cls=SlamConfig) if config_path else SlamConfig()
+    run = run_slam(log_dir, association=method, config=cfg)
+    return {
+        "log": str(log_dir),
+        "method": method,
+        "metrics": {k: v for k, (v, _u) in run.metrics.items()},
+        "units": {k: u for k, (_v, u) in run.metrics.items()},
+    }
+
+
+def log_table(records) -> tuple[list[str], list[str]]:
+    """Markdown rows of the landmark logs' runs (one per log and method) and the clique
+    methods' ratios to the better of NN and JCBB on the pose errors."""
+    lines = ["| log | method | " + " | ".join(c[1] for c in LOG_COLUMNS) + " |"]
+    lines.append("|" + "---|" * (len(LOG_COLUMNS) + 2))
+    for r in records:
+        lines.append(
+            f"| {Path(r['log']).name} | {r['method']} | "
+            + " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in LOG_COLUMNS)
+            + " |"
+        )
+    ratios = []
+    for log in dict.fromkeys(r["log"] for r in records):
+        rs = {r["method"]: r["metrics"] for r in records if r["log"] == log}
+        classic = [m for m in ("nn", "jcbb") if m in rs]
+        for cm in ("clique", "clique-jcbb"):
+            keys = ("pose RMSE (best SE(2) alignment)", "pose RMSE (start alignment)")
+            if cm in rs and classic and all(k in rs[m] for m in (cm, *classic) for k in keys):
+                parts = [
+                    f"{k} {cm} / best of {', '.join(classic)} = "
+                    f"{rs[cm][k] / max(min(rs[m][k] for m in classic), 1e-12):.3f}"
+                    for k in keys
+                ]
+                ratios.append(f"{Path(log).name}: " + "; ".join(parts))
+    return lines, ratios
 
 
 def _truth_record(run, r, steps_mask):
@@ -290,9 +357,20 @@ def main(argv=None):
         help="AssociationConfig.closure_crowding for every run: a number, or 'off' "
         "(default: the library's)",
     )
+    ap.add_argument(
+        "--logs",
+        default="",
+        help="landmark log directories, comma-separated (section 'logs', added when given)",
+    )
+    ap.add_argument("--log-config", default=None, help="SlamConfig TOML for --logs")
     ap.add_argument("--out", default=str(RESULTS / f"slam-{TODAY}"))
     args = ap.parse_args(argv)
     sections = set(args.sections.split(","))
+    logs = [d for d in args.logs.split(",") if d]
+    if logs:
+        sections.add("logs")
+    elif "logs" in sections:
+        ap.error("--sections logs needs --logs DIR[,DIR...]")
     clutters = [int(c) for c in args.clutter.split(",") if c != ""] if "vp" in sections else []
     methods = [m for m in args.methods.split(",") if m]
     t0 = time.perf_counter()
@@ -302,7 +380,9 @@ def main(argv=None):
     room_tasks = [
         (st, m, s, cc) for st in ROOM_SETTINGS for m in methods for s in range(args.room_seeds)
     ] * ("room" in sections)
+    log_tasks = [(d, m, args.log_config) for d in logs for m in methods]
     with ProcessPoolExecutor(args.jobs) as ex:
+        log_runs = list(ex.map(_log_worker, log_tasks)) if log_tasks else []
         vp = [row for rows in ex.map(_vp_worker, tasks) for row in rows]
         sims = list(ex.map(_nees_worker, nees_tasks)) if nees_tasks else []
         rooms = list(ex.map(_room_worker, room_tasks)) if room_tasks else []
@@ -423,7 +503,9 @@ def main(argv=None):
         "nees_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in sims],
         "room": room,
         "room_runs": [{k: v for k, v in s.items() if k != "nees_obs_steps"} for s in rooms],
+        "landmark_logs": log_runs,
     }
+    log_lines, log_ratios = log_table(log_runs)
     out.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
     md = [
         "# EKF-SLAM on Victoria Park (benchmarks/slam.py)",
@@ -446,6 +528,12 @@ def main(argv=None):
         "",
         *room_lines,
         "",
+        "## Landmark logs (--logs: against each log's truth)",
+        "",
+        *(log_lines if log_runs else ["(none given)"]),
+        "",
+        *log_ratios,
+        "",
     ]
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     print("\n".join(lines))
@@ -457,6 +545,11 @@ def main(argv=None):
     print("\n".join(nees_lines))
     print()
     print("\n".join(room_lines))
+    if log_runs:
+        print()
+        print("\n".join(log_lines))
+        print()
+        print("\n".join(log_ratios))
     print(f"\nwrote {out.with_suffix('.json')}, .md, .png in {time.perf_counter() - t0:.0f} s")
 
 
