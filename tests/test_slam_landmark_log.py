@@ -194,3 +194,13 @@ def test_gps_fixes_of_a_landmark_log_are_measured_as_victoria_parks(room, tmp_pa
     assert run.truth is None and run.gps is not None and run.gps.fixes == len(keep)
     assert run.gps.rmse_best < 0.3 and run.gps.rmse_start < 0.5
     assert "GPS RMSE (best SE(2) alignment)" in run.metrics
+
+
+def test_writing_attributes_for_some_batches_only_is_refused(tmp_path):
+    from scanclique.errors import ArgumentError
+
+    a = slam.Step(0.0, None, np.array([[5.0, 0.3]]), np.array([0.4]))
+    b = slam.Step(1.0, None, np.array([[5.0, 0.3]]))
+    with pytest.raises(ArgumentError, match="t=1.0 have no attributes"):
+        write_landmark_log(tmp_path / "x", [a, b])
+    assert not (tmp_path / "x").exists()

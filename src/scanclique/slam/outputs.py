@@ -59,14 +59,31 @@ def write_landmark_log(directory, steps, *, model=None, truth=None, landmarks=No
     Returns the directory (created when absent).
 
     Steps with the same time as another are merged by the reader (a control and a batch
-    at one time are one step); an observation batch's attributes are written when every
-    step that has observations has them.
+    at one time are one step), and a step with neither a control nor an observation has
+    no row (the filter uses neither).
+
+    Raises
+    ------
+    ArgumentError
+        Some steps' observations have attributes and others' not: the file holds them
+        for every observation or for none, and dropping them would lose them.
     """
     from dataclasses import fields
 
+    from ..errors import ArgumentError  # noqa: PLC0415
+
+    seen = [s for s in steps if s.n_observations]
+    with_att = [s.attributes is not None for s in seen]
+    if any(with_att) and not all(with_att):
+        k = with_att.index(False)
+        raise ArgumentError(
+            f"write_landmark_log: the observations at t={seen[k].time} have no attributes "
+            "while others have: observations.txt holds an attribute for every observation "
+            "or for none"
+        )
+    with_att = all(with_att)
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
-    with_att = all(s.attributes is not None for s in steps if s.n_observations)
     with open(d / "controls.txt", "w") as fh:
         fh.write("# time c1 c2\n")
         for s in steps:
