@@ -114,6 +114,7 @@ def test_an_ackermann_model_reads_back(tmp_path):
 
 
 def _log(tmp_path, observations="0.1 4.0 0.2\n", **files):
+    tmp_path.mkdir(parents=True, exist_ok=True)
     (tmp_path / "controls.txt").write_text("0.0 0.5 0.0\n")
     (tmp_path / "observations.txt").write_text(observations)
     for name, text in files.items():
@@ -204,3 +205,25 @@ def test_writing_attributes_for_some_batches_only_is_refused(tmp_path):
     with pytest.raises(ArgumentError, match="t=1.0 have no attributes"):
         write_landmark_log(tmp_path / "x", [a, b])
     assert not (tmp_path / "x").exists()
+
+
+def test_csv_files_with_a_header_read_as_the_whitespace_ones(tmp_path):
+    """Comma-separated files, with or without a first row of column names, read as the
+    whitespace-separated ones; a malformed CSV row still names its line and field."""
+    plain = _log(tmp_path / "plain", "0.1 4.0 0.2 0.3\n0.1 6.0 -0.3 0.5\n")
+    csv = _log(
+        tmp_path / "csv",
+        "time,range,bearing,diameter\n0.1, 4.0, 0.2, 0.3\n0.1,6.0,-0.3,0.5\n",
+        truth_txt="t,x,y,theta\n0,1,2,0.5\n",
+        landmarks_txt="x,y\n1,2\n",
+    )
+    a, b = slam.read_landmark_log(plain), slam.read_landmark_log(csv)
+    assert np.array_equal(a.steps[1].observations, b.steps[1].observations)
+    assert np.array_equal(a.steps[1].attributes, b.steps[1].attributes)
+    assert b.truth.tolist() == [[0.0, 1.0, 2.0, 0.5]] and b.landmarks.tolist() == [[1.0, 2.0]]
+    (csv / "observations.txt").write_text("time,range,bearing\n0.1,4.0,\n")
+    with pytest.raises(ParseError, match=r"observations.txt:2: bearing: not a number: ''"):
+        slam.read_landmark_log(csv)
+    (csv / "observations.txt").write_text("0.1 4.0 abc\n")  # not a header: one is a number
+    with pytest.raises(ParseError, match=r"observations.txt:1: bearing: not a number"):
+        slam.read_landmark_log(csv)

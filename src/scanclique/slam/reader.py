@@ -236,9 +236,11 @@ def _require_files(d: Path, files, what: str, not_found: str, expected: str) -> 
 def read_table(
     path: str | os.PathLike, columns: tuple[str, ...], *, ordered: bool = True
 ) -> np.ndarray:
-    """A whitespace-separated table of floats, one row per non-empty line.
+    """A table of floats, one row per non-empty line, separated by whitespace or, when the
+    first row holds a comma, by commas (CSV).
 
-    Lines starting with ``#`` and blank lines are skipped. Every row must hold
+    Lines starting with ``#`` and blank lines are skipped, and so is a first row whose
+    fields are all names (words, not numbers: a CSV header of column names). Every row must hold
     ``len(columns)`` finite numbers and, when ``ordered``, the first column (time) must
     not decrease.
 
@@ -265,7 +267,21 @@ def read_table(
             f"expected UTF-8/ASCII text, found the byte {body[exc.start : exc.start + 1]!r} "
             "(binary data?)",
         ) from None
+    lines = text.splitlines()
+    first = next(
+        (k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None
+    )
+    csv = first is not None and "," in lines[first]
+
+    def split(line: str) -> list[str]:
+        return [p.strip() for p in line.split(",")] if csv else line.split()
+
+    header = first is not None and all(
+        p[:1].isalpha() and not _is_number(p) for p in split(lines[first].strip())
+    )
     try:  # fast path: a well-formed file
+        if csv or header:
+            raise ValueError  # the fast path reads whitespace-separated numbers only
         with warnings.catch_warnings():  # an empty table is a result, not a warning
             warnings.simplefilter("ignore", UserWarning)
             arr = np.loadtxt(io.StringIO(text), dtype=float, comments="#", ndmin=2)
@@ -278,11 +294,11 @@ def read_table(
         pass
     rows = []
     last_t = -math.inf
-    for lineno, line in enumerate(text.splitlines(), start=1):
+    for lineno, line in enumerate(lines, start=1):
         s = line.strip()
-        if not s or s.startswith("#"):
+        if not s or s.startswith("#") or (header and lineno == first + 1):
             continue
-        parts = s.split()
+        parts = split(s)
         if len(parts) != n:
             raise ParseError(
                 str(path), lineno, f"expected {n} numbers ({' '.join(columns)}), found {len(parts)}"
@@ -303,6 +319,14 @@ def read_table(
         last_t = vals[0]
         rows.append(vals)
     return np.array(rows, dtype=float).reshape(-1, n)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        plain_float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def load_victoria_park(source: str | os.PathLike = DATASET_NAME) -> VictoriaPark:
@@ -525,8 +549,9 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     robot's wheel odometry and a detector's landmarks, with ground truth when there is
     some) to :func:`~scanclique.slam.ekf_slam` and ``scanclique slam DIR``.
 
-    The directory holds (whitespace-separated numbers, one row per line, ``#`` comments,
-    times in seconds and not decreasing):
+    The directory holds (numbers separated by whitespace or commas, one row per line,
+    ``#`` comments, a first row of column names skipped, times in seconds and not
+    decreasing; :func:`read_table`):
 
     * ``controls.txt``: ``time c1 c2``, each control holding until the next: ``(v m/s,
       omega rad/s)`` of a :class:`~scanclique.slam.Unicycle` (the default model), or
@@ -611,13 +636,14 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
 
 
 def _first_row_width(path: Path) -> int:
-    """Fields on the first data line of ``path`` (0 for a file without one)."""
+    """Fields on the first line of ``path`` that is not a comment (0 for a file without
+    one)."""
     try:
         with open(path, encoding="utf-8-sig", errors="replace") as fh:
             for line in fh:
                 s = line.strip()
-                if s and not s.startswith("#"):
-                    return len(s.split())
+                if s and not s.startswith("#"):  # data or a header: as read_table splits it
+                    return len(s.split(",")) if "," in s else len(s.split())
     except OSError:
         return 0  # read_table says why
     return 0
