@@ -168,8 +168,12 @@ def test_a_missing_file_says_what_a_landmark_log_holds(tmp_path):
     with pytest.raises(DataNotFoundError, match="not a directory"):
         slam.read_landmark_log(tmp_path / "nope")
     assert not slam.reader.is_landmark_log(tmp_path) and not slam.reader.is_landmark_log(3)
-    # the command: not a landmark log, so read as Victoria Park, which says what it lacks
+    # the command: a landmark log's file and none of Victoria Park's: read as a landmark
+    # log, which says what it lacks; an empty directory is taken for Victoria Park's
     r = CliRunner().invoke(cli.app, ["slam", str(tmp_path)])
+    assert_clean_error(r, "lacks observations.txt")
+    (tmp_path / "empty").mkdir()
+    r = CliRunner().invoke(cli.app, ["slam", str(tmp_path / "empty")])
     assert_clean_error(r, "measurements.dat")
 
 
@@ -227,3 +231,11 @@ def test_csv_files_with_a_header_read_as_the_whitespace_ones(tmp_path):
     (csv / "observations.txt").write_text("0.1 4.0 abc\n")  # not a header: one is a number
     with pytest.raises(ParseError, match=r"observations.txt:1: bearing: not a number"):
         slam.read_landmark_log(csv)
+
+
+def test_a_partial_landmark_log_says_what_it_lacks(tmp_path):
+    (tmp_path / "observations.txt").write_text("0.1 4.0 0.2\n")
+    with pytest.raises(DataNotFoundError, match="landmark log incomplete: .* lacks controls.txt"):
+        run_slam(tmp_path)
+    r = CliRunner().invoke(cli.app, ["slam", str(tmp_path)])
+    assert_clean_error(r, "lacks controls.txt")

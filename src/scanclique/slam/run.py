@@ -31,7 +31,10 @@ from .metrics import (
     truth_error,
 )
 from .models import Ackermann
+from .reader import FILES as VP_FILES
 from .reader import (
+    LOG_FILES,
+    LOG_OPTIONAL,
     Step,
     is_landmark_log,
     read_gps,
@@ -243,6 +246,22 @@ def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clut
     return g, m, align
 
 
+def _landmark_log_like(source) -> bool:
+    """A landmark log, or a directory holding one of its files and none of Victoria
+    Park's (read as a landmark log, whose reader then says what it lacks)."""
+    if is_landmark_log(source):
+        return True
+    if not isinstance(source, (str, os.PathLike)) or os.fspath(source) == "victoria-park":
+        return False
+    d = Path(os.fspath(source)).expanduser()
+    own = (*LOG_FILES, *LOG_OPTIONAL)
+    return (
+        d.is_dir()
+        and any((d / f).is_file() for f in own)
+        and not any((d / f).is_file() for f in VP_FILES)
+    )
+
+
 def truth_rows(te: TruthError) -> dict:
     """The table rows (name -> (value, units)) of an error against ground truth."""
     m = {
@@ -329,7 +348,7 @@ def run_slam(
             to = f"from 0 to {hi}" if hi else ">= 0"
             raise ConfigError(f"run_slam: {name} must be an integer {to}, got {v!r}")
     cfg = config or SlamConfig()
-    own = read_landmark_log(source) if is_landmark_log(source) else None
+    own = read_landmark_log(source) if _landmark_log_like(source) else None
     pose0 = None
     if own is not None:
         steps, model, gps, name = own.steps, own.model, own.gps, own.directory.name
