@@ -239,3 +239,17 @@ def test_a_partial_landmark_log_says_what_it_lacks(tmp_path):
         run_slam(tmp_path)
     r = CliRunner().invoke(cli.app, ["slam", str(tmp_path)])
     assert_clean_error(r, "lacks controls.txt")
+
+
+@pytest.mark.parametrize("name", ["truth.txt", "landmarks.txt", "gps.txt", "model.toml"])
+def test_an_optional_file_that_is_not_a_regular_file_is_named(tmp_path, name):
+    import os
+
+    d = _log(tmp_path)
+    (d / name).mkdir()
+    with pytest.raises(ParseError, match=f"{name}: is not a regular file"):
+        slam.read_landmark_log(d)
+    (d / name).rmdir()
+    os.mkfifo(d / name)  # a pipe would block the reader: refused, not read
+    with pytest.raises(ParseError, match=f"{name}: is not a regular file"):
+        slam.read_landmark_log(d)

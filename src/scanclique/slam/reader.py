@@ -625,14 +625,33 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
         raise ParseError(
             str(obs_path), _line_of(obs_path, i), what, field="range" if r < 0 else "bearing"
         )
-    truth = landmarks = None
-    if (d / "truth.txt").is_file():
-        truth = read_table(d / "truth.txt", ("time", "x", "y", "theta"))
-    if (d / "landmarks.txt").is_file():
-        landmarks = read_table(d / "landmarks.txt", ("x", "y"), ordered=False)
+    optional = {
+        "truth.txt": (("time", "x", "y", "theta"), True),
+        "landmarks.txt": (("x", "y"), False),
+        "gps.txt": (("time", "x", "y"), True),
+    }
+    tables = {}
+    for name, (columns, ordered) in optional.items():
+        path = d / name
+        if path.exists():
+            _regular(path)
+            tables[name] = read_table(path, columns, ordered=ordered)
     model = _read_model(d / "model.toml")
-    gps = read_table(d / "gps.txt", ("time", "x", "y")) if (d / "gps.txt").is_file() else None
-    return LandmarkLog(steps_from_arrays(controls, meas), model, truth, landmarks, d, gps)
+    return LandmarkLog(
+        steps_from_arrays(controls, meas),
+        model,
+        tables.get("truth.txt"),
+        tables.get("landmarks.txt"),
+        d,
+        tables.get("gps.txt"),
+    )
+
+
+def _regular(path: Path) -> None:
+    """A :class:`ParseError` when ``path`` (which exists) is not a regular file: a
+    directory, or a pipe, which could block the reader."""
+    if not path.is_file():
+        raise ParseError(str(path), None, "is not a regular file")
 
 
 def _first_row_width(path: Path) -> int:
@@ -661,12 +680,15 @@ def _read_model(path: Path):
 
     from .models import Ackermann, Unicycle
 
-    if not path.is_file():
+    if not path.exists():
         return Unicycle()
+    _regular(path)
     try:
         table = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParseError(str(path), None, f"not TOML ({exc})") from None
+    except OSError as exc:  # no permission, an I/O error
+        raise ParseError(str(path), None, f"cannot be read ({exc.strerror or exc})") from None
     kinds = {"unicycle": Unicycle, "ackermann": Ackermann}
     kind = table.pop("kind", "unicycle")
     if not isinstance(kind, str) or kind not in kinds:
