@@ -228,6 +228,9 @@ def test_csv_files_with_a_header_read_as_the_whitespace_ones(tmp_path):
     (csv / "observations.txt").write_text("time,range,bearing\n0.1,4.0,\n")
     with pytest.raises(ParseError, match=r"observations.txt:2: bearing: not a number: ''"):
         slam.read_landmark_log(csv)
+    (csv / "observations.txt").write_text("# a comment\nt,r,b\n0.1,4.0,45.0\n")
+    with pytest.raises(ParseError, match=r"observations.txt:3: bearing: bearing 45.0"):
+        slam.read_landmark_log(csv)  # the line counted past the comment and the header
     (csv / "observations.txt").write_text("0.1 4.0 abc\n")  # not a header: one is a number
     with pytest.raises(ParseError, match=r"observations.txt:1: bearing: not a number"):
         slam.read_landmark_log(csv)

@@ -276,9 +276,7 @@ def read_table(
     def split(line: str) -> list[str]:
         return [p.strip() for p in line.split(",")] if csv else line.split()
 
-    header = first is not None and all(
-        p[:1].isalpha() and not _is_number(p) for p in split(lines[first].strip())
-    )
+    header = first is not None and _is_header(lines[first])
     try:  # fast path: a well-formed file
         if csv or header:
             raise ValueError  # the fast path reads whitespace-separated numbers only
@@ -321,6 +319,14 @@ def read_table(
     return np.array(rows, dtype=float).reshape(-1, n)
 
 
+def _is_header(line: str) -> bool:
+    """Whether a table's first row is a header: its fields (comma- or whitespace-
+    separated, as :func:`read_table` splits them) all names, none a number."""
+    s = line.strip()
+    parts = [p.strip() for p in s.split(",")] if "," in s else s.split()
+    return all(p[:1].isalpha() and not _is_number(p) for p in parts)
+
+
 def _is_number(text: str) -> bool:
     try:
         plain_float(text)
@@ -347,12 +353,18 @@ def load_victoria_park(source: str | os.PathLike = DATASET_NAME) -> VictoriaPark
 
 
 def _line_of(path: Path, row: int) -> int:
-    """1-based line number of data row ``row`` (comments and blank lines skipped)."""
+    """1-based line number of data row ``row`` (comments, blank lines and a header row
+    skipped, as :func:`read_table` skips them)."""
     k = -1
-    with open(path) as fh:
+    first = True
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
         for lineno, line in enumerate(fh, start=1):
             s = line.strip()
             if s and not s.startswith("#"):
+                if first and _is_header(s):
+                    first = False
+                    continue
+                first = False
                 k += 1
                 if k == row:
                     return lineno
