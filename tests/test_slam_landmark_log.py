@@ -256,3 +256,19 @@ def test_an_optional_file_that_is_not_a_regular_file_is_named(tmp_path, name):
     os.mkfifo(d / name)  # a pipe would block the reader: refused, not read
     with pytest.raises(ParseError, match=f"{name}: is not a regular file"):
         slam.read_landmark_log(d)
+
+
+def test_write_landmark_log_refuses_what_would_not_read_back(tmp_path):
+    from dataclasses import dataclass
+
+    from scanclique.errors import ArgumentError
+
+    @dataclass(frozen=True, slots=True)
+    class Tracked(slam.Unicycle):
+        track: float = 0.4
+
+    step = slam.Step(0.0, None, np.array([[5.0, 0.3]]))
+    with pytest.raises(ArgumentError, match="got Tracked"):
+        write_landmark_log(tmp_path / "a", [step], model=Tracked())
+    with pytest.raises(ArgumentError, match=r"steps\[1\] is a tuple"):
+        write_landmark_log(tmp_path / "b", [step, (1.0, None)])

@@ -66,12 +66,28 @@ def write_landmark_log(directory, steps, *, model=None, truth=None, landmarks=No
     ------
     ArgumentError
         Some steps' observations have attributes and others' not: the file holds them
-        for every observation or for none, and dropping them would lose them.
+        for every observation or for none, and dropping them would lose them. A step
+        that is not a :class:`~scanclique.slam.Step`, or a model other than a
+        :class:`~scanclique.slam.Unicycle` or an :class:`~scanclique.slam.Ackermann`
+        (a subclass's own parameters would not read back).
     """
     from dataclasses import fields
 
     from ..errors import ArgumentError  # noqa: PLC0415
+    from .models import Ackermann, Unicycle  # noqa: PLC0415
+    from .reader import Step  # noqa: PLC0415
 
+    steps = list(steps)
+    for k, s in enumerate(steps):
+        if not isinstance(s, Step):
+            raise ArgumentError(
+                f"write_landmark_log: steps[{k}] is a {type(s).__name__}, not a Step"
+            )
+    if model is not None and type(model) not in (Ackermann, Unicycle):
+        raise ArgumentError(
+            "write_landmark_log: model.toml describes a slam.Unicycle or a slam.Ackermann, "
+            f"got {type(model).__name__}"
+        )
     seen = [s for s in steps if s.n_observations]
     with_att = [s.attributes is not None for s in seen]
     if any(with_att) and not all(with_att):
@@ -105,8 +121,6 @@ def write_landmark_log(directory, steps, *, model=None, truth=None, landmarks=No
         rows = np.asarray(landmarks, float).reshape(-1, 2).tolist()
         (d / "landmarks.txt").write_text("# x y\n" + "".join(f"{x!r} {y!r}\n" for x, y in rows))
     if model is not None:
-        from .models import Ackermann  # noqa: PLC0415
-
         kind = "ackermann" if isinstance(model, Ackermann) else "unicycle"
         alias = getattr(model, "_ALIASES", {})
         lines = [f'kind = "{kind}"']
