@@ -434,19 +434,17 @@ def run_slam(
                 d / "trajectory-smoothed.tum", sm.times, sm.poses
             )
         if plot:
-            pos, ref, label = (
-                sensor_positions(result.poses, model.sensor_x, model.sensor_y),
-                gps,
-                "GPS",
-            )
-            if (
-                te is not None
-            ):  # the vehicle's, as the truth's; drawn when the filter started from it
-                pos, label = result.poses[:, :2], "truth"
+            if te is not None:
+                # the vehicle's positions in the truth's frame; the truth drawn when the
+                # filter started from it (else the frames differ)
+                pos, label, frame = result.poses[:, :2], "truth", (np.eye(2), np.zeros(2))
                 ref = None if pose0 is None else own.truth[:, :3]
+            else:
+                pos = sensor_positions(result.poses, model.sensor_x, model.sensor_y)
+                ref, label, frame = gps, "GPS", align
             files["map"] = plot_maps(
                 d / "map.png",
-                [(f"{association}", pos, result.landmarks, result.landmark_covariances, align)],
+                [(f"{association}", pos, result.landmarks, result.landmark_covariances, frame)],
                 ref,
                 title=f"EKF-SLAM ({association}) on {name}",
                 reference_label=label,
