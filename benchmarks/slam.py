@@ -183,17 +183,21 @@ def _log_worker(args):
     }
 
 
+def _metric_table(first: str, records, columns, label) -> list[str]:
+    """Markdown table of ``records``' metrics: a row per record, ``label(record)`` in
+    the first column (headed ``first``), its method, then ``columns`` ((key, heading))."""
+    lines = [f"| {first} | method | " + " | ".join(c[1] for c in columns) + " |"]
+    lines.append("|" + "---|" * (len(columns) + 2))
+    for r in records:
+        cells = " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in columns)
+        lines.append(f"| {label(r)} | {r['method']} | {cells} |")
+    return lines
+
+
 def log_table(records) -> tuple[list[str], list[str]]:
     """Markdown rows of the landmark logs' runs (one per log and method) and the clique
     methods' ratios to the better of NN and JCBB on the pose errors."""
-    lines = ["| log | method | " + " | ".join(c[1] for c in LOG_COLUMNS) + " |"]
-    lines.append("|" + "---|" * (len(LOG_COLUMNS) + 2))
-    for r in records:
-        lines.append(
-            f"| {Path(r['log']).name} | {r['method']} | "
-            + " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in LOG_COLUMNS)
-            + " |"
-        )
+    lines = _metric_table("log", records, LOG_COLUMNS, lambda r: Path(r["log"]).name)
     ratios = []
     for log in dict.fromkeys(r["log"] for r in records):
         rs = {r["method"]: r["metrics"] for r in records if r["log"] == log}
@@ -386,15 +390,7 @@ def main(argv=None):
         vp = [row for rows in ex.map(_vp_worker, tasks) for row in rows]
         sims = list(ex.map(_nees_worker, nees_tasks)) if nees_tasks else []
         rooms = list(ex.map(_room_worker, room_tasks)) if room_tasks else []
-    lines = []
-    head = "| clutter | method | " + " | ".join(c[1] for c in COLUMNS) + " |"
-    lines += [head, "|" + "---|" * (len(COLUMNS) + 2)]
-    for r in vp:
-        lines.append(
-            f"| {r['clutter']} | {r['method']} | "
-            + " | ".join(_fmt(r["metrics"].get(k, "")) for k, _ in COLUMNS)
-            + " |"
-        )
+    lines = _metric_table("clutter", vp, COLUMNS, lambda r: r["clutter"])
     # ratios: each clique method against the better of NN and JCBB, per clutter level
     ratio_lines = []
     keys = ("GPS RMSE (best SE(2) alignment)", "GPS RMSE (start alignment)", "landmarks")
