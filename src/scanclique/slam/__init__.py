@@ -4,7 +4,8 @@ Each batch observation (the trees of one laser scan) is associated with the map 
 whole: by the maximum clique of the correspondence graph between the observation's
 features and the predicted map features (relative geometry, Bailey et al. 2000), checked
 by a joint compatibility gate; compared with nearest neighbour and JCBB on the Victoria
-Park data set.
+Park data set, and on one's own data as a landmark log in plain text
+(:func:`read_landmark_log`, measured against its ground truth by ``run_slam``).
 
 >>> from scanclique import slam
 >>> model = slam.Ackermann(wheelbase=2.83, encoder_offset=0.76, laser_a=3.78, laser_b=0.5)
