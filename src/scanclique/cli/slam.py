@@ -36,8 +36,8 @@ def slam(
             help="'victoria-park' (in the shared data directory) or its directory, or a "
             "landmark log: a directory with controls.txt (time c1 c2) and "
             "observations.txt (time range bearing [attribute]), optionally truth.txt "
-            "(time x y theta), landmarks.txt (x y) and model.toml (kind = 'unicycle' or "
-            "'ackermann' and its parameters)."
+            "(time x y theta), landmarks.txt (x y), gps.txt (time x y) and model.toml "
+            "(kind = 'unicycle' or 'ackermann' and its parameters)."
         ),
     ] = "victoria-park",
     association: Annotated[
