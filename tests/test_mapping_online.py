@@ -229,36 +229,3 @@ def test_the_online_defaults_decide_closures_every_5_keyframes():
     given = MapConfig()
     with OnlineMapper(config=given) as m:
         assert m._cfg is given  # a given configuration is taken as it is
-
-
-def test_the_live_mapper_warns_early_of_odometry_that_does_not_move(monkeypatch, caplog):
-    """A robot's odometry of zeros (a driver publishing nothing): the online mapper cannot
-    sample the log ahead as map_scans does, so it checks the steps matched so far and
-    warns at once, not only when the log ends; right odometry reads about 1, no warning."""
-    import dataclasses
-
-    from scanclique.mapping import online
-
-    monkeypatch.setattr(online, "ODOMETRY_SCALE_EVERY", 10)
-    scans = circle_drive(np.random.default_rng(4), laps=1, n_per_lap=40)
-    zero = Pose2(0.0, 0.0, 0.0)
-    zeros = [dataclasses.replace(s, odometry=zero) for s in scans]
-    with caplog.at_level("WARNING", logger="scanclique"), OnlineMapper() as mapper:
-        for s in zeros:
-            mapper.add(s)
-            if mapper.odometry_scale is not None:
-                break
-        assert mapper.odometry_scale.scaled and mapper.odometry_scale.median_scale < 0.5
-        assert len(mapper) < len(zeros)  # told before the log ends
-        assert "OnlineMapper(use_odometry=False) maps from the scans alone" in caplog.text
-    caplog.clear()
-    with caplog.at_level("WARNING", logger="scanclique"), OnlineMapper() as mapper:
-        for s in scans:
-            mapper.add(s)
-        assert not mapper.odometry_scale.scaled
-        assert 0.9 < mapper.odometry_scale.median_scale < 1.1
-    assert "times as far as the scans" not in caplog.text
-    with OnlineMapper(use_odometry=False) as mapper:
-        for s in zeros[:20]:
-            mapper.add(s)
-        assert mapper.odometry_scale is None  # no odometry in use: nothing to check

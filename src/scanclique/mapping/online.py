@@ -18,12 +18,6 @@ What ``map_scans`` reads from the whole log, the online mapper reads from the sc
 * ``use_odometry=None``: the odometry is used when the *first* scan carries it
   (``map_scans``: when every scan does). A later scan without odometry is placed by the
   constant-velocity prior, as in ``map_scans(..., use_odometry=True)``.
-* the odometry's scale: ``map_scans`` samples the log before mapping and sets aside
-  odometry that does not move as the scans do (zeros, frozen, millimetres); the online
-  mapper cannot look ahead, so it checks the steps matched so far (every 50 scans, until
-  :data:`~.pipeline.ODOMETRY_CHECK_STEPS` moving ones are in) and warns at once, with
-  :attr:`OnlineMapper.odometry_scale` (the map goes on with the odometry it was given;
-  ``use_odometry=False`` maps from the scans alone).
 * ``odometry_reverses=None``: whether the wheel odometry reports backing up
   (:func:`~.frontend.odometry_sees_reversing`, which ``map_scans`` asks of the whole log)
   is told from the scans so far (:class:`~.frontend.ReversingWatch`): until 50 moving
@@ -33,7 +27,6 @@ What ``map_scans`` reads from the whole log, the online mapper reads from the sc
 
 from __future__ import annotations
 
-import logging
 import operator
 import time
 from bisect import bisect_left
@@ -49,23 +42,15 @@ from ..errors import ArgumentError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
 from .config import MapConfig
-from .frontend import ReversingWatch, step_scale
+from .frontend import ReversingWatch
 from .pipeline import (
-    ODOMETRY_CHECK_STEPS,
     MapResult,
-    OdometryScale,
     _Mapper,
     check_iterable_of_scans,
     check_odometry,
     map_scans,
-    matched_steps,
     warn_unmatched,
 )
-
-log = logging.getLogger(__name__)
-
-#: the online mapper checks the odometry's scale every this many scans until it can
-ODOMETRY_SCALE_EVERY = 50
 
 __all__ = ["OnlineMapper", "OnlineRun", "map_online"]
 
@@ -131,10 +116,6 @@ class OnlineMapper:
         self._result: MapResult | None = None
         self._busy = 0.0  # seconds spent in add and finish
         self._closed = False  # close() before finish(): no result
-        #: the odometry's median step over the scans' (:class:`~.pipeline.OdometryScale`)
-        #: as the steps matched so far say it, once enough are in; None before (or
-        #: without odometry). Warned about at once when outside ODOMETRY_SCALE_RANGE.
-        self.odometry_scale: OdometryScale | None = None
 
     # -- taking scans -------------------------------------------------------------------
     def add(self, scan: Scan) -> Pose2:
@@ -168,28 +149,9 @@ class OnlineMapper:
             self._watch.see(scan.odometry)
             m.blind_to_reversing = m.odo and not self._watch.sees_reversing
         m.add_scan(scan)
-        if m.odo and self.odometry_scale is None and len(m.scans) % ODOMETRY_SCALE_EVERY == 0:
-            self._check_odometry_scale(m)
         pose = self.pose(len(m.scans) - 1)
         self._busy += time.perf_counter() - t
         return pose
-
-    def _check_odometry_scale(self, m: _Mapper) -> None:
-        """Set :attr:`odometry_scale` from the steps matched so far once
-        :data:`~.pipeline.ODOMETRY_CHECK_STEPS` of them move, warning when the odometry
-        does not move as the scans do."""
-        scale = OdometryScale(*step_scale(matched_steps(m.scans, m.chain, m.placed_by)))
-        if scale.steps < ODOMETRY_CHECK_STEPS:
-            return
-        self.odometry_scale = scale
-        if scale.scaled:
-            log.warning(
-                "the odometry moves %.3g times as far as the scans (median of the %d steps "
-                "matched in the first %d scans; right odometry gives about 1): is it all "
-                "zeros, frozen, or not in metres? The map goes on with it; "
-                "OnlineMapper(use_odometry=False) maps from the scans alone",
-                scale.median_scale, scale.steps, len(m.scans),
-            )  # fmt: skip
 
     # -- what is known now --------------------------------------------------------------
     def __len__(self) -> int:
