@@ -90,6 +90,8 @@ def test_truth_error_moves_the_estimate_onto_the_first_true_pose():
     assert te.rmse_start < 1e-9 and te.rmse_best < 1e-9 and te.heading_rmse < 1e-9
     assert te.landmarks_true == 1 and te.landmarks_mapped == 0 and te.landmarks_spurious == 3
     assert truth_error(t + 100.0, est, covs, truth) is None
+    bare = truth_error(t, est, None, truth)  # no covariances (a smoothed run): no ANEES
+    assert math.isnan(bare.anees) and bare.rmse_start == te.rmse_start
 
 
 def test_the_command_runs_a_landmark_log(room_log, tmp_path):

@@ -320,8 +320,9 @@ class TruthError:
 
 def truth_error(times, poses, covariances, truth, landmarks=None, true_landmarks=None):
     """The :class:`TruthError` of estimated vehicle poses ``(N, 3)`` at ``times`` (s),
-    with their covariances ``(N, 3, 3)``, against true poses ``(T, 4)`` rows ``time x y
-    theta`` (interpolated to ``times``; estimates outside the truth's span are left out),
+    with their covariances ``(N, 3, 3)`` (None: no ANEES, NaN), against true poses
+    ``(T, 4)`` rows ``time x y theta`` (interpolated to ``times``; estimates outside the
+    truth's span are left out),
     and of the estimated ``landmarks`` ``(n, 2)`` against ``true_landmarks`` ``(L, 2)``.
 
     Returns None when no estimate falls within the truth's time span.
@@ -337,7 +338,6 @@ def truth_error(times, poses, covariances, truth, landmarks=None, true_landmarks
     if not inside.any():
         return None
     est = np.asarray(poses, float)[inside]
-    cov = np.asarray(covariances, float)[inside]
     ref = interpolate_poses(truth, times[inside])
     # start alignment: est[0] onto ref[0]
     dth = float(wrap(ref[0, 2] - est[0, 2]))
@@ -350,12 +350,13 @@ def truth_error(times, poses, covariances, truth, landmarks=None, true_landmarks
     Rb, tb, _ = align_se2(est[:, :2], ref[:, :2])
     e_b = est[:, :2] @ Rb.T + tb - ref[:, :2]
     d_best = np.hypot(e_b[:, 0], e_b[:, 1])
-    # the covariances turn with the estimate's frame
-    R3 = np.eye(3)
-    R3[:2, :2] = Rs
-    errs = np.column_stack([e_xy, e_th])
-    with np.errstate(all="ignore"):
-        an = nees(errs, R3 @ cov @ R3.T)
+    an = np.full(len(est), math.nan)
+    if covariances is not None:  # the covariances turn with the estimate's frame
+        R3 = np.eye(3)
+        R3[:2, :2] = Rs
+        cov = np.asarray(covariances, float)[inside]
+        with np.errstate(all="ignore"):
+            an = nees(np.column_stack([e_xy, e_th]), R3 @ cov @ R3.T)
     out = dict(
         rmse_start=float(np.sqrt(np.mean(d_start**2))),
         max_start=float(d_start.max()),

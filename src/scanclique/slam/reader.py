@@ -274,7 +274,7 @@ def read_table(
     csv = first is not None and "," in lines[first]
 
     def split(line: str) -> list[str]:
-        return [p.strip() for p in line.split(",")] if csv else line.split()
+        return _fields(line, csv)
 
     header = first is not None and _is_header(lines[first])
     try:  # fast path: a well-formed file
@@ -319,11 +319,17 @@ def read_table(
     return np.array(rows, dtype=float).reshape(-1, n)
 
 
+def _fields(line: str, csv: bool) -> list[str]:
+    """The fields of a table's row: comma-separated (stripped) when ``csv``, else
+    whitespace-separated."""
+    return [p.strip() for p in line.split(",")] if csv else line.split()
+
+
 def _is_header(line: str) -> bool:
     """Whether a table's first row is a header: its fields (comma- or whitespace-
     separated, as :func:`read_table` splits them) all names, none a number."""
     s = line.strip()
-    parts = [p.strip() for p in s.split(",")] if "," in s else s.split()
+    parts = _fields(s, "," in s)
     return all(p[:1].isalpha() and not _is_number(p) for p in parts)
 
 
@@ -674,7 +680,7 @@ def _first_row_width(path: Path) -> int:
             for line in fh:
                 s = line.strip()
                 if s and not s.startswith("#"):  # data or a header: as read_table splits it
-                    return len(s.split(",")) if "," in s else len(s.split())
+                    return len(_fields(s, "," in s))
     except OSError:
         return 0  # read_table says why
     return 0

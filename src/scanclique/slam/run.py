@@ -406,9 +406,7 @@ def run_slam(
             if k in ms:
                 m["smoothed " + k] = ms[k]
         if te is not None:
-            st = truth_error(
-                sm.times, sm.poses, np.broadcast_to(np.eye(3), (len(sm.times), 3, 3)), own.truth
-            )
+            st = truth_error(sm.times, sm.poses, None, own.truth)
             if st is not None:
                 m["smoothed pose RMSE (start alignment)"] = (st.rmse_start, "m")
                 m["smoothed pose RMSE (best SE(2) alignment)"] = (st.rmse_best, "m")
