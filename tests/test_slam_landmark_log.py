@@ -171,12 +171,16 @@ def test_a_missing_file_says_what_a_landmark_log_holds(tmp_path):
         slam.read_landmark_log(tmp_path / "nope")
     assert not slam.reader.is_landmark_log(tmp_path) and not slam.reader.is_landmark_log(3)
     # the command: a landmark log's file and none of Victoria Park's: read as a landmark
-    # log, which says what it lacks; an empty directory is taken for Victoria Park's
+    # log, which says what it lacks; a directory holding neither's files names both
     r = CliRunner().invoke(cli.app, ["slam", str(tmp_path)])
     assert_clean_error(r, "lacks observations.txt")
     (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.md").write_text("not data\n")
     r = CliRunner().invoke(cli.app, ["slam", str(tmp_path / "empty")])
-    assert_clean_error(r, "measurements.dat")
+    assert_clean_error(r, "neither a landmark log (controls.txt")
+    assert "measurements.dat" in r.output
+    with pytest.raises(DataNotFoundError, match="holds neither"):
+        run_slam(tmp_path / "empty", out=tmp_path / "o")
 
 
 def test_a_log_with_no_rows_and_truth_beside_the_run(tmp_path, caplog):
@@ -236,6 +240,12 @@ def test_csv_files_with_a_header_read_as_the_whitespace_ones(tmp_path):
     (csv / "observations.txt").write_text("0.1 4.0 abc\n")  # not a header: one is a number
     with pytest.raises(ParseError, match=r"observations.txt:1: bearing: not a number"):
         slam.read_landmark_log(csv)
+    # the attribute column is there when the first data row has it, whatever the header
+    (csv / "observations.txt").write_text("# c\ntime,range,bearing\n0.1,4.0,0.2,0.3\n")
+    assert slam.read_landmark_log(csv).steps[1].attributes.tolist() == [0.3]
+    (csv / "observations.txt").write_text("time,range,bearing,d\n0.1,4.0,0.2\n0.2,4,0,1\n")
+    with pytest.raises(ParseError, match=r"observations.txt:3: expected 3 numbers"):
+        slam.read_landmark_log(csv)  # the first data row sets the width
 
 
 def test_a_partial_landmark_log_says_what_it_lacks(tmp_path):

@@ -234,7 +234,11 @@ def _require_files(d: Path, files, what: str, not_found: str, expected: str) -> 
 
 
 def read_table(
-    path: str | os.PathLike, columns: tuple[str, ...], *, ordered: bool = True
+    path: str | os.PathLike,
+    columns: tuple[str, ...],
+    *,
+    ordered: bool = True,
+    optional: tuple[str, ...] = (),
 ) -> np.ndarray:
     """A table of floats, one row per non-empty line, separated by whitespace or, when the
     first row holds a comma, by commas (CSV).
@@ -242,7 +246,9 @@ def read_table(
     Lines starting with ``#`` and blank lines are skipped, and so is a first row whose
     fields are all names (words, not numbers: a CSV header of column names). Every row must hold
     ``len(columns)`` finite numbers and, when ``ordered``, the first column (time) must
-    not decrease.
+    not decrease. When the first data row holds ``len(columns) + len(optional)`` fields,
+    the ``optional`` columns are read too, and every row must hold them (the table's
+    width is that of its first data row).
 
     Raises
     ------
@@ -268,15 +274,18 @@ def read_table(
             "(binary data?)",
         ) from None
     lines = text.splitlines()
-    first = next(
-        (k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None
-    )
+    content = (k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#"))
+    first = next(content, None)
     csv = first is not None and "," in lines[first]
 
     def split(line: str) -> list[str]:
         return _fields(line, csv)
 
     header = first is not None and _is_header(lines[first])
+    row = next(content, None) if header else first  # the first data row
+    if optional and row is not None and len(split(lines[row].strip())) == n + len(optional):
+        columns = (*columns, *optional)
+        n = len(columns)
     try:  # fast path: a well-formed file
         if csv or header:
             raise ValueError  # the fast path reads whitespace-separated numbers only
@@ -626,10 +635,7 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     )
     controls = read_table(d / "controls.txt", ("time", "c1", "c2"))
     obs_path = d / "observations.txt"
-    cols = ("time", "range", "bearing")
-    if _first_row_width(obs_path) == 4:
-        cols = (*cols, "attribute")
-    meas = read_table(obs_path, cols)
+    meas = read_table(obs_path, ("time", "range", "bearing"), optional=("attribute",))
     bad = np.flatnonzero((meas[:, 1] < 0) | (np.abs(meas[:, 2]) > MAX_ANGLE_SPAN))
     if len(bad):
         i = int(bad[0])
@@ -670,20 +676,6 @@ def _regular(path: Path) -> None:
     directory, or a pipe, which could block the reader."""
     if not path.is_file():
         raise ParseError(str(path), None, "is not a regular file")
-
-
-def _first_row_width(path: Path) -> int:
-    """Fields on the first line of ``path`` that is not a comment (0 for a file without
-    one)."""
-    try:
-        with open(path, encoding="utf-8-sig", errors="replace") as fh:
-            for line in fh:
-                s = line.strip()
-                if s and not s.startswith("#"):  # data or a header: as read_table splits it
-                    return len(_fields(s, "," in s))
-    except OSError:
-        return 0  # read_table says why
-    return 0
 
 
 def _read_model(path: Path):

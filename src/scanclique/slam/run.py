@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .._outdir import remove_earlier_output
-from ..errors import ConfigError, ParseError
+from ..errors import ConfigError, DataNotFoundError, ParseError
 from .ekf import SlamConfig, SlamResult, ekf_slam
 from .metrics import (
     GpsError,
@@ -248,18 +248,30 @@ def summarise_smoothed(result: SlamResult, smoothed, model, gps_fixes=None, clut
 
 def _landmark_log_like(source) -> bool:
     """A landmark log, or a directory holding one of its files and none of Victoria
-    Park's (read as a landmark log, whose reader then says what it lacks)."""
+    Park's (read as a landmark log, whose reader then says what it lacks).
+
+    Raises
+    ------
+    DataNotFoundError
+        ``source`` is a directory holding no file of either (empty, or the wrong one),
+        naming what each would hold.
+    """
     if is_landmark_log(source):
         return True
     if not isinstance(source, (str, os.PathLike)) or os.fspath(source) == "victoria-park":
         return False
     d = Path(os.fspath(source)).expanduser()
-    own = (*LOG_FILES, *LOG_OPTIONAL)
-    return (
-        d.is_dir()
-        and any((d / f).is_file() for f in own)
-        and not any((d / f).is_file() for f in VP_FILES)
-    )
+    if not d.is_dir():
+        return False  # Victoria Park's reader says so, with where it looked
+    own = any((d / f).is_file() for f in (*LOG_FILES, *LOG_OPTIONAL))
+    vp = any((d / f).is_file() for f in VP_FILES)
+    if not own and not vp:
+        raise DataNotFoundError(
+            f"{d} holds neither a landmark log ({', '.join(LOG_FILES)}, and optionally "
+            f"{', '.join(LOG_OPTIONAL)}; see scanclique.slam.read_landmark_log) nor the "
+            f"Victoria Park data ({', '.join(VP_FILES)})"
+        )
+    return own and not vp
 
 
 def truth_rows(te: TruthError) -> dict:
