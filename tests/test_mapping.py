@@ -439,3 +439,35 @@ def test_a_log_placed_mostly_by_its_prior_is_said(office_drive, caplog):
     with caplog.at_level("WARNING", logger="scanclique"):
         map_scans(office_drive)
     assert "placed by their prior" not in caplog.text
+
+
+def test_timestamps_going_back_are_said_and_the_order_kept(office_drive, caplog, tmp_path):
+    """Two scans swapped in a log: mapped in the order given (the poses stay with their
+    scans), with a warning naming the first scan whose time goes back; the map's
+    trajectory.tum keeps the order. An ordered log is quiet."""
+    import dataclasses
+
+    from scanclique.mapping import OnlineMapper
+    from scanclique.mapping.pipeline import warn_time_order
+
+    scans = list(office_drive[:12])
+    scans[5] = dataclasses.replace(scans[5], timestamp=scans[6].timestamp + 0.01)
+    with caplog.at_level("WARNING", logger="scanclique"):
+        r = map_scans(scans)
+    assert len(r.poses) == len(scans) and all(p is not None for p in r.poses)
+    assert "1 scans have a timestamp earlier than the scan before them, by up to 0.0" in (
+        caplog.text
+    )
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="scanclique"):
+        online = OnlineMapper()
+        for s in scans:
+            online.add(s)
+        online.finish()
+    assert "(the first: scan 6 at" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="scanclique"):
+        assert warn_time_order(office_drive) == 0
+        no_time = [dataclasses.replace(s, timestamp=None) for s in scans]
+        assert warn_time_order(no_time) == 0
+    assert "earlier than" not in caplog.text

@@ -49,6 +49,7 @@ from .pipeline import (
     check_iterable_of_scans,
     check_odometry,
     map_scans,
+    warn_time_order,
     warn_unmatched,
 )
 
@@ -228,6 +229,7 @@ class OnlineMapper:
             m.verifier.close()
         self._result = m.result(t - self._busy)
         warn_unmatched(self._result)
+        warn_time_order(m.scans)
         if m.odo:
             self._result = check_odometry(m.scans, self._result)
         return self._result

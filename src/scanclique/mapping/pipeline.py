@@ -1118,6 +1118,7 @@ def map_scans(
         m.verifier.close()
     result = m.result(t0)
     warn_unmatched(result)
+    warn_time_order(scans)
     if aside is not None:
         return replace(result, odometry_scale=aside)
     return check_odometry(scans, result) if use_odometry else result
@@ -1143,6 +1144,26 @@ def warn_unmatched(result: MapResult) -> None:
         "matching; the commonest reason (%d scans): %s",
         len(prior), n, count, why,
     )  # fmt: skip
+
+
+def warn_time_order(scans: Sequence[Scan]) -> int:
+    """Warn when a scan's timestamp is earlier than that of the scan before it, and return
+    how many are. The scans are mapped in the order given (a log's order, the sensor's),
+    and ``trajectory.tum`` keeps that order: a tool that pairs its poses by time (with a
+    reference, or with another sensor) expects increasing times. Equal timestamps and
+    scans without one are not counted."""
+    t = np.array([np.nan if s.timestamp is None else s.timestamp for s in scans], float)
+    back = np.flatnonzero(np.diff(t) < 0)  # a NaN on either side compares False
+    if len(back):
+        k = int(back[0]) + 1
+        log.warning(
+            "%d scans have a timestamp earlier than the scan before them, by up to %.3g s "
+            "(the first: scan %d at %.6f s, after %.6f s); they are mapped in the order "
+            "given, and trajectory.tum keeps it (evo_traj --full_check calls that 'not "
+            "ascending')",
+            len(back), -np.diff(t)[back].min(), k, t[k], t[k - 1],
+        )  # fmt: skip
+    return len(back)
 
 
 #: :func:`map_scans` warns when the odometry's steps point more than this many degrees away
