@@ -12,7 +12,7 @@ from conftest import assert_clean_error
 from typer.testing import CliRunner
 
 from scanclique import cli, slam
-from scanclique.errors import ConfigError, DataNotFoundError, ParseError
+from scanclique.errors import ArgumentError, ConfigError, DataNotFoundError, ParseError
 from scanclique.slam.metrics import truth_error
 from scanclique.slam.outputs import write_landmark_log
 from scanclique.slam.run import run_slam, victoria_park_model
@@ -307,3 +307,97 @@ def test_victoria_park_written_as_a_landmark_log_runs_the_same(data_dir, tmp_pat
     want = slam.ekf_slam(first, victoria_park_model())
     got = slam.ekf_slam(log.steps[:4000], log.model)
     assert np.array_equal(want.poses, got.poses) and np.array_equal(want.landmarks, got.landmarks)
+
+
+def test_controls_from_odometry_inverts_the_unicycle_step():
+    rng = np.random.default_rng(3)
+    t = np.r_[0.0, np.cumsum(rng.uniform(0.01, 0.05, 299))]
+    u = np.column_stack([rng.uniform(-0.5, 1.0, 300), rng.uniform(-1.5, 1.5, 300)])
+    poses = [np.array([1.0, -2.0, 3.0])]  # near +-pi: the turns wrap across it
+    for k in range(299):
+        poses.append(slam.Unicycle().predict(poses[-1], u[k], t[k + 1] - t[k])[0])
+    c = slam.controls_from_odometry(t, np.array(poses))
+    assert np.array_equal(c[:, 0], t) and c[-1, 1:].tolist() == [0.0, 0.0]
+    assert np.allclose(c[:-1, 1:], u[:-1], atol=1e-9)
+    # an arc of a quarter turn in one interval: as far as the chord, turning as much
+    c = slam.controls_from_odometry([0.0, 1.0], [[0, 0, 0], [1, 1, math.pi / 2]])
+    assert c[0, 1:] == pytest.approx([math.sqrt(2.0), math.pi / 2])
+    # standing still twice at one time is taken; turning on the spot has no speed
+    c = slam.controls_from_odometry([0, 1, 1, 2], [[0, 0, 0], [0, 0, 1], [0, 0, 1], [0, 0, 0]])
+    assert c[:, 1].tolist() == [0.0, 0.0, 0.0, 0.0] and c[0, 2] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(
+    "times, poses, words",
+    [
+        ([0, 1], [[0, 0, 0]], "times must be (N,) and poses (N, 3)"),
+        ([0, 1, 0.5], [[0, 0, 0]] * 3, "row 2: time goes back"),
+        ([0, 1, 1], [[0, 0, 0], [1, 0, 0], [2, 0, 0]], "row 2: the pose moves in no time"),
+        ([0, np.nan], [[0, 0, 0]] * 2, "row 1: not finite"),
+    ],
+)
+def test_controls_from_odometry_refuses_what_it_cannot_take(times, poses, words):
+    with pytest.raises(ArgumentError) as e:
+        slam.controls_from_odometry(times, poses)
+    assert words in str(e.value)
+
+
+def test_sideways_odometry_is_told(caplog):
+    t = np.arange(20.0)
+    sideways = np.column_stack([np.zeros(20), 0.1 * t, np.zeros(20)])  # heading x, moving y
+    with caplog.at_level("WARNING", logger="scanclique"):
+        c = slam.controls_from_odometry(t, sideways)
+    assert "100% of the odometry's path runs across its heading" in caplog.text
+    assert np.allclose(np.abs(c[:-1, 1]), 0.1)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="scanclique"):
+        slam.controls_from_odometry(t, np.column_stack([0.1 * t, np.zeros(20), np.zeros(20)]))
+    assert "across its heading" not in caplog.text
+
+
+def _odometry_of(steps):
+    """Odometry poses (time x y theta) that the steps' controls move a unicycle through
+    (one Euler step per control), ending at the last step's time."""
+    ctrl = [(s.time, s.control) for s in steps if s.control is not None]
+    rows, pose = [], np.zeros(3)
+    ends = [t for t, _ in ctrl[1:]] + [steps[-1].time]
+    for (t, u), end in zip(ctrl, ends, strict=True):
+        rows.append([t, *pose])
+        pose = slam.Unicycle().predict(pose, u, end - t)[0]
+    rows.append([steps[-1].time, *pose])
+    return np.array(rows)
+
+
+def test_a_landmark_log_of_odometry_poses_runs_as_its_controls(room, room_log, tmp_path):
+    """odometry.txt for controls.txt: the controls it gives are the log's (one Euler step
+    per control), and the run the same."""
+    import shutil
+
+    d = tmp_path / "odo"
+    shutil.copytree(room_log, d)
+    (d / "controls.txt").unlink()
+    odo = _odometry_of(room.steps)
+    np.savetxt(d / "odometry.txt", odo, fmt="%.17g", header="time x y theta", comments="")
+    a, b = slam.read_landmark_log(room_log), slam.read_landmark_log(d)
+    assert len(a.steps) == len(b.steps)
+    for s, u in zip(a.steps[:-1], b.steps[:-1], strict=True):  # the last: after the odometry
+        assert s.time == u.time and np.array_equal(s.observations, u.observations)
+        if s.control is not None:
+            assert np.allclose(s.control, u.control, atol=1e-9)
+    cfg = room_config()
+    ra = slam.ekf_slam(a.steps[:-1], a.model, config=cfg)
+    rb = slam.ekf_slam(b.steps[:-1], b.model, config=cfg)
+    assert np.allclose(ra.poses, rb.poses, atol=1e-6)
+    r = CliRunner().invoke(cli.app, ["slam", str(d), "--out", str(tmp_path / "o"), "--json"])
+    assert r.exit_code == 0, r.output
+    # both files: which one moves the robot is not guessed
+    (d / "controls.txt").write_text("0 0 0\n")
+    with pytest.raises(ParseError, match="odometry.txt: is beside controls.txt"):
+        slam.read_landmark_log(d)
+    (d / "controls.txt").unlink()
+    (d / "odometry.txt").write_text("time x y theta\n0 0 0 0\n1 1 0 0\n1 2 0 0\n")
+    with pytest.raises(ParseError, match=r"odometry.txt:4: the pose moves in no time"):
+        slam.read_landmark_log(d)
+    (d / "model.toml").write_text('kind = "ackermann"\n')
+    with pytest.raises(ConfigError, match="odometry.txt gives a unicycle's controls"):
+        slam.read_landmark_log(d)

@@ -23,7 +23,7 @@ from .association import (
     point_distance_invariants,
 )
 from .ekf import SlamConfig, SlamResult, ekf_slam
-from .models import Ackermann, MotionModel, Unicycle, wrap
+from .models import Ackermann, MotionModel, Unicycle, controls_from_odometry, wrap
 from .reader import (
     LandmarkLog,
     Step,
@@ -48,6 +48,7 @@ __all__ = [
     "Ackermann",
     "MotionModel",
     "Unicycle",
+    "controls_from_odometry",
     "wrap",
     "LandmarkLog",
     "Step",

@@ -23,6 +23,7 @@ left wheel, laser ahead of the rear axle).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, fields
 from typing import ClassVar
@@ -31,7 +32,21 @@ import numpy as np
 
 from ..errors import ArgumentError, ConfigError
 
-__all__ = ["wrap", "MotionModel", "Ackermann", "Unicycle", "observe", "inverse_observe"]
+__all__ = [
+    "wrap",
+    "MotionModel",
+    "Ackermann",
+    "Unicycle",
+    "controls_from_odometry",
+    "observe",
+    "inverse_observe",
+]
+
+log = logging.getLogger(__name__)
+
+#: :func:`controls_from_odometry` warns when more than this fraction of the odometry's path
+#: runs across its heading (a heading not in radians, or not the wheels')
+SIDEWAYS_WARNING = 0.2
 
 
 def wrap(angle):
@@ -329,6 +344,104 @@ class Unicycle(MotionModel):
         if type(self) is not Unicycle:
             return None
         return 1, np.array([self.sigma_v, self.sigma_v_rel, self.sigma_omega])
+
+
+def controls_from_odometry(times, poses) -> np.ndarray:
+    """The controls of a :class:`Unicycle` that move it through wheel odometry given as
+    poses: ``(time, v m/s, omega rad/s)`` rows, as a landmark log's ``controls.txt`` holds
+    them, for odometry that comes as ``x, y, theta`` of the robot (a ``nav_msgs/Odometry``
+    pose, a CARMEN ``ODOM`` line, a data set's odometry file).
+
+    Over each interval between consecutive poses, ``omega`` is the heading change (wrapped
+    to (-pi, pi]) over the interval's time and ``v`` the distance moved over it, negative
+    when the robot moved backwards (its displacement points behind its heading half-way
+    through the turn). A :meth:`Unicycle.predict` step with these controls moves exactly
+    as far and turns exactly as much as the odometry; the direction of its move differs
+    by half the interval's turn (the Euler step's usual first-order error, which the
+    filter's slip covers). A pose's own frame does not matter (only increments are used).
+    Motion across the heading is not a unicycle's and is left out: when more than
+    :data:`SIDEWAYS_WARNING` of the path runs across it, a warning asks whether theta is
+    in radians and the robot's (its wheels', not a sensor's mounted turned).
+
+    Parameters
+    ----------
+    times : (N,) array_like
+        Seconds, increasing (equal times only for equal poses).
+    poses : (N, 3) array_like
+        ``x, y`` in metres and ``theta`` in radians, counter-clockwise.
+
+    Returns
+    -------
+    (N, 3) ndarray
+        One row per pose: the control from that pose to the next; the last row ``(time,
+        0, 0)`` (no motion after the odometry ends).
+
+    Raises
+    ------
+    ArgumentError
+        Shapes that do not match, values not finite, a time going back, or a move in no
+        time (the row named, 0-based).
+
+    Examples
+    --------
+    >>> c = controls_from_odometry([0.0, 2.0], [[0.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+    >>> c.tolist()  # two metres backwards in two seconds, then standing
+    [[0.0, -1.0, 0.0], [2.0, 0.0, 0.0]]
+    """
+    t = np.asarray(times, dtype=float)
+    p = np.asarray(poses, dtype=float)
+    if t.ndim != 1 or p.ndim != 2 or p.shape != (len(t), 3):
+        raise ArgumentError(
+            f"controls_from_odometry: times must be (N,) and poses (N, 3), got {t.shape} and "
+            f"{p.shape}"
+        )
+    fault = odometry_fault(t, p)
+    if fault is not None:
+        raise ArgumentError(f"controls_from_odometry: row {fault[0]}: {fault[1]}")
+    dt = np.diff(t)
+    c, s = np.cos(p[:-1, 2]), np.sin(p[:-1, 2])
+    dx, dy = np.diff(p[:, 0]), np.diff(p[:, 1])
+    fwd, side = c * dx + s * dy, -s * dx + c * dy  # in the frame of the interval's start
+    turn = wrap(np.diff(p[:, 2]))
+    h = 0.5 * turn
+    along = np.cos(h) * fwd + np.sin(h) * side  # along the heading half-way through
+    dist = np.hypot(dx, dy)
+    moved = dt > 0
+    out = np.zeros((len(t), 3))
+    out[:, 0] = t
+    out[:-1, 1] = np.where(moved, np.copysign(dist, along) / np.where(moved, dt, 1.0), 0.0)
+    out[:-1, 2] = np.where(moved, turn / np.where(moved, dt, 1.0), 0.0)
+    path = dist.sum()
+    across = np.abs(np.cos(h) * side - np.sin(h) * fwd).sum()
+    if path > 0 and across > SIDEWAYS_WARNING * path:
+        log.warning(
+            "%.0f%% of the odometry's path runs across its heading: is theta in radians, "
+            "and the heading of the robot (of its wheels' axle, not of a sensor mounted "
+            "turned)? A unicycle moves along its heading; the sideways part is left out",
+            100.0 * across / path,
+        )
+    return out
+
+
+def odometry_fault(times: np.ndarray, poses: np.ndarray) -> tuple[int, str] | None:
+    """The first row (0-based) of odometry ``times`` (N,) and ``poses`` (N, 3) that
+    :func:`controls_from_odometry` cannot take, with what is wrong, or None: a value not
+    finite, a time before the row before it, or a pose other than the row before it at
+    the same time."""
+    bad = ~np.isfinite(times) | ~np.isfinite(poses).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        return i, f"not finite: time {times[i]}, pose {poses[i].tolist()}"
+    dt = np.diff(times)
+    still = (np.diff(poses, axis=0) == 0).all(axis=1)
+    wrong = (dt < 0) | ((dt == 0) & ~still)
+    if not wrong.any():
+        return None
+    i = int(np.flatnonzero(wrong)[0]) + 1
+    if dt[i - 1] < 0:
+        return i, f"time goes back: {times[i]} after {times[i - 1]}"
+    a, b = poses[i - 1].tolist(), poses[i].tolist()
+    return i, f"the pose moves in no time: {a} -> {b} at {times[i]} s"
 
 
 def observe(state, landmarks, sensor_x: float = 0.0, sensor_y: float = 0.0):

@@ -499,6 +499,8 @@ def read_gps(source: str | os.PathLike = DATASET_NAME) -> np.ndarray:
 #: needs, then the optional ones.
 LOG_FILES = ("controls.txt", "observations.txt")
 LOG_OPTIONAL = ("truth.txt", "landmarks.txt", "gps.txt", "model.toml")
+#: the file a landmark log may hold instead of ``controls.txt``: wheel odometry as poses
+LOG_ODOMETRY = "odometry.txt"
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -568,7 +570,15 @@ def is_landmark_log(source) -> bool:
     if not isinstance(source, (str, os.PathLike)):
         return False
     d = Path(os.fspath(source)).expanduser()
-    return d.is_dir() and all((d / f).is_file() for f in LOG_FILES)
+    return d.is_dir() and all((d / f).is_file() for f in _log_files(d))
+
+
+def _log_files(d: Path) -> tuple[str, str]:
+    """The two files a landmark log in ``d`` needs: :data:`LOG_FILES`, with
+    :data:`LOG_ODOMETRY` for ``controls.txt`` when ``d`` holds that and not the other."""
+    if (d / LOG_ODOMETRY).exists() and not (d / LOG_FILES[0]).exists():
+        return LOG_ODOMETRY, LOG_FILES[1]
+    return LOG_FILES
 
 
 def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
@@ -583,6 +593,9 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     * ``controls.txt``: ``time c1 c2``, each control holding until the next: ``(v m/s,
       omega rad/s)`` of a :class:`~scanclique.slam.Unicycle` (the default model), or
       ``(speed m/s, steering rad)`` of an :class:`~scanclique.slam.Ackermann`;
+    * or, instead of ``controls.txt``, ``odometry.txt``: ``time x y theta``, the wheel
+      odometry as poses (metres, radians), made into a :class:`~scanclique.slam.Unicycle`'s
+      controls by :func:`~scanclique.slam.controls_from_odometry`;
     * ``observations.txt``: ``time range bearing [attribute]``, range in metres, bearing
       in radians counter-clockwise from the vehicle's heading, in the sensor's frame
       (where ``model.toml`` puts it on the vehicle); rows with the same time are one
@@ -625,15 +638,28 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     if not isinstance(directory, (str, os.PathLike)):
         raise ArgumentError(f"expected a directory path, got {type(directory).__name__}")
     d = Path(os.fspath(directory)).expanduser()
-    holds = f"{', '.join(LOG_FILES)}, and optionally {', '.join(LOG_OPTIONAL)}"
+    holds = (
+        f"{', '.join(LOG_FILES)} (or {LOG_ODOMETRY} for controls.txt), and optionally "
+        f"{', '.join(LOG_OPTIONAL)}"
+    )
+    files = _log_files(d)
     _require_files(
         d,
-        LOG_FILES,
+        files,
         "landmark log",
         f"{d} is not a directory (expected one holding {holds})",
         f"(expected {holds})",
     )
-    controls = read_table(d / "controls.txt", ("time", "c1", "c2"))
+    if files[0] == LOG_ODOMETRY:
+        controls = None  # from the odometry, once the model is known
+    elif (d / LOG_ODOMETRY).exists():
+        raise ParseError(
+            str(d / LOG_ODOMETRY),
+            None,
+            "is beside controls.txt: the motion comes from one of them (remove one)",
+        )
+    else:
+        controls = read_table(d / "controls.txt", ("time", "c1", "c2"))
     obs_path = d / "observations.txt"
     meas = read_table(obs_path, ("time", "range", "bearing"), optional=("attribute",))
     bad = np.flatnonzero((meas[:, 1] < 0) | (np.abs(meas[:, 2]) > MAX_ANGLE_SPAN))
@@ -661,6 +687,8 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
             _regular(path)
             tables[name] = read_table(path, columns, ordered=ordered)
     model = _read_model(d / "model.toml")
+    if controls is None:
+        controls = _odometry_controls(d / LOG_ODOMETRY, model)
     return LandmarkLog(
         steps_from_arrays(controls, meas),
         model,
@@ -669,6 +697,24 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
         d,
         tables.get("gps.txt"),
     )
+
+
+def _odometry_controls(path: Path, model) -> np.ndarray:
+    """The controls table (``time c1 c2``) of a landmark log's ``odometry.txt`` (``time
+    x y theta``) for ``model``, which must be a :class:`~scanclique.slam.Unicycle`."""
+    from .models import Unicycle, controls_from_odometry, odometry_fault
+
+    if not isinstance(model, Unicycle):
+        raise ConfigError(
+            f"{path.parent / 'model.toml'}: {LOG_ODOMETRY} gives a unicycle's controls; a "
+            f"{type(model).__name__} takes controls.txt (its own controls)"
+        )
+    _regular(path)
+    odo = read_table(path, ("time", "x", "y", "theta"))
+    fault = odometry_fault(odo[:, 0], odo[:, 1:])
+    if fault is not None:
+        raise ParseError(str(path), _line_of(path, fault[0]), fault[1])
+    return controls_from_odometry(odo[:, 0], odo[:, 1:])
 
 
 def _regular(path: Path) -> None:

@@ -34,6 +34,7 @@ from .models import Ackermann
 from .reader import FILES as VP_FILES
 from .reader import (
     LOG_FILES,
+    LOG_ODOMETRY,
     LOG_OPTIONAL,
     Step,
     is_landmark_log,
@@ -263,11 +264,12 @@ def _landmark_log_like(source) -> bool:
     d = Path(os.fspath(source)).expanduser()
     if not d.is_dir():
         return False  # Victoria Park's reader says so, with where it looked
-    own = any((d / f).is_file() for f in (*LOG_FILES, *LOG_OPTIONAL))
+    own = any((d / f).is_file() for f in (*LOG_FILES, LOG_ODOMETRY, *LOG_OPTIONAL))
     vp = any((d / f).is_file() for f in VP_FILES)
     if not own and not vp:
         raise DataNotFoundError(
-            f"{d} holds neither a landmark log ({', '.join(LOG_FILES)}, and optionally "
+            f"{d} holds neither a landmark log ({', '.join(LOG_FILES)} (or {LOG_ODOMETRY} "
+            f"for controls.txt), and optionally "
             f"{', '.join(LOG_OPTIONAL)}; see scanclique.slam.read_landmark_log) nor the "
             f"Victoria Park data ({', '.join(VP_FILES)})"
         )
