@@ -260,7 +260,7 @@ def test_bad_bags(tmp_path, carmen_scans):
     with Writer(no_scan) as w:
         co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
         w.write(co, 1, ts.serialize_ros1(odom(1.0, Pose2(0, 0, 0), 0), "nav_msgs/msg/Odometry"))
-    with pytest.raises(ParseError, match="holds no sensor_msgs/LaserScan topic"):
+    with pytest.raises(ParseError, match=r"holds no sensor_msgs/LaserScan \(or MultiEcho"):
         read_bag(no_scan)
 
 
@@ -333,7 +333,7 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
         if k % 2 == 0:
             rows.append(("/rear/scan", t_ns + 1, laser(s, k)))
     _write_bag2(path, rows)
-    with pytest.raises(ParseError, match=r"several LaserScan topics .*read_scans' laser="):
+    with pytest.raises(ParseError, match=r"several laser topics .*read_scans' laser="):
         sc.read_scans(path)
     assert len(sc.read_scans(path, laser="/front/scan")) == 6
     assert len(sc.read_scans(path, laser="/rear/scan")) == 3
@@ -464,3 +464,62 @@ def test_a_laser_mounted_backwards_is_mapped_through_its_mounting(tmp_path, carm
         plain = read_bag(bare)
     assert "no transform from base_link/base_footprint to the scans' frame 'laser'" in caplog.text
     assert plain[3].odometry.distance_to(robot[3].odometry)[0] < 1e-6
+
+
+@pytest.mark.parametrize("ros1", [True, False])
+def test_multi_echo_scans_read_their_first_echoes(tmp_path, ros1):
+    """sensor_msgs/MultiEchoLaserScan (Cartographer's Deutsches Museum bags, a Hokuyo
+    UTM-30LX-EW): each beam's first echo, NaN for a beam with none; mapped as the
+    LaserScan of the same ranges."""
+    from scanclique import map_scans
+
+    scans = _drive(4, 6)
+    store = Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE
+    ts = get_typestore(store)
+    T = ts.types
+    laser, _, tf = _msgs(ts, ros1=ros1)
+    kind = "sensor_msgs/msg/MultiEchoLaserScan"
+
+    def echoes(scan):
+        out = []
+        for i, r in enumerate(np.asarray(scan.ranges, np.float32)):
+            e = [] if i % 17 == 5 else [r, r + 2.0] if i % 3 == 0 else [r]  # none, two, one
+            out.append(T["sensor_msgs/msg/LaserEcho"](echoes=np.array(e, np.float32)))
+        return out
+
+    def multi(scan, k):
+        m = laser(scan, k)
+        fields = {f: getattr(m, f) for f in m.__dataclass_fields__ if f != "__msgtype__"}
+        fields.update(ranges=echoes(scan), intensities=[])
+        return T[kind](**fields)
+
+    if ros1:
+        from rosbags.rosbag1 import Writer
+
+        path = tmp_path / "multi.bag"
+        with Writer(path) as w:
+            c = w.add_connection("/horizontal_laser_2d", kind, typestore=ts)
+            for k, s in enumerate(scans):
+                w.write(c, int(s.timestamp * 1e9), ts.serialize_ros1(multi(s, k), kind))
+    else:
+        path = tmp_path / "multi2"
+        _write_bag2(path, (("/horizontal_laser_2d", int(s.timestamp * 1e9), multi(s, k))
+                           for k, s in enumerate(scans)))  # fmt: skip
+    back = read_bag(path)
+    assert len(back) == len(scans) and all(b.odometry is None for b in back)
+    for s, b in zip(scans, back, strict=True):
+        none = np.arange(s.n_beams) % 17 == 5
+        assert np.isnan(b.ranges[none]).all()
+        np.testing.assert_allclose(b.ranges[~none], s.ranges[~none], rtol=1e-6, atol=1e-5)
+        np.testing.assert_allclose(b.angles, s.angles, atol=1e-6)
+    # the same ranges as a LaserScan bag (NaN where no echo): the same scans, the same map
+    holed = [dataclasses.replace(s, ranges=b.ranges) for s, b in zip(scans, back, strict=True)]
+    plain = tmp_path / "plain"
+    _write_bag2(plain, (("/scan", int(s.timestamp * 1e9), _ros2_msgs()[0](s, k))
+                        for k, s in enumerate(holed)))  # fmt: skip
+    ref = read_bag(plain)
+    for a, b in zip(ref, back, strict=True):
+        assert np.array_equal(a.ranges, b.ranges, equal_nan=True)
+        assert np.array_equal(a.angles, b.angles) and a.range_max == b.range_max
+    a, m = map_scans(ref), map_scans(back)
+    assert a.poses == m.poses and sum(p == "match" for p in m.placed_by) >= 4

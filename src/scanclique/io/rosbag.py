@@ -1,11 +1,16 @@
 """Reader for ROS 1 (``.bag``) and ROS 2 (directory with ``metadata.yaml``, ``.db3``,
 ``.mcap``) bags through ``rosbags`` (pure Python, no ROS install): ``sensor_msgs/LaserScan``
-messages become :class:`~scanclique.scan.Scan` records.
+and ``sensor_msgs/MultiEchoLaserScan`` messages become :class:`~scanclique.scan.Scan`
+records.
 
 Conventions
 -----------
-* **Topic.** ``topic`` names the LaserScan topic; when None, the bag must hold exactly
-  one LaserScan topic.
+* **Topic.** ``topic`` names the laser's topic; when None, the bag must hold exactly
+  one LaserScan or MultiEchoLaserScan topic.
+* **Echoes.** Of a ``MultiEchoLaserScan`` (a Hokuyo UTM-30LX-EW's, the 2D lasers of
+  Cartographer's Deutsches Museum bags) each beam's first echo is its range (the one
+  Cartographer takes too), and a beam with no echo is NaN (no reading: no point, and no
+  free space painted along it).
 * **Beams.** ``angle_min + i * angle_increment``; ``range_min`` / ``range_max`` from the
   message (ranges outside are kept and masked by :class:`Scan`). A message with a negative
   ``angle_increment`` (a scanner mounted upside down) is reversed into increasing angles.
@@ -59,9 +64,12 @@ from ..scan import Scan
 
 log = logging.getLogger(__name__)
 
-__all__ = ["read_bag", "mounting", "LASERSCAN", "ODOMETRY", "TF"]
+__all__ = ["read_bag", "mounting", "LASERSCAN", "MULTIECHO", "LASERS", "ODOMETRY", "TF"]
 
 LASERSCAN = ("sensor_msgs/msg/LaserScan", "sensor_msgs/LaserScan")
+MULTIECHO = ("sensor_msgs/msg/MultiEchoLaserScan", "sensor_msgs/MultiEchoLaserScan")
+#: the message types of a laser's topic
+LASERS = LASERSCAN + MULTIECHO
 ODOMETRY = ("nav_msgs/msg/Odometry", "nav_msgs/Odometry")
 TF = ("tf2_msgs/msg/TFMessage", "tf2_msgs/TFMessage", "tf/tfMessage", "tf/msg/tfMessage")
 
@@ -101,6 +109,12 @@ def _wrap_beams(r: np.ndarray, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     if not np.all(np.diff(wrapped[order]) > 0):
         return r, ang
     return r[order], wrapped[order]
+
+
+def _first_echoes(echoes) -> list[float]:
+    """The ranges of a ``MultiEchoLaserScan``'s beams (``sensor_msgs/LaserEcho``): each
+    one's first echo, NaN for a beam with none."""
+    return [e.echoes[0] if len(e.echoes) else math.nan for e in echoes]
 
 
 def _rotation(q) -> np.ndarray:
@@ -236,28 +250,33 @@ def read_bag(
         ) from None
     try:
         conns = list(reader.connections)
-        scans_c = [c for c in conns if c.msgtype in LASERSCAN]
+        scans_c = [c for c in conns if c.msgtype in LASERS]
         if topic is not None:
             named = [c for c in conns if c.topic == topic]
             if not named:
                 have = sorted({c.topic for c in conns})
                 raise ParseError(name, None, f"topic {topic!r} is not in the bag (topics: {have})")
-            bad = [c for c in named if c.msgtype not in LASERSCAN]
+            bad = [c for c in named if c.msgtype not in LASERS]
             if bad:
                 raise ParseError(
                     name, None,
-                    f"topic {topic!r} holds {bad[0].msgtype}, expected sensor_msgs/LaserScan",
+                    f"topic {topic!r} holds {bad[0].msgtype}, expected sensor_msgs/LaserScan "
+                    "or MultiEchoLaserScan",
                 )  # fmt: skip
             scans_c = named
         else:
             topics = sorted({c.topic for c in scans_c})
             if not topics:
-                raise ParseError(name, None, "the bag holds no sensor_msgs/LaserScan topic")
+                raise ParseError(
+                    name,
+                    None,
+                    "the bag holds no sensor_msgs/LaserScan (or MultiEchoLaserScan) topic",
+                )
             if len(topics) > 1:
                 raise ParseError(
                     name,
                     None,
-                    f"the bag holds several LaserScan topics {topics}: name one (read_bag's "
+                    f"the bag holds several laser topics {topics}: name one (read_bag's "
                     "topic=, read_scans' laser=, the CLI's --topic or --laser)",
                 )
             topic = topics[0]
@@ -344,9 +363,12 @@ def read_bag(
                 msg = reader.deserialize(raw, c.msgtype)
             except Exception as exc:  # noqa: BLE001
                 raise ParseError(
-                    name, None, f"{c.topic} message {k}: cannot deserialise LaserScan ({exc})"
+                    name,
+                    None,
+                    f"{c.topic} message {k}: cannot deserialise {c.msgtype.split('/')[-1]} ({exc})",
                 ) from None
-            r = np.asarray(msg.ranges, dtype=float)
+            r = _first_echoes(msg.ranges) if c.msgtype in MULTIECHO else msg.ranges
+            r = np.asarray(r, dtype=float)
             inc = float(msg.angle_increment)
             a0 = float(msg.angle_min)
             if not (math.isfinite(inc) and math.isfinite(a0)) or inc == 0.0:
