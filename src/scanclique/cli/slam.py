@@ -34,8 +34,9 @@ def slam(
         str,
         typer.Argument(
             help="'victoria-park' (in the shared data directory) or its directory, or a "
-            "landmark log: a directory with controls.txt (time c1 c2) and "
-            "observations.txt (time range bearing [attribute]), optionally truth.txt "
+            "landmark log: a directory with controls.txt (time c1 c2; or odometry.txt, "
+            "time x y theta, for a unicycle) and observations.txt (time range bearing "
+            "[attribute]), optionally truth.txt "
             "(time x y theta), landmarks.txt (x y), gps.txt (time x y) and model.toml "
             "(kind = 'unicycle' or 'ackermann' and its parameters)."
         ),

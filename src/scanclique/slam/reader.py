@@ -570,10 +570,10 @@ def is_landmark_log(source) -> bool:
     if not isinstance(source, (str, os.PathLike)):
         return False
     d = Path(os.fspath(source)).expanduser()
-    return d.is_dir() and all((d / f).is_file() for f in _log_files(d))
+    return d.is_dir() and all((d / f).is_file() for f in log_files(d))
 
 
-def _log_files(d: Path) -> tuple[str, str]:
+def log_files(d: Path) -> tuple[str, str]:
     """The two files a landmark log in ``d`` needs: :data:`LOG_FILES`, with
     :data:`LOG_ODOMETRY` for ``controls.txt`` when ``d`` holds that and not the other."""
     if (d / LOG_ODOMETRY).exists() and not (d / LOG_FILES[0]).exists():
@@ -642,7 +642,7 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
         f"{', '.join(LOG_FILES)} (or {LOG_ODOMETRY} for controls.txt), and optionally "
         f"{', '.join(LOG_OPTIONAL)}"
     )
-    files = _log_files(d)
+    files = log_files(d)
     _require_files(
         d,
         files,

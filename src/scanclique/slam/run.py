@@ -38,6 +38,7 @@ from .reader import (
     LOG_OPTIONAL,
     Step,
     is_landmark_log,
+    log_files,
     read_gps,
     read_landmark_log,
     read_victoria_park,
@@ -324,7 +325,7 @@ def run_slam(
     smooth: bool = False,
 ) -> SlamRun:
     """Run EKF-SLAM on the Victoria Park data (a name or a directory), or on a landmark
-    log (a directory with ``controls.txt`` and ``observations.txt``,
+    log (a directory with ``controls.txt`` or ``odometry.txt``, and ``observations.txt``,
     :func:`~scanclique.slam.read_landmark_log`), and measure it.
 
     A landmark log is run with the motion model of its ``model.toml`` (a
@@ -366,7 +367,8 @@ def run_slam(
     pose0 = None
     if own is not None:
         steps, model, gps, name = own.steps, own.model, own.gps, own.directory.name
-        where, files_ = own.directory, "controls.txt and observations.txt"
+        where = own.directory
+        files_ = f"{log_files(where)[0]} and observations.txt"
         pose0 = own.true_pose(steps[0].time) if steps else None
     else:
         steps, model, name = read_victoria_park(source), victoria_park_model(), "Victoria Park"
