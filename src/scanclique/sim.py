@@ -51,11 +51,13 @@ __all__ = [
     "corridor_world",
     "office_world",
     "random_world",
+    "ring_world",
     "cast_rays",
     "simulate_scan",
     "simulate_pair",
     "simulate_trajectory",
     "simulate_sensor_drive",
+    "simulate_ring_drive",
 ]
 
 # Building dimensions at laser scale, metres (low, high).
@@ -717,6 +719,56 @@ def office_world(
         _check_count(where, clutter=n_clutter)
         b.furnish(rect, pillars=int(k), clutter=n_clutter)
     return b.build(f"office: {len(rooms)} rooms off a {L:.1f} x {W:.1f} m corridor")
+
+
+def ring_world(
+    rng: np.random.Generator,
+    length: float = 60.0,
+    width: float = 40.0,
+    *,
+    corridor: float = 2.5,
+    door_every: float = 7.0,
+) -> World:
+    """A ring corridor round a solid block: a building's loop, the kind a mapper closes
+    after a long drive (MIT's Killian Court, the ACES building).
+
+    The outer walls span ``[0, length] x [0, width]``, the block ``[corridor, length -
+    corridor] x [corridor, width - corridor]``. Each of the eight walls has closed doors
+    (0.8-1 m gaps with a 0.15-0.5 m recess behind them) at random, about one every
+    ``door_every`` metres. The four corners are alike: a quarter turn round, one looks
+    like the next (the look-alike :class:`~scanclique.mapping.LoopConfig`'s ``max_turn``
+    refuses).
+
+    Raises
+    ------
+    ConfigError
+        A size that is not positive, or a corridor that leaves no block (``2 * corridor
+        >= min(length, width)``).
+    """
+    where = "ring_world"
+    _check_rng(rng, where)
+    _check_positive(where, length=length, width=width, corridor=corridor, door_every=door_every)
+    L, W, c = float(length), float(width), float(corridor)
+    if 2.0 * c >= min(L, W):
+        raise ConfigError(f"{where}: a {c} m corridor leaves no block in {L} x {W} m")
+    b = _Builder(rng)
+    # outer walls recess outwards, the block's inwards: away from the corridor
+    for (x0, y0, x1, y1), sign in (((0.0, 0.0, L, W), -1.0), ((c, c, L - c, W - c), 1.0)):
+        corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+        for p, q in zip(corners[:-1], corners[1:], strict=True):
+            p, q = np.array(p), np.array(q)
+            n = float(np.linalg.norm(q - p))
+            u = (q - p) / n
+            out = sign * np.array([-u[1], u[0]])  # left of a counter-clockwise wall: inside
+            gaps = b.gaps(n, max(1, int(n / door_every)), margin=1.5)
+            b.wall_with_gaps(p, q, gaps)
+            for centre, w in gaps:
+                e = float(rng.uniform(0.15, 0.5))
+                a0, a1 = p + (centre - w / 2) * u, p + (centre + w / 2) * u
+                b.polyline([a0, a0 + e * out, a1 + e * out, a1])
+    for x0, y0, x1, y1 in ((0, 0, L, c), (0, W - c, L, W), (0, 0, c, W), (L - c, 0, L, W)):
+        b.region(x0, y0, x1, y1)
+    return b.build(f"ring {L:.1f} x {W:.1f} m, corridor {c:.1f} m")
 
 
 def random_world(rng: np.random.Generator) -> World:
@@ -1453,3 +1505,92 @@ def _ride(u: Pose2, f: float) -> Pose2:
     """The fraction ``f`` of the straight ride ``u`` (its translation and its turn, each
     scaled by ``f``)."""
     return Pose2(f * u.x, f * u.y, f * u.theta)
+
+
+def _ring_centreline(length: float, width: float, corridor: float, s: np.ndarray, r: float):
+    """Poses (N, 3) at arc lengths ``s`` along the centre of :func:`ring_world`'s
+    corridor, counter-clockwise from its lower left, the corners rounded with radius
+    ``r``; ``s`` wraps round the loop."""
+    h = corridor / 2.0
+    straight = (length - 2.0 * h - 2.0 * r, width - 2.0 * h - 2.0 * r)
+    arc = 0.5 * math.pi * r
+    legs = [straight[0], arc, straight[1], arc] * 2
+    starts = np.cumsum([0.0, *legs[:-1]])
+    # where each straight starts, and its heading
+    begins = [(h + r, h, 0.0), (length - h, h + r, 0.5 * math.pi),
+              (length - h - r, width - h, math.pi), (h, width - h - r, -0.5 * math.pi)]  # fmt: skip
+    out = np.zeros((len(s), 3))
+    for n, x in enumerate(np.mod(s, sum(legs))):
+        k = min(int(np.searchsorted(starts, x, side="right")) - 1, 7)
+        d = x - starts[k]
+        x0, y0, th = begins[k // 2]
+        c, si = math.cos(th), math.sin(th)
+        if k % 2 == 0:  # along a straight
+            out[n] = (x0 + d * c, y0 + d * si, th)
+        else:  # a quarter turn left about the corner's centre, after the straight
+            end = straight[(k // 2) % 2]
+            cx, cy = x0 + end * c - r * si, y0 + end * si + r * c
+            phi = th + d / r
+            out[n] = (cx + r * math.sin(phi), cy - r * math.cos(phi), phi)
+    out[:, 2] = np.mod(out[:, 2] + math.pi, 2.0 * math.pi) - math.pi
+    return out
+
+
+def simulate_ring_drive(
+    rng: np.random.Generator,
+    *,
+    length: float = 60.0,
+    width: float = 40.0,
+    corridor: float = 2.5,
+    loops: float = 2.0,
+    step: float = 0.25,
+    trans_noise_per_m: float = 0.03,
+    rot_noise_per_m: float = 0.005,
+    rot_noise_per_rad: float = 0.02,
+    heading_bias_per_m: float = 0.003,
+    dt: float = 0.1,
+    n_beams: int = 181,
+    **scan_kw,
+) -> list[Scan]:
+    """Drive ``loops`` times round a :func:`ring_world` (drawn from ``rng``) along its
+    corridor's centre, counter-clockwise, a scan every ``step`` metres: a long loop that
+    a mapper must close, with every corner alike.
+
+    The odometry is that of :func:`simulate_trajectory` (noise per metre and per radian
+    of each step) with a steady heading drift of ``heading_bias_per_m`` rad per metre (a
+    wheel a little larger than the other: 0.003 rad/m turns the odometry 33 degrees over
+    a 190 m loop).
+
+    Returns
+    -------
+    list of Scan
+        With ``reference`` (true pose), ``odometry``, ``timestamp`` (``dt`` apart) and
+        ``source`` ``"sim:<index>"``; the first reference pose is the loop's start.
+    """
+    where = "simulate_ring_drive"
+    _check_positive(where, loops=loops, step=step, dt=dt)
+    _check_nonneg(
+        where,
+        trans_noise_per_m=trans_noise_per_m,
+        rot_noise_per_m=rot_noise_per_m,
+        rot_noise_per_rad=rot_noise_per_rad,
+    )
+    world = ring_world(rng, length, width, corridor=corridor)
+    r = min(0.8, 0.45 * corridor)
+    perimeter = 2.0 * (length + width - 4.0 * corridor / 2.0 - 4.0 * r) + 2.0 * math.pi * r
+    s = np.arange(0.0, loops * perimeter, step)
+    refs = [Pose2(*p) for p in _ring_centreline(length, width, corridor, s, r)]
+    odom = [refs[0]]
+    for prev, cur in zip(refs[:-1], refs[1:], strict=True):
+        u = prev.inverse() @ cur
+        dist = math.hypot(u.x, u.y)
+        s_t = trans_noise_per_m * dist
+        s_r = rot_noise_per_m * dist + rot_noise_per_rad * abs(u.theta)
+        n = rng.normal(0.0, 1.0, 3) * np.array([s_t, s_t, s_r])
+        th = u.theta + n[2] + heading_bias_per_m * dist
+        odom.append(odom[-1] @ Pose2(u.x + n[0], u.y + n[1], th))
+    return [
+        simulate_scan(world, ref, n_beams=n_beams, rng=rng, timestamp=i * dt, odometry=od,
+                      source=f"sim:{i}", **scan_kw)
+        for i, (ref, od) in enumerate(zip(refs, odom, strict=True))
+    ]  # fmt: skip

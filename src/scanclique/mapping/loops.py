@@ -53,7 +53,9 @@ class LoopClosure:
     ``covariance`` of its ``(x, y, theta)``; ``verdict`` is the §7 verdict
     (``accepted``, ``rejected_odometry`` meaning here *rejected by the estimate's prior*,
     ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``, ``"low_score"``,
-    ``"imprecise"`` (its covariance too loose: :class:`~.config.LoopConfig`) or
+    ``"imprecise"`` (its covariance too loose: :class:`~.config.LoopConfig`),
+    ``"turned"`` (it turns the estimate by more than ``max_turn``: a look-alike a quarter
+    or half turn round), ``"uncorroborated"`` or
     ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
     :func:`scanclique.refine.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the

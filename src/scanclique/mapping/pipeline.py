@@ -428,6 +428,25 @@ class _Mapper:
         est = self.estimate_of(i).inverse() @ self.estimate_of(j)
         return mahalanobis_sq(Z, P, est, _cov_xy_rot(s_xy, s_th)) > GATE_99
 
+    def turned(self, i: int, j: int, Z: Pose2) -> str:
+        """Why closure ``i``-``j`` (pose ``Z``) is refused as a turned look-alike, or "":
+        it turns the current estimate by more than ``loops.max_turn`` and by more than 3
+        sigma of the front end's own heading uncertainty between the two keyframes
+        (:meth:`front_std`)."""
+        est = self.estimate_of(i).inverse() @ self.estimate_of(j)
+        turn = abs(math.atan2(math.sin(Z.theta - est.theta), math.cos(Z.theta - est.theta)))
+        if turn <= self.lc.max_turn:
+            return ""
+        s_th = self.front_std(i, j)[1]
+        if turn <= 3.0 * s_th:
+            return ""
+        return (
+            f"turns the estimate by {math.degrees(turn):.0f} deg > loops.max_turn="
+            f"{math.degrees(self.lc.max_turn):.0f} deg and 3 sigma of the front end's own "
+            f"heading uncertainty ({math.degrees(3.0 * s_th):.1f} deg): a look-alike a "
+            "quarter or half turn round"
+        )
+
     def robust_scale(self, i: int, j: int, P: np.ndarray) -> float:
         """Scale of the robust kernel of closure ``i``-``j`` (covariance ``P``), in units of
         its own sigma: at least ``back_end.robust_scale``, and as large as the front end's
@@ -650,6 +669,10 @@ class _Mapper:
                             f"{lc.max_sigma_metres:.3f} / max_sigma_radians="
                             f"{math.degrees(lc.max_sigma_radians):.2f} deg"
                         )
+                if pose is not None and not local:
+                    why = self.turned(i, kidx, pose)
+                    if why:
+                        pose, verdict, reason = None, "turned", why
                 if pose is None:
                     self.closures.append(
                         LoopClosure(self.kf[i], self.kf[kidx], None, None, verdict, False,
