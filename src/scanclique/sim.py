@@ -1393,14 +1393,10 @@ def simulate_trajectory(
         else:
             raise ScanCliqueError(f"{where}: robot boxed in at {pose} after {i} steps")
     # 3. Odometry: true increments plus noise proportional to distance and turn.
-    odom = [refs[0] if odometry_start is None else odometry_start]
-    for prev, cur in zip(refs[:-1], refs[1:], strict=True):
-        u = prev.inverse() @ cur
-        dist = math.hypot(u.x, u.y)
-        s_t = trans_noise_per_m * dist
-        s_r = rot_noise_per_m * dist + rot_noise_per_rad * abs(u.theta)
-        n = rng.normal(0.0, 1.0, 3) * np.array([s_t, s_t, s_r])
-        odom.append(odom[-1] @ Pose2(u.x + n[0], u.y + n[1], u.theta + n[2]))
+    odom = _drifting_odometry(
+        rng, refs, refs[0] if odometry_start is None else odometry_start,
+        trans_noise_per_m, rot_noise_per_m, rot_noise_per_rad,
+    )  # fmt: skip
     # 4. Scans.
     return [
         simulate_scan(
@@ -1417,6 +1413,31 @@ def simulate_trajectory(
         )
         for i, (ref, od) in enumerate(zip(refs, odom, strict=True))
     ]
+
+
+def _drifting_odometry(
+    rng,
+    refs: list[Pose2],
+    start: Pose2,
+    trans_per_m: float,
+    rot_per_m: float,
+    rot_per_rad: float,
+    heading_bias_per_m: float = 0.0,
+) -> list[Pose2]:
+    """Odometry poses along the reference poses ``refs``, from ``start``: each step's true
+    increment ``u = ref[i-1]^-1 @ ref[i]`` plus zero-mean Gaussian noise (``trans_per_m *
+    |u|`` in x and y, ``rot_per_m * |u| + rot_per_rad * |u.theta|`` in the heading) and a
+    steady heading drift of ``heading_bias_per_m * |u|``."""
+    odom = [start]
+    for prev, cur in zip(refs[:-1], refs[1:], strict=True):
+        u = prev.inverse() @ cur
+        dist = math.hypot(u.x, u.y)
+        s_t = trans_per_m * dist
+        s_r = rot_per_m * dist + rot_per_rad * abs(u.theta)
+        n = rng.normal(0.0, 1.0, 3) * np.array([s_t, s_t, s_r])
+        th = u.theta + n[2] + heading_bias_per_m * dist
+        odom.append(odom[-1] @ Pose2(u.x + n[0], u.y + n[1], th))
+    return odom
 
 
 def simulate_sensor_drive(
@@ -1580,15 +1601,10 @@ def simulate_ring_drive(
     perimeter = 2.0 * (length + width - 4.0 * corridor / 2.0 - 4.0 * r) + 2.0 * math.pi * r
     s = np.arange(0.0, loops * perimeter, step)
     refs = [Pose2(*p) for p in _ring_centreline(length, width, corridor, s, r)]
-    odom = [refs[0]]
-    for prev, cur in zip(refs[:-1], refs[1:], strict=True):
-        u = prev.inverse() @ cur
-        dist = math.hypot(u.x, u.y)
-        s_t = trans_noise_per_m * dist
-        s_r = rot_noise_per_m * dist + rot_noise_per_rad * abs(u.theta)
-        n = rng.normal(0.0, 1.0, 3) * np.array([s_t, s_t, s_r])
-        th = u.theta + n[2] + heading_bias_per_m * dist
-        odom.append(odom[-1] @ Pose2(u.x + n[0], u.y + n[1], th))
+    odom = _drifting_odometry(
+        rng, refs, refs[0], trans_noise_per_m, rot_noise_per_m, rot_noise_per_rad,
+        heading_bias_per_m,
+    )  # fmt: skip
     return [
         simulate_scan(world, ref, n_beams=n_beams, rng=rng, timestamp=i * dt, odometry=od,
                       source=f"sim:{i}", **scan_kw)
