@@ -72,6 +72,8 @@ BAD_FIELDS = [
     (LoopConfig, "min_score", NAN),
     (LoopConfig, "pcm_gate", "0.99"),  # a TypeError from the comparison before
     (LoopConfig, "every", 10**30),
+    (LoopConfig, "max_turn", 45.0),  # degrees: larger than any turn, the rule off silently
+    (LoopConfig, "max_turn", 0.0),
     (BackEndConfig, "max_iterations", 2.5),
     (OccupancyConfig, "margin", -100.0),  # negative dimensions (ValueError) before
     (OccupancyConfig, "margin", NAN),  # cannot convert NaN to integer before

@@ -335,6 +335,12 @@ class LoopConfig:
             "separation", "pcm_anchor_batches",
         )  # fmt: skip
         _probability(self, "pcm_gate")
+        if self.max_turn > math.pi:  # no turn is larger: a value in degrees turns it off
+            raise ConfigError(
+                f"LoopConfig.max_turn must be at most pi radians (pi turns the rule off), "
+                f"got {self.max_turn}: degrees? ({self.max_turn} deg is "
+                f"{math.radians(self.max_turn):.6g} rad)"
+            )
 
 
 @dataclass(frozen=True, slots=True)
