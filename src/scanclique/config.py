@@ -203,6 +203,19 @@ def check_probability(obj, *names: str) -> None:
             )
 
 
+def check_radians(obj, *names: str) -> None:
+    """Each named field of ``obj`` (an angle, checked a number first) is at most pi: no
+    turn or direction difference is larger, and a value in degrees (10 for 10 degrees)
+    would silently change what it bounds. None (an optional field) passes."""
+    for n in names:
+        v = getattr(obj, n)
+        if v is not None and v > math.pi:
+            raise ConfigError(
+                f"{type(obj).__name__}.{n} must be at most pi radians, got {v!r}: degrees? "
+                f"({v} deg is {math.radians(v):.6g} rad)"
+            )
+
+
 def check_choice(obj, name: str, choices: tuple[str, ...]) -> None:
     """The named field of ``obj`` is one of ``choices`` (exactly: no case folding)."""
     v = getattr(obj, name)
@@ -313,6 +326,7 @@ class FeatureConfig:
             "line_max_rms",
         )
         _positive(self, "merge_angle", "merge_distance", "corner_min_angle", "range_sigma")
+        check_radians(self, "merge_angle", "corner_min_angle")
         _nonneg(self, "corner_reach")
         _nonneg(
             self, "split_ratio", "min_edge_jump", "crowd_radius", "line_max_gap", "line_gap_ratio"
@@ -517,6 +531,7 @@ class RefineConfig:
         _nonneg(self, "conflict_weight", "size_weight", "search_margin")
         _nonneg(self, "conflict_margin", "conflict_ratio", "quick_exact")
         _nonneg(self, "distinct_metres", "distinct_radians", "ambiguous_score")
+        check_radians(self, "distinct_radians")
         _positive(self, "search_bins", "search_peaks", "search_top", "search_cell")
         _positive(self, "search_icp", "search_stride")
         if self.min_score == math.inf:
@@ -587,6 +602,7 @@ class ValidationConfig:
                 f"ValidationConfig.min_features must be an int >= 2, got {self.min_features!r}"
             )
         _nonneg(self, "max_std_metres", "max_std_radians", "contender_score")
+        check_radians(self, "max_std_radians")
         for name in ("feature_gate", "decisive"):
             v = getattr(self, name)
             if not 0.0 < v < 1.0:

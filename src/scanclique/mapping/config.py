@@ -14,6 +14,7 @@ from ..config import check_choice as _choice
 from ..config import check_nonneg as _nonneg
 from ..config import check_positive as _positive
 from ..config import check_probability as _probability
+from ..config import check_radians as _radians
 from ..config import check_types as _check_types
 from ..errors import ConfigError
 from ..validation import OdometryNoise
@@ -219,6 +220,10 @@ class FrontEndConfig:
             "turn_cost", "soft_constraint", "refine_max_shift", "refine_max_turn",
             "refine_min_fitness", "icp_min_fitness", "icp_min_constraint", "icp_score_tie",
         )  # fmt: skip
+        _radians(
+            self, "keyframe_angle", "sigma_floor_radians", "refine_max_turn", "sharp_turn",
+            "guess_sigma_radians",
+        )  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
@@ -335,12 +340,7 @@ class LoopConfig:
             "separation", "pcm_anchor_batches",
         )  # fmt: skip
         _probability(self, "pcm_gate")
-        if self.max_turn > math.pi:  # no turn is larger: a value in degrees turns it off
-            raise ConfigError(
-                f"LoopConfig.max_turn must be at most pi radians (pi turns the rule off), "
-                f"got {self.max_turn}: degrees? ({self.max_turn} deg is "
-                f"{math.radians(self.max_turn):.6g} rad)"
-            )
+        _radians(self, "max_turn", "max_sigma_radians")  # max_turn pi: the rule off
 
 
 @dataclass(frozen=True, slots=True)
