@@ -74,11 +74,8 @@ BAD_FIELDS = [
     (LoopConfig, "every", 10**30),
     (LoopConfig, "max_turn", 45.0),  # degrees: larger than any turn, the rule off silently
     (LoopConfig, "max_turn", 0.0),
-    (LoopConfig, "max_sigma_radians", 1.0 / 2.807 * 57.3),
     (FrontEndConfig, "keyframe_angle", 10.0),  # degrees: keyframes by distance alone, silently
-    (FrontEndConfig, "sharp_turn", 45.0),
     (FrontEndConfig, "refine_max_turn", 5.0),
-    (OdometryNoise, "floor_radians", 4.0),
     (BackEndConfig, "max_iterations", 2.5),
     (OccupancyConfig, "margin", -100.0),  # negative dimensions (ValueError) before
     (OccupancyConfig, "margin", NAN),  # cannot convert NaN to integer before
@@ -512,7 +509,7 @@ def test_odometry_noise_scaled_refuses_a_bad_factor(factor):
 @pytest.mark.parametrize(
     "section, name, value",
     [("features", "merge_angle", 5.0), ("features", "corner_min_angle", 35.0),
-     ("refine", "distinct_radians", 5.0), ("validation", "max_std_radians", 5.0)],
+     ("refine", "distinct_radians", 5.0)],
 )  # fmt: skip
 def test_an_angle_in_degrees_is_refused_saying_so(section, name, value):
     """Angles are radians; one above pi (no turn is larger) is degrees given for radians,

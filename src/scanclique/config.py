@@ -204,9 +204,11 @@ def check_probability(obj, *names: str) -> None:
 
 
 def check_radians(obj, *names: str) -> None:
-    """Each named field of ``obj`` (an angle, checked a number first) is at most pi: no
-    turn or direction difference is larger, and a value in degrees (10 for 10 degrees)
-    would silently change what it bounds. None (an optional field) passes."""
+    """Each named field of ``obj`` (an angle bound, checked a number first) is at most pi:
+    no turn or direction difference is larger, and a value in degrees (10 for 10 degrees)
+    would silently change what it bounds. None (an optional field) passes. Not for the
+    standard deviations (a scaled noise may exceed pi) nor a bound whose documented
+    "off" lies beyond pi."""
     for n in names:
         v = getattr(obj, n)
         if v is not None and v > math.pi:
@@ -602,7 +604,6 @@ class ValidationConfig:
                 f"ValidationConfig.min_features must be an int >= 2, got {self.min_features!r}"
             )
         _nonneg(self, "max_std_metres", "max_std_radians", "contender_score")
-        check_radians(self, "max_std_radians")
         for name in ("feature_gate", "decisive"):
             v = getattr(self, name)
             if not 0.0 < v < 1.0:

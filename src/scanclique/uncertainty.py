@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtri
 
-from .config import check_nonneg, check_positive, check_radians, require_positive
+from .config import check_nonneg, check_positive, require_positive
 from .errors import ScanError
 from .geometry import Pose2, wrap_angle
 
@@ -99,7 +99,6 @@ class OdometryNoise:
         check_nonneg(self, "per_metre", "per_radian", "rot_per_metre")
         # the floors keep the covariance invertible: a zero one cannot be tested against
         check_positive(self, "floor_metres", "floor_radians")
-        check_radians(self, "floor_radians")
 
     def scaled(self, factor: float) -> OdometryNoise:
         """Every term multiplied by ``factor`` (a worse or better odometer)."""

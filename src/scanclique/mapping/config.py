@@ -220,10 +220,7 @@ class FrontEndConfig:
             "turn_cost", "soft_constraint", "refine_max_shift", "refine_max_turn",
             "refine_min_fitness", "icp_min_fitness", "icp_min_constraint", "icp_score_tie",
         )  # fmt: skip
-        _radians(
-            self, "keyframe_angle", "sigma_floor_radians", "refine_max_turn", "sharp_turn",
-            "guess_sigma_radians",
-        )  # fmt: skip
+        _radians(self, "keyframe_angle", "refine_max_turn")  # (sharp_turn beyond pi: off)
 
 
 @dataclass(frozen=True, slots=True)
@@ -340,7 +337,7 @@ class LoopConfig:
             "separation", "pcm_anchor_batches",
         )  # fmt: skip
         _probability(self, "pcm_gate")
-        _radians(self, "max_turn", "max_sigma_radians")  # max_turn pi: the rule off
+        _radians(self, "max_turn")  # pi: the rule off
 
 
 @dataclass(frozen=True, slots=True)
