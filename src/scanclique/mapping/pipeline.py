@@ -1176,7 +1176,8 @@ def warn_time_order(scans: Sequence[Scan]) -> int:
     reference, or with another sensor) expects increasing times. Equal timestamps and
     scans without one are not counted."""
     t = np.array([np.nan if s.timestamp is None else s.timestamp for s in scans], float)
-    back = np.flatnonzero(np.diff(t) < 0)  # a NaN on either side compares False
+    step = np.diff(t)
+    back = np.flatnonzero(step < 0)  # a NaN on either side compares False
     if len(back):
         k = int(back[0]) + 1
         log.warning(
@@ -1184,7 +1185,7 @@ def warn_time_order(scans: Sequence[Scan]) -> int:
             "(the first: scan %d at %.6f s, after %.6f s); they are mapped in the order "
             "given, and trajectory.tum keeps it (evo_traj --full_check calls that 'not "
             "ascending')",
-            len(back), -np.diff(t)[back].min(), k, t[k], t[k - 1],
+            len(back), -step[back].min(), k, t[k], t[k - 1],
         )  # fmt: skip
     return len(back)
 

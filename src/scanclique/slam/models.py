@@ -398,6 +398,12 @@ def controls_from_odometry(times, poses) -> np.ndarray:
     fault = odometry_fault(t, p)
     if fault is not None:
         raise ArgumentError(f"controls_from_odometry: row {fault[0]}: {fault[1]}")
+    return unicycle_controls(t, p)
+
+
+def unicycle_controls(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """:func:`controls_from_odometry` of times ``t`` (N,) and poses ``p`` (N, 3) that
+    :func:`odometry_fault` has passed (the reader checks them itself, to name the line)."""
     dt = np.diff(t)
     c, s = np.cos(p[:-1, 2]), np.sin(p[:-1, 2])
     dx, dy = np.diff(p[:, 0]), np.diff(p[:, 1])

@@ -501,6 +501,11 @@ LOG_FILES = ("controls.txt", "observations.txt")
 LOG_OPTIONAL = ("truth.txt", "landmarks.txt", "gps.txt", "model.toml")
 #: the file a landmark log may hold instead of ``controls.txt``: wheel odometry as poses
 LOG_ODOMETRY = "odometry.txt"
+#: what a landmark log's directory holds, in words (the errors that miss one say it)
+LOG_HOLDS = (
+    f"{', '.join(LOG_FILES)} (or {LOG_ODOMETRY} for controls.txt), and optionally "
+    f"{', '.join(LOG_OPTIONAL)}"
+)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -638,17 +643,13 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     if not isinstance(directory, (str, os.PathLike)):
         raise ArgumentError(f"expected a directory path, got {type(directory).__name__}")
     d = Path(os.fspath(directory)).expanduser()
-    holds = (
-        f"{', '.join(LOG_FILES)} (or {LOG_ODOMETRY} for controls.txt), and optionally "
-        f"{', '.join(LOG_OPTIONAL)}"
-    )
     files = log_files(d)
     _require_files(
         d,
         files,
         "landmark log",
-        f"{d} is not a directory (expected one holding {holds})",
-        f"(expected {holds})",
+        f"{d} is not a directory (expected one holding {LOG_HOLDS})",
+        f"(expected {LOG_HOLDS})",
     )
     if files[0] == LOG_ODOMETRY:
         controls = None  # from the odometry, once the model is known
@@ -702,7 +703,7 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
 def _odometry_controls(path: Path, model) -> np.ndarray:
     """The controls table (``time c1 c2``) of a landmark log's ``odometry.txt`` (``time
     x y theta``) for ``model``, which must be a :class:`~scanclique.slam.Unicycle`."""
-    from .models import Unicycle, controls_from_odometry, odometry_fault
+    from .models import Unicycle, odometry_fault, unicycle_controls
 
     if not isinstance(model, Unicycle):
         raise ConfigError(
@@ -714,7 +715,7 @@ def _odometry_controls(path: Path, model) -> np.ndarray:
     fault = odometry_fault(odo[:, 0], odo[:, 1:])
     if fault is not None:
         raise ParseError(str(path), _line_of(path, fault[0]), fault[1])
-    return controls_from_odometry(odo[:, 0], odo[:, 1:])
+    return unicycle_controls(odo[:, 0], odo[:, 1:])
 
 
 def _regular(path: Path) -> None:

@@ -34,6 +34,7 @@ from .models import Ackermann
 from .reader import FILES as VP_FILES
 from .reader import (
     LOG_FILES,
+    LOG_HOLDS,
     LOG_ODOMETRY,
     LOG_OPTIONAL,
     Step,
@@ -269,10 +270,9 @@ def _landmark_log_like(source) -> bool:
     vp = any((d / f).is_file() for f in VP_FILES)
     if not own and not vp:
         raise DataNotFoundError(
-            f"{d} holds neither a landmark log ({', '.join(LOG_FILES)} (or {LOG_ODOMETRY} "
-            f"for controls.txt), and optionally "
-            f"{', '.join(LOG_OPTIONAL)}; see scanclique.slam.read_landmark_log) nor the "
-            f"Victoria Park data ({', '.join(VP_FILES)})"
+            f"{d} holds neither a landmark log ({LOG_HOLDS}; see "
+            f"scanclique.slam.read_landmark_log) nor the Victoria Park data "
+            f"({', '.join(VP_FILES)})"
         )
     return own and not vp
 
