@@ -473,6 +473,32 @@ def test_timestamps_going_back_are_said_and_the_order_kept(office_drive, caplog,
     assert "earlier than" not in caplog.text
 
 
+def test_a_closure_a_door_along_a_corridor_is_refused_as_shifted():
+    """The ring corridor without odometry, its first 140 scans (35 m): scans 3-6 m apart
+    along the first corridor look alike a door or two along it, and closures between them
+    moved the estimate by 3-5 m over 3-6 m of path that the local matches fix to
+    centimetres; LoopConfig.max_shift refuses them (verdict "shifted")."""
+    import dataclasses
+
+    from scanclique.mapping import MapConfig
+    from scanclique.sim import simulate_ring_drive
+
+    scans = simulate_ring_drive(np.random.default_rng(1), loops=2.0)[:140]
+    truth = [scans[0].reference.inverse() @ s.reference for s in scans]
+
+    def mean_error(r):
+        return float(np.mean([p.distance_to(t)[0] for p, t in zip(r.poses, truth, strict=True)]))
+
+    r = map_scans(scans, use_odometry=False)
+    assert mean_error(r) < 1.0
+    shifted = [c for c in r.loop_closures if c.verdict == "shifted"]
+    assert shifted and all(not c.accepted and c.pose is None for c in shifted)
+    assert "a look-alike along the way" in shifted[0].reason
+    cfg = MapConfig()
+    off = dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, max_shift=math.inf))
+    assert mean_error(map_scans(scans, use_odometry=False, config=off)) > 3.0  # prevented
+
+
 def test_a_long_loop_is_not_closed_on_a_corner_a_quarter_turn_round():
     """A 60 x 40 m ring corridor, every corner alike, driven once round and a little on
     with odometry drifting 0.003 rad/m: the drift model's prior (30 degrees after the

@@ -296,6 +296,18 @@ class LoopConfig:
         error on three seeds of four after closures 90 degrees off (0.04-0.18 m with the
         rule; chained matching alone 0.52 m). The right closures of the shared logs turn
         the estimate by at most 14 degrees (Intel), 3.7 (Freiburg 079).
+    max_shift : float
+        A loop closure that moves the current estimate by more than the drift model's
+        candidate radius (``radius + growth * L``, capped) and by more than ``max_shift``
+        times ``L``, the chain's path (m) between the two keyframes, is refused (verdict
+        ``"shifted"``) unless the front end's own uncertainty between them allows it at 3
+        sigma: a silent error of the front end is not taken to exceed that share of the
+        path it was made over. Appearance candidates are verified by twice the drift
+        model, and without odometry a look-alike place a door or two along a corridor
+        passed that after 3-6 m of path (the ring corridor, seed 1: 2.8 m over 3 m of
+        path while the local matches fixed that stretch to 3 cm). The closures of the
+        shared logs move the estimate by at most 0.09 times their path (a 2.99 m
+        correction on intel-raw lay within the drift radius). ``inf``: the rule off.
     max_sigma_metres, max_sigma_radians : float
         A loop closure enters the graph only when its own covariance (the match's, with the
         front end's sigma floor) fixes it precisely enough to be a right closure by the
@@ -323,6 +335,7 @@ class LoopConfig:
     min_score: float = 0.3
     appearance: bool = True
     max_turn: float = math.radians(45.0)
+    max_shift: float = 0.25
     max_sigma_metres: float = 0.20 / 3.255
     max_sigma_radians: float = math.radians(1.0) / 2.807
 
@@ -336,6 +349,7 @@ class LoopConfig:
             self, "corroborate_batches", "growth", "heading_growth", "local", "per_keyframe",
             "separation", "pcm_anchor_batches",
         )  # fmt: skip
+        _positive(self, "max_shift", infinite=True)  # inf: the rule off
         _probability(self, "pcm_gate")
         _radians(self, "max_turn")  # pi: the rule off
 

@@ -55,7 +55,8 @@ class LoopClosure:
     ``ambiguous``, ``too_few_features``) or ``"pcm_rejected"``, ``"low_score"``,
     ``"imprecise"`` (its covariance too loose: :class:`~.config.LoopConfig`),
     ``"turned"`` (it turns the estimate by more than ``max_turn``: a look-alike a quarter
-    or half turn round), ``"uncorroborated"`` or
+    or half turn round), ``"shifted"`` (it moves the estimate by more than ``max_shift``
+    of the path between the two: a look-alike along the way), ``"uncorroborated"`` or
     ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
     :func:`scanclique.refine.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the

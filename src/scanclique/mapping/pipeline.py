@@ -652,6 +652,7 @@ class _Mapper:
         """The verdicts of the batch's candidates, in the order they were proposed (the
         same whether they were verified here or on worker processes)."""
         lc = self.lc
+        loops = []  # the loop candidates that passed, once the batch's local matches are in
         for kidx, meta, handle in self.batch:
             for (i, local, source), out in zip(meta, handle.result(), strict=True):
                 pose, cov, verdict, score, reason = out
@@ -687,8 +688,43 @@ class _Mapper:
                     self.add_edge(i, kidx, pose, cov, "local")
                     self._add_isam_edge(i, kidx, pose, cov, False)
                 else:
-                    self.pending.append((i, kidx, pose, cov, source, score, reason))
+                    loops.append((i, kidx, pose, cov, source, score, reason))
         self.batch = []
+        for i, j, pose, cov, source, score, reason in loops:
+            why = self.shifted(i, j, pose)
+            if why:
+                self.closures.append(
+                    LoopClosure(self.kf[i], self.kf[j], None, None, "shifted", False, False,
+                                source, score, why)
+                )  # fmt: skip
+            else:
+                self.pending.append((i, j, pose, cov, source, score, reason))
+
+    def shifted(self, i: int, j: int, Z: Pose2) -> str:
+        """Why closure ``i``-``j`` (pose ``Z``) is refused as a look-alike along the way, or
+        "": it moves the current estimate by more than the drift model's candidate radius
+        over the chain's path ``L`` between the two keyframes
+        (:func:`~scanclique.mapping.loops.drift_std`, 3 sigma), by more than
+        ``loops.max_shift`` times ``L``, and by more than 3 sigma of the front end's own
+        uncertainty between them (:meth:`front_std`, through the local matches of the
+        batch: a candidate is verified when its keyframe is made, by the prior of that
+        moment, and the local matches that fix a stretch the chain was unsure of come
+        after it)."""
+        est = self.estimate_of(i).inverse() @ self.estimate_of(j)
+        shift = math.hypot(Z.x - est.x, Z.y - est.y)
+        path = float(self.kf_path[j] - self.kf_path[i])
+        bound = max(3.0 * _loops.drift_std(path, self.lc)[0], self.lc.max_shift * path)
+        if shift <= bound:
+            return ""
+        s_xy = self.front_std(i, j)[0]
+        if shift <= 3.0 * s_xy:
+            return ""
+        return (
+            f"moves the estimate by {shift:.2f} m over a path of {path:.1f} m: more than the "
+            f"drift model's radius, loops.max_shift={self.lc.max_shift:g} of the path and 3 "
+            f"sigma of the front end's own uncertainty ({3.0 * s_xy:.2f} m): a look-alike "
+            "along the way (a door or two along a corridor)"
+        )
 
     def flush(self, final: bool = False) -> None:
         t = time.perf_counter()
