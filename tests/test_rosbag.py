@@ -362,24 +362,29 @@ def test_bags_without_odometry_have_none(tmp_path):
 def _write_mounted(path, scans, chain, odom_child=None):
     """A ROS 2 bag of ``scans`` (frame ``laser``) with the odometry of ``base_link`` on
     ``/tf`` (or, with ``odom_child``, of that frame on an ``/odom`` topic) and, on
-    ``/tf_static``, ``chain``: (parent, child, Pose2) links from the robot to the laser."""
+    ``/tf_static``, ``chain``: (parent, child, Pose2[, roll]) links from the robot to the
+    laser (yaw, then a roll about the turned x axis)."""
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     laser, odom, tf = _msgs(ts, ros1=False)
     T = ts.types
     stamp = T["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+
+    def quat(p, roll=0.0):
+        cy, sy = math.cos(p.theta / 2), math.sin(p.theta / 2)
+        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+        return T["geometry_msgs/msg/Quaternion"](x=cy * sr, y=sy * sr, z=sy * cr, w=cy * cr)
+
     links = [
         T["geometry_msgs/msg/TransformStamped"](
             header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=parent),
             child_frame_id=child,
             transform=T["geometry_msgs/msg/Transform"](
                 translation=T["geometry_msgs/msg/Vector3"](x=p.x, y=p.y, z=0.1),
-                rotation=T["geometry_msgs/msg/Quaternion"](
-                    x=0.0, y=0.0, z=math.sin(p.theta / 2), w=math.cos(p.theta / 2)
-                ),
+                rotation=quat(p, *roll),
             ),
         )
-        for parent, child, p in chain
+        for parent, child, p, *roll in chain
     ]
     rows = [("/tf_static", int(scans[0].timestamp * 1e9) - 1,
              T["tf2_msgs/msg/TFMessage"](transforms=links))]  # fmt: skip
@@ -423,13 +428,19 @@ def test_the_mounting_chain_composes_in_the_plane():
     links: dict = {}
     for tr in (Tr("/base_link", "mast", 1.0, 0.0, math.pi / 2), Tr("mast", "laser", 1.0, 0.0, 0.0)):
         _link(tr, links)
-    m, why = mounting(links, "/laser", ("base_link",))
-    assert why == "" and m.distance_to(Pose2(1.0, 1.0, math.pi / 2))[0] < 1e-12
+    m, why, upside_down = mounting(links, "/laser", ("base_link",))
+    assert why == "" and not upside_down
+    assert m.distance_to(Pose2(1.0, 1.0, math.pi / 2))[0] < 1e-12
     assert abs(m.theta - math.pi / 2) < 1e-12
     assert mounting(links, "laser", ("base_footprint",))[0] is None  # no chain to it
-    _link(Tr("base_link", "flipped", 0.0, 0.0, 0.0, roll=math.pi), links)
-    m, why = mounting(links, "flipped", ("base_link",))
-    assert m is None and "not upright" in why
+    # upside down (a roll of pi, 20 degrees off): the frame turned upright about its x axis
+    _link(Tr("base_link", "flipped", 0.5, 0.0, 0.3, roll=math.pi - 0.35), links)
+    m, why, upside_down = mounting(links, "flipped", ("base_link",))
+    assert why == "" and upside_down and m.distance_to(Pose2(0.5, 0.0, 0.3))[0] < 1e-12
+    assert abs(m.theta - 0.3) < 1e-12
+    _link(Tr("base_link", "tilted", 0.0, 0.0, 0.0, roll=math.pi / 2), links)
+    m, why, upside_down = mounting(links, "tilted", ("base_link",))
+    assert m is None and "is tilted" in why and not upside_down
 
 
 @pytest.mark.realdata
@@ -464,6 +475,34 @@ def test_a_laser_mounted_backwards_is_mapped_through_its_mounting(tmp_path, carm
         plain = read_bag(bare)
     assert "no transform from base_link/base_footprint to the scans' frame 'laser'" in caplog.text
     assert plain[3].odometry.distance_to(robot[3].odometry)[0] < 1e-6
+
+
+def test_a_laser_mounted_upside_down_is_mirrored_upright(tmp_path, caplog):
+    """A laser mounted upside down (a roll of pi in the static transforms) publishes the
+    plane mirrored: a beam at angle a in its frame points at -a in the frame turned upright.
+    The reader mirrors the beams back and mounts that upright frame: the scans and the
+    laser's odometry of the same drive with the laser upright, and the same map."""
+    from scanclique.mapping import map_scans
+
+    scans = _drive(2, 12)
+    M = Pose2(0.2, -0.1, math.pi / 2)  # the laser on the robot, upright equivalent
+    robot = [dataclasses.replace(s, odometry=s.odometry @ M.inverse()) for s in scans]
+    # what the upside-down laser publishes: the range seen at a, at angle -a
+    published = [dataclasses.replace(s, ranges=s.ranges[::-1], angles=-s.angles[::-1])
+                 for s in robot]  # fmt: skip
+    path = tmp_path / "upside_down"
+    _write_mounted(path, published, [("base_link", "laser", M, math.pi)])
+    with caplog.at_level("WARNING", logger="scanclique"):
+        back = read_bag(path)
+    assert "is upside down on the robot: its beams are mirrored" in caplog.text
+    for s, b in zip(scans, back, strict=True):
+        np.testing.assert_allclose(b.angles, s.angles, atol=1e-6)
+        np.testing.assert_allclose(b.ranges, s.ranges, rtol=1e-6, atol=1e-5)
+        t, r = b.odometry.distance_to(s.odometry)
+        assert t < 1e-6 and r < 1e-6
+    upright = map_scans(scans)
+    for p, q in zip(map_scans(back).poses, upright.poses, strict=True):
+        assert p.distance_to(q)[0] < 1e-3
 
 
 @pytest.mark.parametrize("ros1", [True, False])

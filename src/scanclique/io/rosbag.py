@@ -13,7 +13,8 @@ Conventions
   free space painted along it).
 * **Beams.** ``angle_min + i * angle_increment``; ``range_min`` / ``range_max`` from the
   message (ranges outside are kept and masked by :class:`Scan`). A message with a negative
-  ``angle_increment`` (a scanner mounted upside down) is reversed into increasing angles.
+  ``angle_increment`` (scanning clockwise) is reversed into increasing angles, each beam
+  keeping its angle.
   Beam angles are brought into [-pi, pi), where the matcher measures bearings (``atan2``):
   shifted by whole turns, and a full circle published from 0 to 2 pi (the TurtleBot3's
   LDS-01 driver) rolled to start at -pi, its two halves meeting where they meet on the
@@ -29,9 +30,12 @@ Conventions
   transforms from the robot's frame (``base_frame``, an Odometry message's
   ``child_frame_id``, ``base_link`` or ``base_footprint``) to the scans' ``frame_id`` in
   the bag's static transforms (``/tf_static``, or fixed ones on ``/tf``), projected to
-  the plane. When the bag holds no such chain, or the laser is not upright on the robot
-  (tilted more than about 25 degrees, or upside down), the robot's pose is used and a
-  warning says so: a laser mounted turned on the robot (sideways, backwards) then
+  the plane. A laser mounted upside down (a roll of pi, within about 25 degrees) sees
+  the plane mirrored: its beams are mirrored (angle ``a`` becomes ``-a``) into the frame
+  turned upright about its x axis, whose pose on the robot is the mounting, and a warning
+  says so (with or without odometry). When the bag holds no such chain, or the laser is
+  tilted (its z axis more than about 25 degrees off the robot's, up or down), the robot's
+  pose is used and a warning says so: a laser mounted turned on the robot (sideways, backwards) then
   disagrees with the odometry, which the mapper reads as the laser's motion (300 Intel
   scans with the odometry of a robot that carries the laser backwards: 66 scans placed
   by odometry, the mean error of consecutive poses 0.45 m, against 0.028 m with the
@@ -141,23 +145,33 @@ def _link(tr, links: dict) -> None:
         links[child] = (tr.header.frame_id.lstrip("/"), _rotation(tr.transform.rotation), t)
 
 
-def mounting(links: dict, laser: str, bases) -> tuple[Pose2 | None, str]:
+def mounting(links: dict, laser: str, bases) -> tuple[Pose2 | None, str, bool]:
     """The laser frame's pose on the robot (a base frame), projected to the plane, from
-    the transforms ``links`` (:func:`_link`); None and the reason when the chain is not
-    there or the laser is not upright (its z axis more than about 25 degrees off the
-    robot's)."""
+    the transforms ``links`` (:func:`_link`), and whether the laser is upside down.
+
+    Returns ``(pose, reason, upside_down)``: ``pose`` None and the reason when the chain
+    is not there or the laser is tilted (its z axis more than about 25 degrees off the
+    robot's z axis, or off its opposite). A laser upside down (its z axis within about 25
+    degrees of the robot's pointing down: a roll of pi) sees the plane mirrored, a beam at
+    angle ``a`` in its frame pointing at ``-a`` in the frame turned upright about its x
+    axis; ``pose`` is then that upright frame's, and the beams are to be mirrored
+    (``upside_down`` True)."""
     laser = laser.lstrip("/")
     R, t = np.eye(3), np.zeros(3)
     frame, hops = laser, 0
     while frame not in bases:
         if frame not in links or hops > 64:
-            return None, f"no transform from {'/'.join(bases)} to the scans' frame {laser!r}"
+            where = f"no transform from {'/'.join(bases)} to the scans' frame {laser!r}"
+            return None, where, False
         parent, Rp, tp = links[frame]
         R, t = Rp @ R, Rp @ t + tp
         frame, hops = parent, hops + 1
+    upside_down = R[2, 2] <= -0.9
+    if upside_down:
+        R = R @ np.diag([1.0, -1.0, -1.0])  # turned upright about its own x axis
     if R[2, 2] < 0.9:
-        return None, f"the laser frame {laser!r} is not upright on {frame!r}"
-    return Pose2(float(t[0]), float(t[1]), math.atan2(R[1, 0], R[0, 0])), ""
+        return None, f"the laser frame {laser!r} is tilted on {frame!r}", False
+    return Pose2(float(t[0]), float(t[1]), math.atan2(R[1, 0], R[0, 0])), "", upside_down
 
 
 def _interp(times: list[float], poses: list[Pose2], t: float) -> Pose2 | None:
@@ -357,6 +371,7 @@ def read_bag(
         o_poses = [o_poses[k] for k in order]
         out: list[Scan] = []
         mount: Pose2 | None = None
+        mirrored = False  # the laser is upside down (its beams mirrored, mounting())
         for k, (c, t_ns, raw) in enumerate(reader.messages(connections=scans_c)):
             where = f"{name}:{c.topic}#{k}"
             try:
@@ -388,19 +403,28 @@ def read_bag(
                     f"{c.topic} message {k}: {r.size} ranges, but angle_min..angle_max by "
                     f"angle_increment gives {expect} beams",
                 )  # fmt: skip
-            r, ang = _wrap_beams(r, ang)
-            t = _stamp(msg, t_ns)
-            if k == 0 and o_poses:
-                mount, why = mounting(links, msg.header.frame_id, bases)
-                if mount is None and msg.header.frame_id.lstrip("/") not in bases:
+            if k == 0:
+                mount, why, mirrored = mounting(links, msg.header.frame_id, bases)
+                if mirrored:
+                    log.warning(
+                        "%s: the laser frame %r is upside down on the robot: its beams are "
+                        "mirrored (angle a -> -a) into the frame turned upright about its x "
+                        "axis, mounted at %s",
+                        name, msg.header.frame_id, mount,
+                    )  # fmt: skip
+                if o_poses and mount is None and msg.header.frame_id.lstrip("/") not in bases:
                     log.warning(
                         "%s: %s: the odometry is the robot's, taken as the laser's (a laser "
                         "mounted turned on the robot then disagrees with it)",
                         name,
                         why,
                     )
-                elif mount is not None:
+                elif o_poses and mount is not None:
                     log.info("%s: the laser is mounted at %s on the robot", name, mount)
+            if mirrored:
+                r, ang = r[::-1].copy(), -ang[::-1]
+            r, ang = _wrap_beams(r, ang)
+            t = _stamp(msg, t_ns)
             odo = _interp(o_times, o_poses, t)
             try:
                 out.append(
