@@ -391,6 +391,10 @@ class _Mapper:
     def estimate_of(self, kf_index: int) -> Pose2:
         return Pose2.from_array(self.est_xy[kf_index])
 
+    def estimate_between(self, i: int, j: int) -> Pose2:
+        """The current estimate's pose of keyframe ``j`` in keyframe ``i``."""
+        return self.estimate_of(i).inverse() @ self.estimate_of(j)
+
     def drift_sigma(self, i: int, j: int) -> tuple[float, float]:
         """``(sigma_xy m, sigma_theta rad)`` the estimate of keyframe ``j`` may have drifted
         from keyframe ``i < j`` by the loops' drift model
@@ -425,7 +429,7 @@ class _Mapper:
         gate of the current estimate with the path's drift model alone
         (:func:`~scanclique.mapping.loops.drift_std`)."""
         s_xy, s_th = self.drift_sigma(i, j)
-        est = self.estimate_of(i).inverse() @ self.estimate_of(j)
+        est = self.estimate_between(i, j)
         return mahalanobis_sq(Z, P, est, _cov_xy_rot(s_xy, s_th)) > GATE_99
 
     def turned(self, i: int, j: int, Z: Pose2) -> str:
@@ -433,7 +437,7 @@ class _Mapper:
         it turns the current estimate by more than ``loops.max_turn`` and by more than 3
         sigma of the front end's own heading uncertainty between the two keyframes
         (:meth:`front_std`)."""
-        est = self.estimate_of(i).inverse() @ self.estimate_of(j)
+        est = self.estimate_between(i, j)
         turn = abs(math.atan2(math.sin(Z.theta - est.theta), math.cos(Z.theta - est.theta)))
         if turn <= self.lc.max_turn:
             return ""
@@ -710,7 +714,7 @@ class _Mapper:
         batch: a candidate is verified when its keyframe is made, by the prior of that
         moment, and the local matches that fix a stretch the chain was unsure of come
         after it)."""
-        est = self.estimate_of(i).inverse() @ self.estimate_of(j)
+        est = self.estimate_between(i, j)
         shift = math.hypot(Z.x - est.x, Z.y - est.y)
         path = float(self.kf_path[j] - self.kf_path[i])
         bound = max(3.0 * _loops.drift_std(path, self.lc)[0], self.lc.max_shift * path)
