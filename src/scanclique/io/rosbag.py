@@ -35,11 +35,11 @@ Conventions
   turned upright about its x axis, whose pose on the robot is the mounting, and a warning
   says so (with or without odometry). When the bag holds no such chain, or the laser is
   tilted (its z axis more than about 25 degrees off the robot's, up or down), the robot's
-  pose is used and a warning says so: a laser mounted turned on the robot (sideways, backwards) then
-  disagrees with the odometry, which the mapper reads as the laser's motion (300 Intel
-  scans with the odometry of a robot that carries the laser backwards: 66 scans placed
-  by odometry, the mean error of consecutive poses 0.45 m, against 0.028 m with the
-  laser's odometry).
+  pose is used and a warning says so: a laser mounted turned on the robot (sideways,
+  backwards) then disagrees with the odometry, which the mapper reads as the laser's
+  motion (300 Intel scans with the odometry of a robot that carries the laser backwards:
+  66 scans placed by odometry, the mean error of consecutive poses 0.45 m, against 0.028
+  m with the laser's odometry).
 * ``Scan.reference`` is None; ``Scan.source`` is ``"<bag>:<topic>#<index>"``.
 
 Errors
