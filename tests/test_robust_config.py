@@ -74,6 +74,9 @@ BAD_FIELDS = [
     (LoopConfig, "every", 10**30),
     (LoopConfig, "max_turn", 45.0),  # degrees: larger than any turn, the rule off silently
     (LoopConfig, "max_turn", 0.0),
+    (LoopConfig, "max_shift", 0.0),  # every closure beyond the drift radius refused
+    (LoopConfig, "max_shift", NAN),  # silently the drift radius alone (max() skips NaN)
+    (LoopConfig, "max_shift", -INF),
     (FrontEndConfig, "keyframe_angle", 10.0),  # degrees: keyframes by distance alone, silently
     (FrontEndConfig, "refine_max_turn", 5.0),
     (BackEndConfig, "max_iterations", 2.5),
