@@ -57,6 +57,53 @@ def test_query_recognises_the_place_and_its_pose(tmp_path, worlds):
             assert all(h.confidence == 0.0 for h in hits if h.pose is None)
 
 
+def test_a_place_keeps_its_map_pose(tmp_path, worlds):
+    from scanclique.errors import ArgumentError
+    from scanclique.geometry import Pose2
+
+    traj = worlds[0]
+    with PlaceDB(tmp_path / "p.db") as db:
+        a = db.add(traj[0], name="a", pose=Pose2(1.0, -2.0, 0.5))
+        b = db.add(traj[2], name="b")
+        for bad in ((1.0, 2.0, 0.0), "here", np.zeros(3)):
+            with pytest.raises(ArgumentError, match="pose must be a Pose2"):
+                db.add(traj[4], pose=bad)
+        assert len(db) == 2  # nothing stored for the refused ones
+    with PlaceDB(tmp_path / "p.db", readonly=True) as db:  # read back from the file
+        assert db.map_pose(a).distance_to(Pose2(1.0, -2.0, 0.5)) == (0.0, 0.0)
+        assert db.map_pose(b) is None
+
+
+def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):
+    """A ring corridor with every corner alike (sim.simulate_ring_drive, seed 0): the first
+    lap's every 4th scan as places, queried with second-lap scans whose first accepted hit
+    is a look-alike 30-52 m away (confidence >= 0.99). With the places' poses in the map,
+    four of the five have a confident hit of the right place that puts the query elsewhere:
+    no accepted hit for them; the fifth's right hit is below RIVAL_CONFIDENCE."""
+    from scanclique.sim import simulate_ring_drive
+
+    scans = simulate_ring_drive(np.random.default_rng(0), loops=2.0)
+    first = range(0, len(scans) // 2, 4)
+    start = scans[0].reference.inverse()
+
+    def first_accepted(db, ids, q):
+        acc = [h for h in db.query(scans[q], k=5) if h.verdict == ACCEPTED]
+        if not acc:
+            return None
+        k = ids[acc[0].place_id]
+        return acc[0].pose.distance_to(scans[k].reference.inverse() @ scans[q].reference)[0]
+
+    queries = (817, 1117, 1137, 1257)
+    with PlaceDB(tmp_path / "plain.db") as db:
+        ids = {db.add(scans[k]): k for k in first}
+        assert all(first_accepted(db, ids, q) > 25.0 for q in queries)  # look-alikes
+    with PlaceDB(tmp_path / "posed.db") as db:
+        ids = {db.add(scans[k], pose=start @ scans[k].reference): k for k in first}
+        assert all(first_accepted(db, ids, q) is None for q in queries)
+        hits = db.query(scans[817], k=5)
+        assert any("puts the query" in h.reason and h.verdict == AMBIGUOUS for h in hits)
+
+
 def test_exclude_and_candidates(tmp_path, worlds):
     traj = worlds[0]
     with PlaceDB(tmp_path / "p.db") as db:

@@ -471,6 +471,24 @@ class PlaceStore:
         ids = np.array(sorted(out), dtype=np.int64)
         return ids, [out[int(i)] for i in ids]
 
+    def array_of(self, ids, name: str) -> dict[int, np.ndarray]:
+        """The stored array ``name`` of each of the places ``ids`` that has one (by primary
+        key: a few places at a time)."""
+        ids = [int(i) for i in ids]
+        if not ids:
+            return {}
+        q = ",".join("?" * len(ids))
+        with self._errors("read arrays"):
+            rows = self._conn.execute(
+                f"SELECT place_id, dtype, shape, crc32, data FROM arrays "
+                f"WHERE name = ? AND place_id IN ({q})",
+                (name, *ids),
+            ).fetchall()
+        return {
+            int(r[0]): decode_array(*r[1:], where=f"{self._where}: place {r[0]} array {name!r}")
+            for r in rows
+        }
+
     def names(self, ids) -> dict[int, str | None]:
         """Names of the places ``ids``."""
         ids = [int(i) for i in ids]
