@@ -58,7 +58,7 @@ def test_query_recognises_the_place_and_its_pose(tmp_path, worlds):
 
 
 def test_a_place_keeps_its_map_pose(tmp_path, worlds):
-    from scanclique.errors import ArgumentError
+    from scanclique.errors import ArgumentError, PlaceDatabaseError
     from scanclique.geometry import Pose2
 
     traj = worlds[0]
@@ -72,6 +72,8 @@ def test_a_place_keeps_its_map_pose(tmp_path, worlds):
     with PlaceDB(tmp_path / "p.db", readonly=True) as db:  # read back from the file
         assert db.map_pose(a).distance_to(Pose2(1.0, -2.0, 0.5)) == (0.0, 0.0)
         assert db.map_pose(b) is None
+        with pytest.raises(PlaceDatabaseError, match="no place with id 7"):
+            db.map_pose(7)
 
 
 def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):

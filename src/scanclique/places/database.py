@@ -663,8 +663,19 @@ class PlaceDB:
         return len(self.index)
 
     def map_pose(self, place_id: int) -> Pose2 | None:
-        """Where place ``place_id`` is in a map, when :meth:`add` was given it (else None)."""
-        return self._map_poses_of([_place_id(place_id)])[_place_id(place_id)]
+        """Where place ``place_id`` is in a map, when :meth:`add` was given it (else None).
+
+        Raises
+        ------
+        PlaceDatabaseError
+            No such place.
+        """
+        pid = _place_id(place_id)
+        pose = self._map_poses_of([pid])[pid]
+        if pose is None and not self.store.names([pid]):
+            self._map_poses.pop(pid, None)
+            raise PlaceDatabaseError(f"{os.fspath(self.path)}: no place with id {pid}")
+        return pose
 
     def _map_poses_of(self, ids: list[int]) -> dict[int, Pose2 | None]:
         """:meth:`map_pose` of each of ``ids``, read from the store once per place."""
