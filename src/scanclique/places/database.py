@@ -932,7 +932,7 @@ class PlaceDB:
                 continue
             w = where[id(h)]
             for o in hits:
-                if o is h or id(o) not in where or o.place_id == h.place_id:
+                if o is h or id(o) not in where:  # one hit per place (candidates are unique)
                     continue
                 if o.verdict == AMBIGUOUS and o.confidence < RIVAL_CONFIDENCE:
                     continue
