@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import ScanError
 
-__all__ = ["Pose2", "wrap_angle", "rotation_matrix"]
+__all__ = ["Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses"]
 
 
 def wrap_angle(angle):
@@ -35,6 +35,27 @@ def _wrap_scalar(a: float) -> float:
     """:func:`wrap_angle` for one Python float (no NumPy call: poses are built often)."""
     a = (a + math.pi) % (2.0 * math.pi) - math.pi
     return a - 2.0 * math.pi if a >= math.pi else a
+
+
+def interpolate_poses(rows, times) -> np.ndarray:
+    """Poses ``(N, 3)`` at ``times`` (s) from ``(T, 4)`` rows ``time x y theta`` in time
+    order: x and y linear, the heading along the shorter arc, wrapped to [-pi, pi); times
+    outside the rows' span take the nearest row's pose.
+
+    >>> rows = [[0.0, 0.0, 0.0, 3.0], [2.0, 2.0, 4.0, -3.0]]
+    >>> interpolate_poses(rows, [1.0, 5.0]).round(4).tolist()
+    [[1.0, 2.0, -3.1416], [2.0, 4.0, -3.0]]
+    """
+    rows = np.asarray(rows, float)
+    times = np.asarray(times, float)
+    th = np.unwrap(rows[:, 3])
+    return np.column_stack(
+        [
+            np.interp(times, rows[:, 0], rows[:, 1]),
+            np.interp(times, rows[:, 0], rows[:, 2]),
+            wrap_angle(np.interp(times, rows[:, 0], th)),
+        ]
+    )
 
 
 def rotation_matrix(theta: float) -> np.ndarray:
