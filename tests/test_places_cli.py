@@ -104,3 +104,45 @@ def test_a_log_added_by_name_and_by_path_is_one_log(tmp_path, log_path):
     d = json.loads(r.stdout)
     assert d["source"] == "intel" and d["added"] == 0 and d["skipped"] == 4
     assert d["total"] == 4
+
+
+def test_places_added_with_a_map_give_a_query_its_pose_in_the_map(tmp_path, log):
+    """``places add --map DIR`` (the ``--out`` of ``scanclique map``) gives each place its
+    pose from ``DIR/trajectory.tum`` by timestamp; a query's hits then carry the query's
+    pose in that map. A directory without the file, a bad file and a trajectory of
+    another log are each one ``error:`` line, and no database is created."""
+    from scanclique.geometry import Pose2
+    from scanclique.io import read_scans
+    from scanclique.mapping.outputs import write_tum
+
+    scans = read_scans(log)
+    start = scans[0].reference.inverse()
+    poses = [start @ s.reference for s in scans]  # the map: the true drive from scan 0
+    out = tmp_path / "map"
+    out.mkdir()
+    write_tum(out / "trajectory.tum", poses, [s.timestamp for s in scans])
+    db = tmp_path / "p.db"
+    r = invoke("places", "add", db, log, "--every", "2", "--map", out, "--json")
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["added"] == 6 and d["posed"] == 6 and d["poses"].endswith("trajectory.tum")
+    r = invoke("places", "query", db, log, 5, "--top", "2", "--json")
+    hit = json.loads(r.stdout)["hits"][0]
+    m = hit["map_pose"]
+    dt, dr = Pose2(m["x"], m["y"], m["theta"]).distance_to(poses[5])
+    assert dt < 0.05 and dr < 0.02, (dt, dr)
+    r = invoke("places", "query", db, log, 5, "--top", "2")
+    assert r.exit_code == 0 and "in the map: the query's pose" in r.output
+    bad = tmp_path / "bad.tum"
+    bad.write_text("0 1 2 0 0 0 0 1\n1 2 3\n")
+    other = tmp_path / "other.tum"
+    other.write_text("1e9 0 0 0 0 0 0 1\n1000000001 1 0 0 0 0 0 1\n")
+    for given, words in (
+        (tmp_path, "without trajectory.tum"),
+        (bad, "bad.tum:2: expected 8 numbers"),
+        (other, "no scan lies within the trajectory"),
+    ):
+        r = invoke("places", "add", tmp_path / "q.db", log, "--map", given)
+        assert r.exit_code == 2 and "error:" in r.output and words in r.output, r.output
+        assert "Traceback" not in r.output
+    assert not (tmp_path / "q.db").exists()

@@ -76,6 +76,30 @@ def test_a_place_keeps_its_map_pose(tmp_path, worlds):
             db.map_pose(7)
 
 
+def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
+    """``run_add(poses=...)`` with one Pose2 or None per scan: the places added get theirs
+    (counted in ``posed``); a list of another length is an ArgumentError before anything
+    is added."""
+    from scanclique.errors import ArgumentError
+    from scanclique.geometry import Pose2
+    from scanclique.places.run import run_add
+
+    traj = worlds[1]
+    poses = [Pose2(k, -k, 0.1 * k) if k % 2 else None for k in range(len(traj))]
+    run = run_add(tmp_path / "p.db", traj, every=2, start=1, poses=poses)
+    assert (
+        run.added == 3
+        and run.posed == 3
+        and ("of them with a map pose", "3 of 3", "") in run.rows()
+    )
+    with PlaceDB(tmp_path / "p.db", readonly=True) as db:
+        for pid, k in zip(run.ids, (1, 3, 5), strict=True):
+            assert db.map_pose(pid).distance_to(poses[k]) == (0.0, 0.0)
+    with pytest.raises(ArgumentError, match="one Pose2 or None per scan"):
+        run_add(tmp_path / "q.db", traj, poses=poses[:3])
+    assert not (tmp_path / "q.db").exists()
+
+
 def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):
     """A ring corridor with every corner alike (sim.simulate_ring_drive, seed 0): the first
     lap's every 4th scan as places, queried with second-lap scans whose first accepted hit
@@ -99,11 +123,18 @@ def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):
     with PlaceDB(tmp_path / "plain.db") as db:
         ids = {db.add(scans[k]): k for k in first}
         assert all(first_accepted(db, ids, q) > 25.0 for q in queries)  # look-alikes
+        assert all(h.map_pose is None for h in db.query(scans[817], k=5))
     with PlaceDB(tmp_path / "posed.db") as db:
         ids = {db.add(scans[k], pose=start @ scans[k].reference): k for k in first}
         assert all(first_accepted(db, ids, q) is None for q in queries)
         hits = db.query(scans[817], k=5)
         assert any("puts the query" in h.reason and h.verdict == AMBIGUOUS for h in hits)
+        for h in hits:  # where each hit puts the query in the map
+            if h.pose is None:
+                assert h.map_pose is None
+            else:
+                want = db.map_pose(h.place_id) @ h.pose
+                assert want.distance_to(h.map_pose) == pytest.approx((0.0, 0.0), abs=1e-12)
 
 
 def test_exclude_and_candidates(tmp_path, worlds):

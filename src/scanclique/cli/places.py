@@ -95,6 +95,16 @@ def add(
         int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")
     ] = None,
     laser: LaserOpt = "main",
+    map_poses: Annotated[
+        Path | None,
+        typer.Option(
+            "--map",
+            help="Store each place's pose in a map: a TUM trajectory of the same log, or the "
+            "--out directory of 'scanclique map' on it (its trajectory.tum); poses go to scans "
+            "by timestamp. A query then gives its pose in that map, and refuses hits that "
+            "disagree on it.",
+        ),
+    ] = None,
     config: ConfigOpt = None,
     paper: PaperOpt = False,
     json_out: JsonOpt = False,
@@ -106,6 +116,7 @@ def add(
     ```
     scanclique places add places.db freiburg --every 5
     scanclique places add places.db intel --start 100 --stop 200
+    scanclique map intel --out runs/intel && scanclique places add places.db intel --map runs/intel
     ```
     """
     from rich.progress import Progress
@@ -124,7 +135,7 @@ def add(
         run = _guard(
             lambda: run_add(
                 db, source, every=every, start=start, stop=stop, config=cfg, laser=laser,
-                progress=lambda d, t: bar.update(task, completed=d, total=t),
+                poses=map_poses, progress=lambda d, t: bar.update(task, completed=d, total=t),
             )
         )  # fmt: skip
     if json_out:
@@ -186,7 +197,8 @@ def query(
         return
     con = _console()
     cols = (
-        "Rank", "Place", "Verdict", "Score", "Conf.", "Feat.", "x y [m] th [deg]", "err [m, deg]"
+        "Rank", "Place", "Verdict", "Score", "Conf.", "Feat.", "x y [m] th [deg]", "err [m, deg]",
+        *(["in the map: x y [m] th [deg]"] if run.mapped else []),
     )  # fmt: skip
     con.print(_table(run.hit_rows(), f"{run.label}:{index} in {db}", cols))
     con.print(_table(run.rows(), "query", ("Metric", "Value", "Units")))
@@ -197,7 +209,14 @@ def query(
         "min_confidence 0.99 is ambiguous); the best of the candidates verified: --candidates, "
         "and 5 more when none of them is accepted with confidence 0.99; a verdict marked "
         "(triangles): the triangle prefilter's pose verified on the raw scans (the clique "
-        "matcher accepted no candidate)",
+        "matcher accepted no candidate)"
+        + (
+            "; in the map: the query's pose in the map of the places added with --map (an "
+            "accepted hit that another confident hit puts more than 1 m or 0.2 rad elsewhere "
+            "there is ambiguous)"
+            if run.mapped
+            else ""
+        ),
         soft_wrap=True,
     )
 

@@ -38,6 +38,7 @@ from .carmen import (
     select_laser,
 )
 from .npz import read_scans_npz, write_scans_npz
+from .table import read_table
 from .text import (
     LineSource,
     TextLines,
@@ -50,6 +51,7 @@ from .text import (
     read_scans_text,
     write_scans_text,
 )
+from .tum import poses_at, read_tum
 
 __all__ = [
     "read_scans",
@@ -68,6 +70,9 @@ __all__ = [
     "read_scans_npz",
     "write_scans_npz",
     "read_lines",
+    "read_table",
+    "read_tum",
+    "poses_at",
     "TextLines",
     "is_gzip",
     "flaser_angles",

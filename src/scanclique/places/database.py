@@ -237,6 +237,10 @@ class PlaceHit:
     conflict : float
         The larger fraction of either scan's points in the other's observed free space
         at ``pose`` (:func:`.verify.conflict_fraction`; 0 without a pose).
+    map_pose : Pose2 or None
+        Pose of the query scan's sensor frame in the map: the place's map pose
+        (:meth:`PlaceDB.add`'s ``pose``, :meth:`PlaceDB.map_pose`) composed with
+        ``pose``; None when the place was added without one or the hit has no pose.
     """
 
     place_id: int
@@ -255,9 +259,10 @@ class PlaceHit:
     surprise: float = 0.0
     rival_score: float = 0.0
     conflict: float = 0.0
+    map_pose: Pose2 | None = None
 
     def to_dict(self) -> dict:
-        p = self.pose
+        p, m = self.pose, self.map_pose
         return {
             "place_id": self.place_id,
             "name": self.name,
@@ -274,6 +279,7 @@ class PlaceHit:
             "surprise": self.surprise,
             "rival_score": self.rival_score,
             "conflict": self.conflict,
+            "map_pose": None if m is None else {"x": m.x, "y": m.y, "theta": m.theta},
         }
 
 
@@ -904,39 +910,40 @@ class PlaceDB:
         return hits[: int(k)]
 
     def _disagreeing(self, hits: list[PlaceHit]) -> list[PlaceHit]:
-        """``hits`` with each accepted one made ambiguous when a hit of another place with
-        a map pose (accepted, or ambiguous with a confidence of at least
+        """``hits`` with their :attr:`PlaceHit.map_pose` (the query's pose in the map, for
+        the hits of places with a map pose), each accepted one made ambiguous when a hit
+        of another place (accepted, or ambiguous with a confidence of at least
         :data:`RIVAL_CONFIDENCE`) puts the query elsewhere in the map than it does (more
-        than :data:`AGREE_METRES` or :data:`AGREE_RADIANS` apart: the place's map pose
-        composed with the hit's pose). Hits of places without a map pose are left as
-        they are. The ring corridor of :func:`scanclique.sim.simulate_ring_drive` (every
-        corner alike; the first lap's every 4th scan added with its true pose, the
-        second lap's every 10th queried, seeds 0-3): the first accepted hit right for
-        177 queries and wrong for 21 without poses (each at confidence >= 0.99); with
-        them 116 and 1."""
-        posed = [h for h in hits if h.pose is not None and h.verdict != REJECTED]
-        if len(posed) < 2:
+        than :data:`AGREE_METRES` or :data:`AGREE_RADIANS` apart). Hits of places without
+        a map pose are left as they are. The ring corridor of
+        :func:`scanclique.sim.simulate_ring_drive` (every corner alike; the first lap's
+        every 4th scan added with its true pose, the second lap's every 10th queried,
+        seeds 0-3): the first accepted hit right for 177 queries and wrong for 21 without
+        poses (each at confidence >= 0.99); with them 116 and 1."""
+        posed = [h.place_id for h in hits if h.pose is not None]
+        maps = self._map_poses_of(posed) if posed else {}
+        if not any(m is not None for m in maps.values()):
             return hits
-        maps = self._map_poses_of([h.place_id for h in posed])
-        where = {}
-        for h in posed:
-            m = maps[h.place_id]
-            if m is not None:
-                where[id(h)] = m @ h.pose
-        if len(where) < 2:
-            return hits
+        hits = [
+            h if maps.get(h.place_id) is None or h.pose is None
+            else dataclasses.replace(h, map_pose=maps[h.place_id] @ h.pose)
+            for h in hits
+        ]  # fmt: skip
+        rivals = [
+            h for h in hits if h.map_pose is not None and (
+                h.verdict == ACCEPTED
+                or (h.verdict == AMBIGUOUS and h.confidence >= RIVAL_CONFIDENCE)
+            )
+        ]  # fmt: skip
         out = []
         for h in hits:
-            if h.verdict != ACCEPTED or id(h) not in where:
+            if h.verdict != ACCEPTED or h.map_pose is None:
                 out.append(h)
                 continue
-            w = where[id(h)]
-            for o in hits:
-                if o is h or id(o) not in where:  # one hit per place (candidates are unique)
+            for o in rivals:
+                if o is h:  # one hit per place (the candidates are unique)
                     continue
-                if o.verdict == AMBIGUOUS and o.confidence < RIVAL_CONFIDENCE:
-                    continue
-                dt, dr = w.distance_to(where[id(o)])
+                dt, dr = h.map_pose.distance_to(o.map_pose)
                 if dt > AGREE_METRES or dr > AGREE_RADIANS:
                     why = (
                         f"place {o.place_id} ({o.verdict}, confidence {o.confidence:.3f}) puts "

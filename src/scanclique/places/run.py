@@ -69,11 +69,20 @@ class AddRun:
     add_ms: tuple
     seconds: float
     loading_seconds: float = 0.0
+    #: of the places added, how many with a map pose (:func:`run_add`'s ``poses``)
+    posed: int = 0
+    #: where the map poses came from (a TUM file), "" without
+    poses_source: str = ""
 
     def rows(self) -> list[tuple[str, str, str]]:
         ms = np.array(self.add_ms) if self.add_ms else np.zeros(1)
         return [
             ("places added", str(self.added), ""),
+            *(
+                [("of them with a map pose", f"{self.posed} of {self.added}", "")]
+                if self.poses_source
+                else []
+            ),
             ("already present (same name)", str(self.skipped), ""),
             ("places in the database", str(self.total), ""),
             ("add time, median", f"{np.median(ms):.2f}", "ms"),
@@ -92,6 +101,8 @@ class AddRun:
             "total": self.total,
             "ids": list(self.ids),
             "add_ms_median": float(np.median(ms)),
+            "posed": self.posed,
+            "poses": self.poses_source or None,
             "seconds": self.seconds,
             "loading_seconds": self.loading_seconds,
         }
@@ -107,17 +118,28 @@ def run_add(
     config: MatchConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
     laser: str = "main",
+    poses=None,
 ) -> AddRun:
     """Add every ``every``-th scan of ``source`` (``start`` to ``stop``) to the database
     at ``path`` as places named ``"<log>:<index>"`` (``<log>`` the registered name of a
     registered log, given by name or by path, else the file's name); scans whose name is
-    already there are skipped (so a run can be repeated or resumed). ``laser``: which
-    laser of the log (:func:`scanclique.io.read_scans`)."""
+    already there are skipped (so a run can be repeated or resumed; they keep what they
+    were added with). ``laser``: which laser of the log
+    (:func:`scanclique.io.read_scans`).
+
+    ``poses``, optional: where the places are in a map (:meth:`PlaceDB.add`'s ``pose``),
+    as a TUM trajectory file, a directory holding ``trajectory.tum`` (the ``--out`` of
+    ``scanclique map`` on the same log), rows ``time x y theta``, or one Pose2 or None per
+    scan of the log. A file's or the rows' poses are given to the scans by their
+    timestamps (:func:`scanclique.io.poses_at`: one row per scan in the log's order, as
+    ``scanclique map`` writes it, or any trajectory in time order, interpolated); a scan
+    without one is added without a pose (counted in :attr:`AddRun.posed`)."""
     scans, label = _scans(source, laser)
     idx = list(range(start, len(scans) if stop is None else min(stop, len(scans)), max(1, every)))
+    place_poses, poses_source = _place_poses(poses, scans)
     t0 = time.perf_counter()
     loading = warm_up()  # loading the kernels is reported apart from the adds' times
-    ids, ms, skipped = [], [], 0
+    ids, ms, skipped, posed = [], [], 0, 0
     with PlaceDB(path, config) as db:
         have = set(db.store.names(db.ids).values()) if len(db) else set()
         for n, i in enumerate(idx):
@@ -126,15 +148,55 @@ def run_add(
                 skipped += 1
             else:
                 t = time.perf_counter()
-                ids.append(db.add(scans[i], name=name))
+                ids.append(db.add(scans[i], name=name, pose=place_poses[i]))
                 ms.append(1e3 * (time.perf_counter() - t))
+                posed += place_poses[i] is not None
             if progress:
                 progress(n + 1, len(idx))
         total = len(db)
     return AddRun(
         os.fspath(path), label, len(ids), skipped, total, tuple(ids), tuple(ms),
-        time.perf_counter() - t0, loading,
+        time.perf_counter() - t0, loading, posed, poses_source,
     )  # fmt: skip
+
+
+#: the trajectory file in a ``scanclique map`` output directory
+TRAJECTORY_FILE = "trajectory.tum"
+
+
+def _place_poses(poses, scans: list[Scan]) -> tuple[list, str]:
+    """One map pose (Pose2 or None) per scan from :func:`run_add`'s ``poses``, and where
+    they came from ("" for none)."""
+    from ..errors import ArgumentError, DataNotFoundError
+    from ..geometry import Pose2
+    from ..io import poses_at, read_tum
+
+    if poses is None:
+        return [None] * len(scans), ""
+    if isinstance(poses, (str, os.PathLike)):
+        p = os.fspath(poses)
+        if os.path.isdir(p):
+            f = os.path.join(p, TRAJECTORY_FILE)
+            if not os.path.isfile(f):
+                raise DataNotFoundError(
+                    f"{p}: a directory without {TRAJECTORY_FILE} (the --out of scanclique map)"
+                )
+            p = f
+        rows, source = read_tum(p), p
+    elif isinstance(poses, np.ndarray) and poses.ndim == 2:  # rows time x y theta
+        rows, source = poses, "rows"
+    else:
+        got = list(poses)
+        if len(got) != len(scans) or not all(q is None or isinstance(q, Pose2) for q in got):
+            raise ArgumentError(
+                f"poses must be a TUM file, a scanclique map directory, rows time x y theta "
+                f"or one Pose2 or None per scan ({len(scans)}), got {len(got)} items"
+            )
+        return got, "poses"
+    try:
+        return list(poses_at(rows, [s.timestamp for s in scans])), source
+    except ArgumentError as exc:
+        raise ArgumentError(f"{source}: {exc}") from None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -152,10 +214,16 @@ class QueryRun:
     seconds: float
     loading_seconds: float = 0.0
 
+    @property
+    def mapped(self) -> bool:
+        """Whether a hit gives the query's pose in a map (:attr:`PlaceHit.map_pose`): the
+        rows of :meth:`hit_rows` then end with it."""
+        return any(h.map_pose is not None for h in self.hits)
+
     def hit_rows(self) -> list[tuple[str, ...]]:
         out = []
         for h, e in zip(self.hits, self.errors, strict=True):
-            p = h.pose
+            p, m = h.pose, h.map_pose
             out.append(
                 (
                     str(h.rank),
@@ -166,6 +234,11 @@ class QueryRun:
                     str(h.n_features),
                     "-" if p is None else f"{p.x:.2f} {p.y:.2f} {math.degrees(p.theta):.1f}",
                     "-" if e is None else f"{e[0]:.2f} {math.degrees(e[1]):.1f}",
+                    *(
+                        ["-" if m is None else f"{m.x:.2f} {m.y:.2f} {math.degrees(m.theta):.1f}"]
+                        if self.mapped
+                        else []
+                    ),
                 )
             )
         return out
