@@ -187,6 +187,7 @@ def recognition(
     escalate=None,
     degrade=None,
     ceiling=False,
+    mapped=False,
 ) -> dict:
     from scanclique.datasets import load_log
     from scanclique.pairsets import REVISIT_MIN_GAP
@@ -210,7 +211,7 @@ def recognition(
     from scanclique.places.database import ESCALATE, SEEDED
 
     db = PlaceDB(
-        tmp / f"{name}.db",
+        tmp / f"{name}{'-mapped' if mapped else ''}.db",
         min_score=0.0,
         min_confidence=0.0,
         search=search,
@@ -219,11 +220,21 @@ def recognition(
         min_features=ACCEPT_MIN_FEATURES if min_features is None else min_features,
         escalate=ESCALATE if escalate is None else escalate,
     )
+    map_poses, map_s = [None] * n, 0.0
+    if mapped:  # --map: each place with its pose in the log's map (map_scans, as a robot has)
+        from scanclique.io import odometry_is_reference
+        from scanclique.mapping import map_scans
+
+        t = time.perf_counter()
+        map_poses = map_scans(
+            scans, use_odometry=False if odometry_is_reference(scans) else None
+        ).poses
+        map_s = time.perf_counter() - t
     t = time.perf_counter()
     add_ms = []
     for k, s in enumerate(scans):
         t1 = time.perf_counter()
-        pid = db.add(s, name=f"{name}:{k}")
+        pid = db.add(s, name=f"{name}:{k}", pose=map_poses[k])
         add_ms.append(1e3 * (time.perf_counter() - t1))
         assert pid == k + 1
     build_s = time.perf_counter() - t
@@ -313,7 +324,9 @@ def recognition(
     d_right = sum(r["right"] for r in dflt)
     d_right_true = sum(r["right"] and r["has_true"] for r in dflt)
     return {
-        "log": name,
+        "log": name + (" (mapped)" if mapped else ""),
+        "mapped": mapped,
+        "mapping_s": map_s,
         "scans": n,
         "queries": len(queries),
         "with_true_place": n_true,
@@ -825,6 +838,13 @@ def main(argv=None) -> None:
         help="recognition: also verify each query's true places directly, bypassing the "
         "prefilter (what the verification can recognise; slower)",
     )
+    ap.add_argument(
+        "--map",
+        action="store_true",
+        help="recognition: each log also run with its places stored with their poses in "
+        "the log's map (map_scans first; PlaceDB.add pose=), the hits that disagree on "
+        "where the query is then not accepted",
+    )
     ap.add_argument("--out", default=None, help="results JSON (default benchmarks/results/)")
     a = ap.parse_args(argv)
     if a.full:
@@ -858,8 +878,10 @@ def main(argv=None) -> None:
                     escalate=a.escalate,
                     degrade=a.degrade,
                     ceiling=a.ceiling,
+                    mapped=m,
                 )
                 for n in a.logs.split(",")
+                for m in ((False, True) if a.map else (False,))
             ]
             for r in res["recognition"]:
                 print(

@@ -137,6 +137,35 @@ def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):
                 assert want.distance_to(h.map_pose) == pytest.approx((0.0, 0.0), abs=1e-12)
 
 
+def test_a_hit_the_other_hits_support_outweighs_a_weaker_rival(tmp_path, worlds):
+    """Intel's scan 447 (with places mapped by map_scans) got two right hits at
+    confidence 0.998 and a quarter-turn look-alike 10 m away at 0.951: the right place,
+    supported by a second place agreeing with it, stays accepted (together a thousandth
+    as likely wrong as the look-alike: RIVAL_RATIO); alone at 0.998 it is ambiguous, and
+    the reason names the rival."""
+    from scanclique.geometry import Pose2
+    from scanclique.places.database import RIVAL_RATIO
+
+    traj = worlds[2]
+    with PlaceDB(tmp_path / "p.db") as db:
+        here, there = Pose2(1.0, 2.0, 0.3), Pose2(11.0, 2.0, 0.3 + np.pi / 2)
+        a, b, c = (db.add(traj[k], pose=p) for k, p in ((0, here), (1, here), (2, there)))
+
+        def hit(pid, verdict, conf):
+            return PlaceHit(pid, None, Pose2(0.2, 0.0, 0.01), 0.8, verdict, 0.1, 0, 5, None, "",
+                            confidence=conf)  # fmt: skip
+
+        both = db._disagreeing([hit(a, ACCEPTED, 0.998), hit(b, ACCEPTED, 0.9978),
+                                hit(c, AMBIGUOUS, 0.951)])  # fmt: skip
+        assert [h.verdict for h in both] == [ACCEPTED, ACCEPTED, AMBIGUOUS]
+        assert 0.049 / (0.002 * 0.0022) > RIVAL_RATIO > 0.049 / 0.002
+        alone = db._disagreeing([hit(a, ACCEPTED, 0.998), hit(c, AMBIGUOUS, 0.951)])
+        assert alone[0].verdict == AMBIGUOUS and f"place {c} (ambiguous" in alone[0].reason
+        assert alone[0].map_pose.distance_to(here @ Pose2(0.2, 0.0, 0.01)) == (0.0, 0.0)
+        weak = db._disagreeing([hit(a, ACCEPTED, 0.998), hit(c, AMBIGUOUS, 0.85)])
+        assert weak[0].verdict == ACCEPTED  # below RIVAL_CONFIDENCE: not a rival
+
+
 def test_exclude_and_candidates(tmp_path, worlds):
     traj = worlds[0]
     with PlaceDB(tmp_path / "p.db") as db:
