@@ -74,31 +74,26 @@ def read_tum(path: str | os.PathLike) -> np.ndarray:
         raise ParseError(os.fspath(path), None, "holds no poses (timestamp x y z qx qy qz qw)")
     q = a[:, 4:8]
     norm = np.linalg.norm(q, axis=1)
-    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_TOLERANCE))
-    if len(bad):
-        r = int(bad[0])
-        raise ParseError(
-            os.fspath(path),
-            table_line(path, r),
-            f"qx qy qz qw = {' '.join(f'{v:g}' for v in q[r])} is not a rotation (norm "
-            f"{norm[r]:.4g}, not 1)",
-            field="qw",
-        )
+    _refuse(path, ~(np.abs(norm - 1.0) <= QUATERNION_TOLERANCE), "qw", lambda r: (
+        f"qx qy qz qw = {' '.join(f'{v:g}' for v in q[r])} is not a rotation (norm "
+        f"{norm[r]:.4g}, not 1)"))  # fmt: skip
     qx, qy, qz, qw = (q / norm[:, None]).T
     # the z axis of the rotated frame, z component: cos of the tilt
     tilt = np.arccos(np.clip(1.0 - 2.0 * (qx * qx + qy * qy), -1.0, 1.0))
-    bad = np.flatnonzero(tilt > MAX_TILT)
-    if len(bad):
-        r = int(bad[0])
-        raise ParseError(
-            os.fspath(path),
-            table_line(path, r),
-            f"the rotation tilts the z axis by {math.degrees(tilt[r]):.1f} deg (at most "
-            f"{math.degrees(MAX_TILT):.0f}): not a trajectory in the plane",
-            field="qx qy",
-        )
+    _refuse(path, tilt > MAX_TILT, "qx qy", lambda r: (
+        f"the rotation tilts the z axis by {math.degrees(tilt[r]):.1f} deg (at most "
+        f"{math.degrees(MAX_TILT):.0f}): not a trajectory in the plane"))  # fmt: skip
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
     return np.column_stack([a[:, 0], a[:, 1], a[:, 2], yaw])
+
+
+def _refuse(path, bad: np.ndarray, field: str, message) -> None:
+    """A :class:`ParseError` naming the line of the first row where ``bad`` is True (data
+    rows counted as :func:`read_table` counts them), ``message(row)`` saying why."""
+    rows = np.flatnonzero(bad)
+    if len(rows):
+        r = int(rows[0])
+        raise ParseError(os.fspath(path), table_line(path, r), message(r), field=field)
 
 
 def poses_at(
