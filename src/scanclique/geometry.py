@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import ScanError
 
-__all__ = ["Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses"]
+__all__ = ["Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses", "pose_at"]
 
 
 def wrap_angle(angle):
@@ -56,6 +56,46 @@ def interpolate_poses(rows, times) -> np.ndarray:
             wrap_angle(np.interp(times, rows[:, 0], th)),
         ]
     )
+
+
+def pose_at(times, poses, t: float, tol: float = 0.0) -> Pose2 | None:
+    """The pose at time ``t`` from poses at sorted times.
+
+    Parameters
+    ----------
+    times : array_like, shape (T,)
+        Seconds, non-decreasing.
+    poses : array_like, shape (T, 3)
+        ``x y theta`` at each time.
+    t : float
+        Query time, same clock.
+    tol : float
+        Seconds: a time within ``tol`` of ``t`` counts as ``t``.
+
+    Returns
+    -------
+    Pose2 or None
+        The pose of the last time within ``tol`` of ``t`` (the last logged, if several
+        share it); else linear between the two poses around ``t`` (x and y linearly,
+        theta along the shorter arc); None before the first time or after the last (by
+        more than ``tol``), or without poses.
+
+    >>> pose_at([0.0, 2.0], [[0.0, 0.0, 3.0], [2.0, 4.0, -3.0]], 1.0)
+    Pose2(x=1.0000, y=2.0000, theta=-3.1416)
+    >>> pose_at([0.0, 2.0], [[0.0, 0.0, 3.0], [2.0, 4.0, -3.0]], 2.5) is None
+    True
+    """
+    ts = np.asarray(times, dtype=np.float64)
+    i = int(np.searchsorted(ts, t - tol, side="left"))  # the first time >= t - tol
+    j = int(np.searchsorted(ts, t + tol, side="right")) - 1  # the last time <= t + tol
+    if j >= i:
+        return Pose2(*(float(v) for v in poses[j]))
+    if j < 0 or i >= len(ts):
+        return None
+    (x0, y0, th0), (x1, y1, th1) = (tuple(float(v) for v in poses[k]) for k in (j, i))
+    alpha = (t - ts[j]) / (ts[i] - ts[j])
+    dth = float(wrap_angle(th1 - th0))
+    return Pose2(x0 + alpha * (x1 - x0), y0 + alpha * (y1 - y0), th0 + alpha * dth)
 
 
 def rotation_matrix(theta: float) -> np.ndarray:

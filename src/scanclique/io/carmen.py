@@ -99,7 +99,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..errors import ArgumentError, ConfigError, ParseError, ScanError
-from ..geometry import Pose2, wrap_angle
+from ..geometry import Pose2, pose_at
 from ..scan import Scan, beam_angles
 from .text import (
     LineSource,
@@ -418,20 +418,8 @@ def interpolate_odometry(odom: np.ndarray, t: float) -> Pose2 | None:
     True
     """
     o = np.asarray(odom, dtype=np.float64).reshape(-1, 4)
-    if o.shape[0] == 0:
-        return None
     o = o[np.argsort(o[:, 0], kind="stable")]
-    ts = o[:, 0]
-    i = int(np.searchsorted(ts, t, side="left"))
-    if i < len(ts) and ts[i] == t:
-        j = int(np.searchsorted(ts, t, side="right")) - 1
-        return Pose2(o[j, 1], o[j, 2], o[j, 3])
-    if i == 0 or i == len(ts):
-        return None
-    (t0, x0, y0, th0), (t1, x1, y1, th1) = o[i - 1], o[i]
-    alpha = (t - t0) / (t1 - t0)
-    dth = float(wrap_angle(th1 - th0))
-    return Pose2(x0 + alpha * (x1 - x0), y0 + alpha * (y1 - y0), th0 + alpha * dth)
+    return pose_at(o[:, 0], o[:, 1:], t)
 
 
 # ---------------------------------------------------------------------------------------

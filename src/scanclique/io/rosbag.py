@@ -57,13 +57,12 @@ from __future__ import annotations
 import logging
 import math
 import os
-from bisect import bisect_left
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ParseError, ScanCliqueError
-from ..geometry import Pose2
+from ..geometry import Pose2, pose_at
 from ..scan import Scan
 
 log = logging.getLogger(__name__)
@@ -172,23 +171,6 @@ def mounting(links: dict, laser: str, bases) -> tuple[Pose2 | None, str, bool]:
     if R[2, 2] < 0.9:
         return None, f"the laser frame {laser!r} is tilted on {frame!r}", False
     return Pose2(float(t[0]), float(t[1]), math.atan2(R[1, 0], R[0, 0])), "", upside_down
-
-
-def _interp(times: list[float], poses: list[Pose2], t: float) -> Pose2 | None:
-    if not times or t < times[0] - 1e-9 or t > times[-1] + 1e-9:
-        return None
-    k = bisect_left(times, t)
-    if k < len(times) and abs(times[k] - t) < 1e-9:
-        return poses[k]
-    if k == 0:
-        return poses[0]
-    if k >= len(times):
-        return poses[-1]
-    t0, t1 = times[k - 1], times[k]
-    a, b = poses[k - 1], poses[k]
-    u = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
-    dth = math.atan2(math.sin(b.theta - a.theta), math.cos(b.theta - a.theta))
-    return Pose2(a.x + u * (b.x - a.x), a.y + u * (b.y - a.y), a.theta + u * dth)
 
 
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
@@ -369,6 +351,7 @@ def read_bag(
         order = np.argsort(o_times, kind="stable")
         o_times = [o_times[k] for k in order]
         o_poses = [o_poses[k] for k in order]
+        o_rows = np.array([p.as_array() for p in o_poses]).reshape(-1, 3)
         out: list[Scan] = []
         mount: Pose2 | None = None
         mirrored = False  # the laser is upside down (its beams mirrored, mounting())
@@ -425,7 +408,7 @@ def read_bag(
                 r, ang = r[::-1].copy(), -ang[::-1]
             r, ang = _wrap_beams(r, ang)
             t = _stamp(msg, t_ns)
-            odo = _interp(o_times, o_poses, t)
+            odo = pose_at(o_times, o_rows, t, tol=1e-9) if o_poses else None
             try:
                 out.append(
                     Scan(
