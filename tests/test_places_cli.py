@@ -112,8 +112,7 @@ def test_places_added_with_a_map_give_a_query_its_pose_in_the_map(tmp_path, log)
     pose in that map. A directory without the file, a bad file and a trajectory of
     another log are each one ``error:`` line, and no database is created."""
     from scanclique.geometry import Pose2
-    from scanclique.io import read_scans
-    from scanclique.mapping.outputs import write_tum
+    from scanclique.io import read_scans, write_tum
 
     scans = read_scans(log)
     start = scans[0].reference.inverse()

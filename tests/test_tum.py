@@ -10,8 +10,7 @@ import pytest
 
 from scanclique.errors import ArgumentError, DataNotFoundError, ParseError
 from scanclique.geometry import Pose2
-from scanclique.io import poses_at, read_tum
-from scanclique.mapping.outputs import write_tum
+from scanclique.io import poses_at, read_tum, write_tum
 
 
 def _quat(yaw, roll=0.0):

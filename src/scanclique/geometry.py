@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import ScanError
 
-__all__ = ["Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses", "pose_at"]
+__all__ = ["Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses", "pose_at", "align_se2"]
 
 
 def wrap_angle(angle):
@@ -96,6 +96,26 @@ def pose_at(times, poses, t: float, tol: float = 0.0) -> Pose2 | None:
     alpha = (t - ts[j]) / (ts[i] - ts[j])
     dth = float(wrap_angle(th1 - th0))
     return Pose2(x0 + alpha * (x1 - x0), y0 + alpha * (y1 - y0), th0 + alpha * dth)
+
+
+def align_se2(src, dst):
+    """Least-squares rotation ``Rm`` (2, 2) and translation ``t`` (2,) with
+    ``dst ~ src @ Rm.T + t`` for point sets ``src``, ``dst`` (N, 2), and the rotation's
+    angle (radians): the rigid motion of the plane (no scale) that best maps ``src`` onto
+    ``dst`` (Umeyama, 1991).
+
+    >>> Rm, t, ang = align_se2([[0, 0], [1, 0]], [[2, 1], [2, 2]])
+    >>> round(ang, 6), t.round(6).tolist()
+    (1.570796, [2.0, 1.0])
+    """
+    src = np.asarray(src, float)
+    dst = np.asarray(dst, float)
+    ms, md = src.mean(0), dst.mean(0)
+    H = (src - ms).T @ (dst - md)
+    ang = math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+    c, s = math.cos(ang), math.sin(ang)
+    Rm = np.array([[c, -s], [s, c]])
+    return Rm, md - Rm @ ms, ang
 
 
 def rotation_matrix(theta: float) -> np.ndarray:

@@ -51,7 +51,7 @@ from .text import (
     read_scans_text,
     write_scans_text,
 )
-from .tum import poses_at, read_tum
+from .tum import poses_at, read_tum, write_tum
 
 __all__ = [
     "read_scans",
@@ -72,6 +72,7 @@ __all__ = [
     "read_lines",
     "read_table",
     "read_tum",
+    "write_tum",
     "poses_at",
     "TextLines",
     "is_gzip",

@@ -27,7 +27,15 @@ from ..errors import ArgumentError, ParseError
 from ..geometry import Pose2, interpolate_poses
 from .table import read_table, table_line
 
-__all__ = ["read_tum", "poses_at", "TUM_COLUMNS", "TIME_TOLERANCE", "MAX_GAP", "MAX_TILT"]
+__all__ = [
+    "read_tum",
+    "write_tum",
+    "poses_at",
+    "TUM_COLUMNS",
+    "TIME_TOLERANCE",
+    "MAX_GAP",
+    "MAX_TILT",
+]
 
 TUM_COLUMNS = ("timestamp", "x", "y", "z", "qx", "qy", "qz", "qw")
 #: a row and a scan are at the same time when this close (s): the 1 microsecond that
@@ -41,6 +49,34 @@ MAX_GAP = 1.0
 MAX_TILT = math.radians(25.0)
 #: a quaternion whose norm is further than this from 1 is not a rotation
 QUATERNION_TOLERANCE = 0.01
+
+
+def write_tum(path: str | os.PathLike, poses, timestamps) -> int:
+    """Write a TUM trajectory: one row ``timestamp x y 0 0 0 qz qw`` per pose (the rotation
+    ``theta`` about z), in the given order; a pose that is None is left out. Returns the
+    rows written.
+
+    Parameters
+    ----------
+    poses : sequence of Pose2 or None, or array_like (N, 3)
+        ``x y theta`` (metres, radians).
+    timestamps : sequence of float or None
+        One per pose (seconds); a missing one is written as the pose's index.
+    """
+    lines = []
+    for k, p in enumerate(poses):
+        if p is None:
+            continue
+        x, y, th = (p.x, p.y, p.theta) if isinstance(p, Pose2) else (float(v) for v in p)
+        t = timestamps[k] if timestamps[k] is not None else float(k)
+        h = 0.5 * th
+        lines.append(
+            f"{t:.6f} {x:.6f} {y:.6f} 0.000000 0.000000 0.000000 {math.sin(h):.9f} "
+            f"{math.cos(h):.9f}"
+        )
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + ("\n" if lines else ""))
+    return len(lines)
 
 
 def read_tum(path: str | os.PathLike) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..config import config_to_dict
 from ..geometry import Pose2
+from ..io.tum import write_tum
 from .backend import tangent_covariance
 from .occupancy import OccupancyGrid, probabilities
 
@@ -46,23 +47,6 @@ __all__ = [
 
 OCCUPIED_THRESH = 0.65
 FREE_THRESH = 0.196
-
-
-def write_tum(path: str | Path, poses: Sequence[Pose2 | None], timestamps) -> int:
-    """Write a TUM trajectory; scans without a pose are left out. Returns the lines
-    written. Timestamps default to the scan index when missing."""
-    lines = []
-    for k, p in enumerate(poses):
-        if p is None:
-            continue
-        t = timestamps[k] if timestamps[k] is not None else float(k)
-        h = 0.5 * p.theta
-        lines.append(
-            f"{t:.6f} {p.x:.6f} {p.y:.6f} 0.000000 0.000000 0.000000 {math.sin(h):.9f} "
-            f"{math.cos(h):.9f}"
-        )
-    Path(path).write_text("\n".join(lines) + ("\n" if lines else ""))
-    return len(lines)
 
 
 def write_covariances(

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry import align_se2
+
 __all__ = [
     "gps_outliers",
     "GpsError",
@@ -49,18 +51,6 @@ class GpsError:
     fixes: int
     rotation_best: float  # rad, rotation of the best alignment (estimate -> GPS)
     translation_best: tuple[float, float]
-
-
-def align_se2(src, dst):
-    """Least-squares rotation ``Rm`` and translation ``t`` with ``dst ~ src @ Rm.T + t``."""
-    src = np.asarray(src, float)
-    dst = np.asarray(dst, float)
-    ms, md = src.mean(0), dst.mean(0)
-    H = (src - ms).T @ (dst - md)
-    ang = math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
-    c, s = math.cos(ang), math.sin(ang)
-    Rm = np.array([[c, -s], [s, c]])
-    return Rm, md - Rm @ ms, ang
 
 
 def sensor_positions(poses, sensor_x: float, sensor_y: float) -> np.ndarray:

@@ -17,26 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.tum import write_tum as _write_tum
+
 __all__ = ["write_tum", "write_landmarks", "write_report", "plot_maps", "write_landmark_log"]
 
 
 def write_tum(path, times, poses) -> Path:
-    """Write poses (N, 3) at ``times`` (N,) in TUM format; returns the path."""
+    """Write poses (N, 3) at ``times`` (N,) in TUM format (:func:`scanclique.io.write_tum`);
+    returns the path."""
     p = Path(path)
-    th = np.asarray(poses)[:, 2]
-    rows = np.column_stack(
-        [
-            times,
-            poses[:, 0],
-            poses[:, 1],
-            np.zeros(len(th)),
-            np.zeros(len(th)),
-            np.zeros(len(th)),
-            np.sin(th / 2),
-            np.cos(th / 2),
-        ]
-    )
-    np.savetxt(p, rows, fmt="%.6f", header="time x y z qx qy qz qw", comments="# ")
+    _write_tum(p, np.asarray(poses, float), list(times))
     return p
 
 
