@@ -98,6 +98,19 @@ def test_create_add_reopen_identical(db_path):
     assert before[0][0] == 3  # a scan finds itself first
 
 
+def test_reads_of_many_places_go_in_chunks(db_path, monkeypatch):
+    """``names`` and ``array_of`` of more places than one ``IN (...)`` list may hold (999
+    parameters in SQLite before 3.32) read them in chunks: all of them come back."""
+    import scanclique.places.store as store
+
+    with PlaceDB(db_path) as db:
+        ids = [db.add(wavy_scan(s), name=f"w{s}", pose=sc.Pose2(s, 0.0, 0.0)) for s in range(5)]
+        monkeypatch.setattr(store, "IN_CHUNK", 2)
+        assert db.store.names(ids) == {i: f"w{k}" for k, i in enumerate(ids)}
+        got = db.store.array_of(ids, "map_pose")
+        assert sorted(got) == ids and [float(got[i][0]) for i in ids] == [0, 1, 2, 3, 4]
+
+
 def test_journal_is_wal_and_config_stored(db_path):
     cfg = sc.paper_config()
     PlaceDB(db_path, cfg).close()

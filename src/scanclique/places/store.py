@@ -95,6 +95,16 @@ CREATE TABLE signatures (
 );
 """
 _TABLES = {"meta", "places", "arrays", "signatures"}
+#: ids in one ``IN (...)`` list: SQLite builds before 3.32 allow 999 parameters a
+#: statement (later ones 32766 by default), and a database may hold more places
+IN_CHUNK = 900
+
+
+def _chunks(ids) -> Iterator[list[int]]:
+    """``ids`` as lists of at most :data:`IN_CHUNK` ints."""
+    ids = [int(i) for i in ids]
+    for k in range(0, len(ids), IN_CHUNK):
+        yield ids[k : k + IN_CHUNK]
 
 
 # ---------------------------------------------------------------------------------------
@@ -473,17 +483,16 @@ class PlaceStore:
 
     def array_of(self, ids, name: str) -> dict[int, np.ndarray]:
         """The stored array ``name`` of each of the places ``ids`` that has one (by primary
-        key: a few places at a time)."""
-        ids = [int(i) for i in ids]
-        if not ids:
-            return {}
-        q = ",".join("?" * len(ids))
+        key; :data:`IN_CHUNK` places a statement)."""
+        rows = []
         with self._errors("read arrays"):
-            rows = self._conn.execute(
-                f"SELECT place_id, dtype, shape, crc32, data FROM arrays "
-                f"WHERE name = ? AND place_id IN ({q})",
-                (name, *ids),
-            ).fetchall()
+            for chunk in _chunks(ids):
+                q = ",".join("?" * len(chunk))
+                rows += self._conn.execute(
+                    f"SELECT place_id, dtype, shape, crc32, data FROM arrays "
+                    f"WHERE name = ? AND place_id IN ({q})",
+                    (name, *chunk),
+                ).fetchall()
         return {
             int(r[0]): decode_array(*r[1:], where=f"{self._where}: place {r[0]} array {name!r}")
             for r in rows
@@ -491,13 +500,13 @@ class PlaceStore:
 
     def names(self, ids) -> dict[int, str | None]:
         """Names of the places ``ids``."""
-        ids = [int(i) for i in ids]
-        if not ids:
-            return {}
+        out = {}
         with self._errors("read"):
-            q = ",".join("?" * len(ids))
-            rows = self._conn.execute(f"SELECT id, name FROM places WHERE id IN ({q})", ids)
-            return {int(i): n for i, n in rows.fetchall()}
+            for chunk in _chunks(ids):
+                q = ",".join("?" * len(chunk))
+                rows = self._conn.execute(f"SELECT id, name FROM places WHERE id IN ({q})", chunk)
+                out.update((int(i), n) for i, n in rows.fetchall())
+        return out
 
     def get(self, place_id: int, arrays: bool = True) -> PlaceRecord:
         """The stored place ``place_id`` (with all its arrays, or only the scan's).
