@@ -389,6 +389,81 @@ def recognition(
     }
 
 
+# ---------------------------------------------------------------------------------------
+# 1b. Localisation in a map (places locate)
+# ---------------------------------------------------------------------------------------
+def locate(name: str, every: int, candidates: int, tmp: Path, progress=True) -> dict:
+    """Relocalisation in a known map: the first half of the log mapped (``map_scans``) and
+    every scan of it stored as a place with its mapped pose; every ``every``-th scan of
+    the second half localised by :func:`scanclique.places.run.run_locate` (each on its
+    own, no prior). A located scan is right when its map pose, carried into the
+    reference frame by the rigid motion that best maps the places' mapped positions onto
+    their reference positions (``geometry.align_se2``), is within 0.5 m and 0.2 rad of
+    its reference pose. Recall over the queries with a true place among the first half
+    (the revisit rule); precision over all located queries."""
+    from scanclique.datasets import load_log
+    from scanclique.geometry import Pose2, align_se2
+    from scanclique.io import odometry_is_reference
+    from scanclique.mapping import map_scans
+    from scanclique.places.run import LOCATED, run_add, run_locate
+
+    scans = load_log(name)
+    n, half = len(scans), len(scans) // 2
+    first = scans[:half]
+    t = time.perf_counter()
+    mapped = map_scans(first, use_odometry=False if odometry_is_reference(first) else None).poses
+    map_s = time.perf_counter() - t
+    path = tmp / f"{name}-locate.db"
+    run_add(path, first, poses=list(mapped))
+    ok = [k for k in range(half) if mapped[k] is not None]
+    src = np.array([[mapped[k].x, mapped[k].y] for k in ok])
+    dst = np.array([[scans[k].reference.x, scans[k].reference.y] for k in ok])
+    Rm, tr, ang = align_se2(src, dst)
+    to_ref = Pose2(float(tr[0]), float(tr[1]), ang)
+    fit = np.hypot(*(src @ Rm.T + tr - dst).T)
+    queries = list(range(half, n, every))
+    truth = {i: {j for j in js if j < half} for i, js in true_places(scans, queries).items()}
+    t = time.perf_counter()
+    run = run_locate(path, scans, start=half, every=every, candidates=candidates)
+    seconds = time.perf_counter() - t
+    located = right = right_true = 0
+    errors = []
+    for i, status, pose, pid in zip(run.indices, run.status, run.poses, run.places, strict=True):
+        if status != LOCATED:
+            continue
+        located += 1
+        k = pid - 1  # the place: scan k of the first half (added in order)
+        rel = mapped[k].inverse() @ pose  # the hit's pose: the query in the place's frame
+        ok_i = _right_pose(scans[k], rel, scans[i])
+        right += ok_i
+        right_true += ok_i and bool(truth[i])
+        if ok_i:  # where the map puts it: the map's own error included
+            errors.append((to_ref @ pose).distance_to(scans[i].reference))
+    n_true = sum(bool(v) for v in truth.values())
+    e = np.array(errors) if errors else np.full((1, 2), np.nan)
+    if progress:
+        print(f"  {name}: located {located} of {len(queries)}", file=sys.stderr)
+    return {
+        "log": name,
+        "places": half,
+        "queries": len(queries),
+        "with_true_place": n_true,
+        "located": located,
+        "right": right,
+        "wrong": located - right,
+        "precision": right / located if located else float("nan"),
+        "recall": right_true / n_true if n_true else float("nan"),
+        "doubtful": run.count("ambiguous"),
+        "error_median_m": float(np.median(e[:, 0])),
+        "error_median_deg": float(np.degrees(np.median(e[:, 1]))),
+        "map_fit_rms_m": float(np.sqrt(np.mean(fit**2))),
+        "mapping_s": map_s,
+        "query_ms_median": float(np.median(run.query_ms)),
+        "query_ms_p95": float(np.percentile(run.query_ms, 95)),
+        "seconds": seconds,
+    }
+
+
 #: ``--ceiling``: a query's true places verified directly (bypassing the prefilter), the
 #: most overlapping first
 CEILING_PLACES = 3
@@ -703,6 +778,28 @@ def report(res: dict) -> str:
                     + " |"
                 )
             lines.append("")
+    if "locate" in res:
+        lines += [
+            "## Localisation in a map (`places locate`: the first half mapped and stored as "
+            "places with their mapped poses; the second half's queries each on its own; "
+            "right: the pose relative to the place within 0.5 m, 0.2 rad; the error in the "
+            "reference frame includes the map's)",
+            "",
+            "| log | places | queries | with true place | located | right | wrong | "
+            "precision | recall | ambiguous | right: median error in the reference frame m | "
+            "deg | map fit RMS m | "
+            "query ms median | p95 |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in res["locate"]:
+            lines.append(
+                f"| {r['log']} | {r['places']} | {r['queries']} | {r['with_true_place']} | "
+                f"{r['located']} | {r['right']} | {r['wrong']} | {_f(r['precision'])} | "
+                f"{_f(r['recall'])} | {r['doubtful']} | {_f(r['error_median_m'])} | "
+                f"{_f(r['error_median_deg'], '.2f')} | {_f(r['map_fit_rms_m'])} | "
+                f"{_f(r['query_ms_median'], '.1f')} | {_f(r['query_ms_p95'], '.1f')} |"
+            )
+        lines.append("")
     if "scale" in res:
         lines += [
             "## Scale (one database grown; queries k=5 from a second connection)",
@@ -773,7 +870,11 @@ def figure(rec: list[dict], path: Path) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--stages", default="recognition,scale,scale_out")
+    ap.add_argument(
+        "--stages",
+        default="recognition,scale,scale_out",
+        help="of recognition, locate, scale, scale_out",
+    )
     ap.add_argument("--logs", default=",".join(LOGS))
     ap.add_argument("--query-every", type=int, default=3, help="every n-th scan is a query")
     ap.add_argument("--candidates", type=int, default=5, help="candidates verified per query")
@@ -925,6 +1026,8 @@ def main(argv=None) -> None:
                         ),
                         flush=True,
                     )
+        if "locate" in stages:
+            res["locate"] = [locate(n, a.query_every, a.candidates, tmp) for n in a.logs.split(",")]
         if "scale" in stages:
             res["scale"] = scale([int(x) for x in a.sizes.split(",")], a.scale_queries, tmp)
         if "scale_out" in stages:
@@ -934,7 +1037,7 @@ def main(argv=None) -> None:
     if out_json.exists():
         old = json.loads(out_json.read_text())
         ran = set(res)
-        for stage in ("recognition", "calibration", "scale", "scale_out"):
+        for stage in ("recognition", "calibration", "locate", "scale", "scale_out"):
             # the calibration goes with the recognition it was fitted on
             if (
                 stage not in ran

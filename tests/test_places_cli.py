@@ -145,3 +145,43 @@ def test_places_added_with_a_map_give_a_query_its_pose_in_the_map(tmp_path, log)
         assert r.exit_code == 2 and "error:" in r.output and words in r.output, r.output
         assert "Traceback" not in r.output
     assert not (tmp_path / "q.db").exists()
+
+
+def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
+    """``places locate DB LOG`` queries each scan and gives it the pose its first
+    accepted hit gives it in the map (``--out``: a TUM trajectory of those); a database
+    without map poses, and an ``--out`` in a missing directory, are one ``error:`` line."""
+    from scanclique.geometry import Pose2
+    from scanclique.io import read_scans, read_tum, write_tum
+
+    scans = read_scans(log)
+    start = scans[0].reference.inverse()
+    truth = [start @ s.reference for s in scans]
+    write_tum(tmp_path / "truth.tum", truth, [s.timestamp for s in scans])
+    db = tmp_path / "p.db"
+    assert (
+        invoke("places", "add", db, log, "--every", "3", "--map", tmp_path / "truth.tum").exit_code
+        == 0
+    )
+    out = tmp_path / "located.tum"
+    r = invoke("places", "locate", db, log, "--start", "1", "--every", "2", "--out", out, "--json")
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["queried"] == 6 and d["located"] >= 4 and d["mapped_places"] == 4
+    rows = read_tum(out)
+    assert len(rows) == d["located"]
+    for s in d["scans"]:
+        if s["status"] == "located":
+            p = s["pose"]
+            dt, dr = Pose2(p["x"], p["y"], p["theta"]).distance_to(truth[s["index"]])
+            assert dt < 0.05 and dr < 0.02, (s, dt, dr)
+        else:
+            assert s["pose"] is None
+    r = invoke("places", "locate", db, log)
+    assert r.exit_code == 0 and "located in the map" in r.output and "Metric" in r.output
+    plain = tmp_path / "plain.db"
+    invoke("places", "add", plain, log, "--every", "3")
+    r = invoke("places", "locate", plain, log)
+    assert r.exit_code == 2 and "none of its 4 places has a map pose" in r.output, r.output
+    r = invoke("places", "locate", db, log, "--out", tmp_path / "no" / "x.tum")
+    assert r.exit_code == 2 and "does not exist" in r.output

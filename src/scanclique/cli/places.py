@@ -1,5 +1,5 @@
-"""The ``scanclique places`` commands (``add``, ``query``, ``info``) and ``scanclique
-loops``: the place database of :mod:`scanclique.places` (issue 14).
+"""The ``scanclique places`` commands (``add``, ``query``, ``locate``, ``info``) and
+``scanclique loops``: the place database of :mod:`scanclique.places` (issue 14).
 
 The work is :mod:`scanclique.places.run`; this module only parses arguments and prints.
 Heavy imports happen inside the commands.
@@ -34,12 +34,15 @@ places_app = typer.Typer(
     add_completion=False,
     rich_markup_mode="markdown",
     help="A place database (topological localisation): add scans as places, query a scan "
-    "for the places it sees and its pose relative to each.\n\n"
+    "for the places it sees and its pose relative to each, locate a log's scans in the "
+    "map of places added with --map.\n\n"
     "**Examples**\n\n"
     "```\n"
     "scanclique places add places.db freiburg --every 5\n"
     "scanclique places query places.db freiburg 1002 --top 5\n"
     "scanclique places info places.db --check\n"
+    "scanclique places add mapped.db intel --every 5 --map runs/intel\n"
+    "scanclique places locate mapped.db my-run.clf --out my-run.tum\n"
     "```",
 )
 
@@ -218,6 +221,73 @@ def query(
             else ""
         ),
         soft_wrap=True,
+    )
+
+
+@places_app.command("locate")
+def locate(
+    db: DbArg,
+    source: SourceArg,
+    every: Annotated[int, typer.Option("--every", min=1, help="Query every n-th scan.")] = 1,
+    start: Annotated[int, typer.Option("--start", min=0, help="First scan index.")] = 0,
+    stop: Annotated[
+        int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")
+    ] = None,
+    top: Annotated[int, typer.Option("--top", "-k", min=1, help="Hits per query.")] = 5,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="Write the located scans' poses as a TUM trajectory."),
+    ] = None,
+    laser: LaserOpt = "main",
+    config: ConfigOpt = None,
+    paper: PaperOpt = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Localise the scans of a log in the map of a place database (places added with
+    --map): each scan on its own, by recognition, with no prior pose; a scan is located
+    when a hit is accepted, at the pose that hit gives it in the map.
+
+    **Examples**
+
+    ```
+    scanclique map intel --out runs/intel
+    scanclique places add intel.db intel --every 5 --map runs/intel
+    scanclique places locate intel.db my-run.clf --out my-run-in-intel.tum
+    ```
+    """
+    from rich.progress import Progress
+
+    from ..places.run import run_locate
+
+    if out is not None:
+        _check_out_file(out, log=source)
+    cfg = _config(config, paper)
+    if stop is not None and stop <= start:
+        raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
+    if start > 0:
+        _check_start(source, start, laser)
+    with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
+        task = bar.add_task("locating scans", total=None)
+        run = _guard(
+            lambda: run_locate(
+                db, source, every=every, start=start, stop=stop, k=top, config=cfg, laser=laser,
+                progress=lambda d, t: bar.update(task, completed=d, total=t),
+            )
+        )  # fmt: skip
+    if out is not None:
+        from ..io import write_tum
+
+        n = _guard(lambda: write_tum(out, run.poses, run.timestamps))
+        _note(f"{n} located scans written to {out}")
+    if json_out:
+        _print_json(run.to_dict())
+        return
+    _console().print(
+        _table(
+            run.rows(),
+            f"scanclique places locate {run.label} in {db}",
+            ("Metric", "Value", "Units"),
+        )
     )
 
 

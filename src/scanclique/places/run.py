@@ -31,7 +31,10 @@ from .database import PlaceDB
 from .loops import LoopSearch, find_loops
 from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, AMBIGUOUS, REJECTED
 
-__all__ = ["AddRun", "QueryRun", "LoopsRun", "run_add", "run_query", "run_info", "run_loops"]
+__all__ = [
+    "AddRun", "QueryRun", "LocateRun", "LoopsRun",
+    "run_add", "run_query", "run_locate", "run_info", "run_loops",
+]  # fmt: skip
 
 #: a recognised pose is right when this close to the reference (the benchmark's rule)
 RIGHT_TRANSLATION = 0.5  # metres
@@ -308,6 +311,159 @@ def run_query(
                 errors.append((ref @ h.pose).distance_to(q.reference))
         n = len(db)
     return QueryRun(os.fspath(path), label, index, tuple(hits), tuple(errors), n, seconds, loading)
+
+
+#: what :func:`run_locate` says of each scan: placed in the map by an accepted hit; only
+#: an accepted hit of a place without a map pose; hits, none accepted (ambiguous); none
+LOCATED, UNMAPPED, DOUBTFUL, UNKNOWN = "located", "unmapped", "ambiguous", "not recognised"
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LocateRun:
+    """What :func:`run_locate` found: for each scan queried (``indices``, with their
+    ``timestamps``), its ``status`` (:data:`LOCATED`, :data:`UNMAPPED`, :data:`DOUBTFUL`
+    or :data:`UNKNOWN`), its pose in the database's map (``poses``: Pose2, None unless
+    located), the place that gave it and that hit's confidence (``places``,
+    ``confidences``: the best hit's, whatever its verdict; None and 0 without one), and
+    the query times (ms)."""
+
+    path: str
+    label: str
+    indices: tuple
+    timestamps: tuple
+    status: tuple
+    poses: tuple
+    places: tuple
+    confidences: tuple
+    query_ms: tuple
+    mapped_places: int
+    total_places: int
+    seconds: float
+    loading_seconds: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(s == status for s in self.status)
+
+    def rows(self) -> list[tuple[str, str, str]]:
+        n = max(len(self.indices), 1)
+        ms = np.array(self.query_ms) if self.query_ms else np.zeros(1)
+        return [
+            ("scans queried", str(len(self.indices)), ""),
+            *(
+                (what, f"{self.count(s)} ({100.0 * self.count(s) / n:.1f} %)", "")
+                for what, s in (
+                    ("located in the map (an accepted hit)", LOCATED),
+                    ("accepted, by places without a map pose only", UNMAPPED),
+                    ("recognised, none accepted (ambiguous)", DOUBTFUL),
+                    ("not recognised", UNKNOWN),
+                )
+            ),
+            ("places with a map pose", f"{self.mapped_places} of {self.total_places}", ""),
+            ("query time, median", f"{np.median(ms):.1f}", "ms"),
+            ("query time, p95", f"{np.percentile(ms, 95):.1f}", "ms"),
+            ("kernel loading (before the queries)", f"{self.loading_seconds:.1f}", "s"),
+            ("wall time", f"{self.seconds:.1f}", "s"),
+        ]
+
+    def to_dict(self) -> dict:
+        return {
+            "path": self.path,
+            "source": self.label,
+            "queried": len(self.indices),
+            **{s: self.count(s) for s in (LOCATED, UNMAPPED, DOUBTFUL, UNKNOWN)},
+            "mapped_places": self.mapped_places,
+            "places": self.total_places,
+            "seconds": self.seconds,
+            "loading_seconds": self.loading_seconds,
+            "scans": [
+                {
+                    "index": i,
+                    "timestamp": t,
+                    "status": s,
+                    "pose": None if p is None else {"x": p.x, "y": p.y, "theta": p.theta},
+                    "place_id": pid,
+                    "confidence": c,
+                    "query_ms": ms,
+                }
+                for i, t, s, p, pid, c, ms in zip(
+                    self.indices,
+                    self.timestamps,
+                    self.status,
+                    self.poses,
+                    self.places,
+                    self.confidences,
+                    self.query_ms,
+                    strict=True,
+                )  # fmt: skip
+            ],
+        }
+
+
+def run_locate(
+    path: str | os.PathLike,
+    source,
+    *,
+    every: int = 1,
+    start: int = 0,
+    stop: int | None = None,
+    k: int = 5,
+    candidates: int | None = None,
+    config: MatchConfig | None = None,
+    laser: str = "main",
+    progress: Callable[[int, int], None] | None = None,
+) -> LocateRun:
+    """Localise the scans of a log in the map of a place database: topological
+    localisation by recognition, scan by scan, with no prior pose (paper §2).
+
+    Every ``every``-th scan of ``source`` (``start`` to ``stop``; ``laser`` as in
+    :func:`scanclique.io.read_scans`) is a query (:meth:`PlaceDB.query`, ``k`` hits of
+    ``candidates`` verified); its pose in the map is the first accepted hit's
+    :attr:`PlaceHit.map_pose` (the place's map pose composed with the hit's pose; hits
+    that disagree on where the query is are not accepted). Scans are queried
+    independently: nothing is carried from one to the next.
+
+    Raises
+    ------
+    PlaceDatabaseError
+        No place of the database has a map pose (add them with
+        ``scanclique places add DB LOG --map DIR``), or no such database.
+    """
+    from ..errors import PlaceDatabaseError
+
+    scans, label = _scans(source, laser)
+    idx = list(range(start, len(scans) if stop is None else min(stop, len(scans)), max(1, every)))
+    t0 = time.perf_counter()
+    loading = warm_up()
+    status, poses, places, confs, ms = [], [], [], [], []
+    with PlaceDB(path, config, readonly=True) as db:
+        total = len(db)
+        mapped = sum(p is not None for p in db._map_poses_of([int(i) for i in db.ids]).values())
+        if not mapped:
+            raise PlaceDatabaseError(
+                f"{os.fspath(path)}: none of its {total} places has a map pose: add them with "
+                "'scanclique places add DB LOG --map DIR' (the --out of 'scanclique map LOG')"
+            )
+        for n, i in enumerate(idx):
+            t = time.perf_counter()
+            hits = db.query(scans[i], k=k, candidates=candidates)
+            ms.append(1e3 * (time.perf_counter() - t))
+            best = hits[0] if hits else None
+            if best is not None and best.verdict == ACCEPTED:
+                first = next((h for h in hits if h.verdict == ACCEPTED and h.map_pose), None)
+                best = first or best
+                status.append(LOCATED if first else UNMAPPED)
+            else:
+                status.append(DOUBTFUL if best and best.verdict == AMBIGUOUS else UNKNOWN)
+            poses.append(best.map_pose if status[-1] == LOCATED else None)
+            places.append(None if best is None else best.place_id)
+            confs.append(0.0 if best is None else best.confidence)
+            if progress:
+                progress(n + 1, len(idx))
+    return LocateRun(
+        os.fspath(path), label, tuple(idx), tuple(scans[i].timestamp for i in idx),
+        tuple(status), tuple(poses), tuple(places), tuple(confs), tuple(ms), mapped, total,
+        time.perf_counter() - t0, loading,
+    )  # fmt: skip
 
 
 def run_info(path: str | os.PathLike, check: bool = False) -> dict:
