@@ -956,8 +956,8 @@ class PlaceDB:
             return (dt, dr) if dt > AGREE_METRES or dr > AGREE_RADIANS else None
 
         def wrong(h: PlaceHit) -> float:  # the chance that h and all agreeing rivals are wrong
-            support = [o for o in rivals if apart(h, o) is None]
-            return math.prod(1.0 - o.confidence for o in support or [h])
+            support = [h] + [o for o in rivals if o is not h and apart(h, o) is None]
+            return math.prod(1.0 - o.confidence for o in support)
 
         out = []
         for h in hits:
