@@ -618,11 +618,12 @@ class PlaceDB:
         transaction; returns the place id.
 
         ``pose``, optional: where the place is in a map (the pose of the scan's sensor
-        frame, e.g. from :func:`~scanclique.mapping.map_scans`), stored with it. A query
-        whose hits of places with a pose disagree on where the query is in that map
-        (more than :data:`AGREE_METRES` / :data:`AGREE_RADIANS`) does not accept them
-        (:meth:`query`): a building of places that look alike (corners a quarter turn
-        round, doors along a corridor) otherwise gets a look-alike accepted with high
+        frame, e.g. from :func:`~scanclique.mapping.map_scans`), stored with it. A query's
+        hits of such places give the query's pose in that map (:attr:`PlaceHit.map_pose`),
+        and a hit that others put more than :data:`AGREE_METRES` / :data:`AGREE_RADIANS`
+        elsewhere about as believably is not accepted (:meth:`query`,
+        :data:`RIVAL_RATIO`): a building of places that look alike (corners a quarter
+        turn round, doors along a corridor) otherwise gets a look-alike accepted with high
         confidence.
 
         Raises
