@@ -97,7 +97,10 @@ def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
             assert db.map_pose(pid).distance_to(poses[k]) == (0.0, 0.0)
     with pytest.raises(ArgumentError, match="one Pose2 or None per scan"):
         run_add(tmp_path / "q.db", traj, poses=poses[:3])
-    with pytest.raises(ArgumentError, match=r"rows time x y theta, \(N, 4\); got \(6, 3\)"):
+    with pytest.raises(
+        ArgumentError,
+        match=r"rows: a trajectory must be rows time x y theta, \(N, 4\); got \(6, 3\)",
+    ):
         run_add(tmp_path / "q.db", traj, poses=np.zeros((6, 3)))
     assert not (tmp_path / "q.db").exists()
 

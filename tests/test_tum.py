@@ -87,3 +87,5 @@ def test_a_missing_file_and_a_trajectory_of_another_log_are_named(tmp_path):
         poses_at(back, [9.5, 10.5])
     with pytest.raises(ArgumentError, match="no rows"):
         poses_at(np.zeros((0, 4)), [1.0])
+    with pytest.raises(ArgumentError, match=r"\(N, 4\); got \(2, 3\)"):
+        poses_at(np.zeros((2, 3)), [1.0])

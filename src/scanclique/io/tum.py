@@ -172,7 +172,9 @@ def poses_at(
         scans' own), or no scan gets a pose (the trajectory is of another log, or of
         another clock): the message gives both time spans.
     """
-    rows = np.asarray(trajectory, dtype=float).reshape(-1, 4)
+    rows = np.asarray(trajectory, dtype=float)
+    if rows.ndim != 2 or rows.shape[1] != 4:
+        raise ArgumentError(f"a trajectory must be rows time x y theta, (N, 4); got {rows.shape}")
     if not len(rows):
         raise ArgumentError("the trajectory has no rows")
     ts = [float(k) if t is None else float(t) for k, t in enumerate(timestamps)]

@@ -187,10 +187,6 @@ def _place_poses(poses, scans: list[Scan]) -> tuple[list, str]:
             p = f
         rows, source = read_tum(p), p
     elif isinstance(poses, np.ndarray) and poses.ndim == 2:  # rows time x y theta
-        if poses.shape[1] != 4:
-            raise ArgumentError(
-                f"poses as an array must be rows time x y theta, (N, 4); got {poses.shape}"
-            )
         rows, source = poses, "rows"
     else:
         got = list(poses)
