@@ -424,8 +424,19 @@ def locate(name: str, every: int, candidates: int, tmp: Path, progress=True) -> 
     queries = list(range(half, n, every))
     truth = {i: {j for j in js if j < half} for i, js in true_places(scans, queries).items()}
     t = time.perf_counter()
-    run = run_locate(path, scans, start=half, every=every, candidates=candidates)
+    run = run_locate(path, scans, start=half, every=every, candidates=candidates, whole=True)
     seconds = time.perf_counter() - t
+    # the whole second half, carried into the map by its located scans, in the reference
+    # frame; and its own map's shape error (the best rigid alignment to the reference)
+    whole = [(i, q) for i, q in zip(run.trajectory_indices, run.trajectory, strict=True) if q]
+    ate = np.array([(to_ref @ q).distance_to(scans[i].reference)[0] for i, q in whole])
+    if len(whole) >= 2:
+        own = np.array([[q.x, q.y] for _, q in whole])
+        ref = np.array([[scans[i].reference.x, scans[i].reference.y] for i, _ in whole])
+        R2, t2, _ = align_se2(own, ref)
+        shape = np.hypot(*(own @ R2.T + t2 - ref).T)
+    else:
+        shape = np.full(1, np.nan)
     located = right = right_true = 0
     errors = []
     for i, status, pose, pid in zip(run.indices, run.status, run.poses, run.places, strict=True):
@@ -457,6 +468,11 @@ def locate(name: str, every: int, candidates: int, tmp: Path, progress=True) -> 
         "error_median_m": float(np.median(e[:, 0])),
         "error_median_deg": float(np.degrees(np.median(e[:, 1]))),
         "map_fit_rms_m": float(np.sqrt(np.mean(fit**2))),
+        "anchor_inliers": run.anchor_inliers if run.anchor is not None else 0,
+        "whole_placed": len(whole),
+        "whole_ate_rms_m": float(np.sqrt(np.mean(ate**2))) if len(ate) else float("nan"),
+        "whole_ate_max_m": float(ate.max()) if len(ate) else float("nan"),
+        "whole_shape_rms_m": float(np.sqrt(np.mean(shape**2))),
         "mapping_s": map_s,
         "query_ms_median": float(np.median(run.query_ms)),
         "query_ms_p95": float(np.percentile(run.query_ms, 95)),
@@ -791,6 +807,23 @@ def report(res: dict) -> str:
             "query ms median | p95 |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
+        tail = [
+            "",
+            "The whole second half mapped on its own (`map_scans`) and carried into the "
+            "database's map by the rigid motion its located scans agree on "
+            "(`run_locate(whole=True)`, `--trajectory`); its error in the reference frame, "
+            "and the least any rigid motion leaves of it (its own map's shape):",
+            "",
+            "| log | scans placed | located scans agreeing | error RMS m | max m | "
+            "best rigid alignment RMS m |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in res["locate"]:
+            tail.append(
+                f"| {r['log']} | {r['whole_placed']} | {r['anchor_inliers']} | "
+                f"{_f(r['whole_ate_rms_m'])} | {_f(r['whole_ate_max_m'])} | "
+                f"{_f(r['whole_shape_rms_m'])} |"
+            )
         for r in res["locate"]:
             lines.append(
                 f"| {r['log']} | {r['places']} | {r['queries']} | {r['with_true_place']} | "
@@ -799,7 +832,7 @@ def report(res: dict) -> str:
                 f"{_f(r['error_median_deg'], '.2f')} | {_f(r['map_fit_rms_m'])} | "
                 f"{_f(r['query_ms_median'], '.1f')} | {_f(r['query_ms_p95'], '.1f')} |"
             )
-        lines.append("")
+        lines += tail + [""]
     if "scale" in res:
         lines += [
             "## Scale (one database grown; queries k=5 from a second connection)",

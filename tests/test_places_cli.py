@@ -179,6 +179,16 @@ def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
             assert s["pose"] is None
     r = invoke("places", "locate", db, log)
     assert r.exit_code == 0 and "located in the map" in r.output and "Metric" in r.output
+    whole = tmp_path / "whole.tum"  # the log mapped on its own, carried into the map
+    r = invoke("places", "locate", db, log, "--every", "2", "--trajectory", whole, "--json")
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["anchor_inliers"] >= 3 and d["anchor_rms"] < 0.05
+    rows = read_tum(whole)
+    assert len(rows) == len(scans)
+    for (_, x, y, th), want in zip(rows, truth, strict=True):
+        dt, dr = Pose2(x, y, th).distance_to(want)
+        assert dt < 0.1 and dr < 0.03, (dt, dr)
     plain = tmp_path / "plain.db"
     invoke("places", "add", plain, log, "--every", "3")
     r = invoke("places", "locate", plain, log)

@@ -105,6 +105,25 @@ def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
     assert not (tmp_path / "q.db").exists()
 
 
+def test_consensus_motion_takes_the_motion_most_pairs_agree_on():
+    """Six pairs carried by one motion and two by others: the six win, refitted exactly;
+    one pair is its own motion; none gives None."""
+    import math
+
+    from scanclique.geometry import Pose2
+    from scanclique.places.run import consensus_motion
+
+    T = Pose2(3.0, -1.0, 0.7)
+    good = [(Pose2(k, 0.5 * k, 0.1 * k), T @ Pose2(k, 0.5 * k, 0.1 * k)) for k in range(6)]
+    bad = [(Pose2(9, 9, 0), Pose2(-20, 4, 1)), (Pose2(1, 2, 3), Pose2(5, 5, 0))]
+    got, n, rms = consensus_motion(bad[:1] + good + bad[1:])
+    assert n == 6 and rms < 1e-12 and got.distance_to(T) == pytest.approx((0, 0), abs=1e-12)
+    got, n, rms = consensus_motion(bad[:1])
+    assert n == 1 and rms == 0.0 and (got @ bad[0][0]).distance_to(bad[0][1])[0] < 1e-12
+    got, n, rms = consensus_motion([])
+    assert got is None and n == 0 and math.isnan(rms)
+
+
 def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):
     """A ring corridor with every corner alike (sim.simulate_ring_drive, seed 0): the first
     lap's every 4th scan as places, queried with second-lap scans whose first accepted hit

@@ -238,6 +238,14 @@ def locate(
         Path | None,
         typer.Option("--out", "-o", help="Write the located scans' poses as a TUM trajectory."),
     ] = None,
+    trajectory: Annotated[
+        Path | None,
+        typer.Option(
+            "--trajectory",
+            help="Also map the log itself and carry its whole trajectory into the database's "
+            "map by the motion its located scans agree on; write it here (TUM).",
+        ),
+    ] = None,
     laser: LaserOpt = "main",
     config: ConfigOpt = None,
     paper: PaperOpt = False,
@@ -259,8 +267,9 @@ def locate(
 
     from ..places.run import run_locate
 
-    if out is not None:
-        _check_out_file(out, log=source)
+    for f in (out, trajectory):
+        if f is not None:
+            _check_out_file(f, log=source)
     cfg = _config(config, paper)
     if stop is not None and stop <= start:
         raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
@@ -272,13 +281,19 @@ def locate(
             lambda: run_locate(
                 db, source, every=every, start=start, stop=stop, k=top, config=cfg, laser=laser,
                 progress=lambda d, t: bar.update(task, completed=d, total=t),
+                whole=trajectory is not None,
             )
         )  # fmt: skip
-    if out is not None:
-        from ..io import write_tum
+    from ..io import write_tum
 
+    if out is not None:
         n = _guard(lambda: write_tum(out, run.poses, run.timestamps))
         _note(f"{n} located scans written to {out}")
+    if trajectory is not None and run.anchor is None:
+        _note(f"{trajectory} not written: the located scans agree on no one motion")
+    elif trajectory is not None:
+        n = _guard(lambda: write_tum(trajectory, run.trajectory, run.trajectory_times))
+        _note(f"the whole run, {n} scans, written to {trajectory}")
     if json_out:
         _print_json(run.to_dict())
         return

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..config import MatchConfig
 from ..errors import ScanCliqueError
+from ..geometry import Pose2, align_se2
 from ..match import warm_up
 from ..scan import Scan
 from .database import PlaceDB
@@ -33,7 +34,7 @@ from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, AMBIGUOUS, 
 
 __all__ = [
     "AddRun", "QueryRun", "LocateRun", "LoopsRun",
-    "run_add", "run_query", "run_locate", "run_info", "run_loops",
+    "run_add", "run_query", "run_locate", "run_info", "run_loops", "consensus_motion",
 ]  # fmt: skip
 
 #: a recognised pose is right when this close to the reference (the benchmark's rule)
@@ -171,7 +172,6 @@ def _place_poses(poses, scans: list[Scan]) -> tuple[list, str]:
     """One map pose (Pose2 or None) per scan from :func:`run_add`'s ``poses``, and where
     they came from ("" for none)."""
     from ..errors import ArgumentError, DataNotFoundError
-    from ..geometry import Pose2
     from ..io import poses_at, read_tum
 
     if poses is None:
@@ -340,6 +340,16 @@ class LocateRun:
     total_places: int
     seconds: float
     loading_seconds: float = 0.0
+    #: with ``whole=True``: the motion carrying the log's own map (``map_scans``) into the
+    #: database's (None when its located scans agree on none), how many located scans
+    #: agree on it and their residual RMS (m), and every scan's pose in the database's
+    #: map (``trajectory``, one per scan from ``start`` to ``stop``; None unplaced)
+    anchor: Pose2 | None = None
+    anchor_inliers: int = 0
+    anchor_rms: float = math.nan
+    trajectory: tuple = ()
+    trajectory_indices: tuple = ()
+    trajectory_times: tuple = ()
 
     def count(self, status: str) -> int:
         return sum(s == status for s in self.status)
@@ -359,6 +369,20 @@ class LocateRun:
                 )
             ),
             ("places with a map pose", f"{self.mapped_places} of {self.total_places}", ""),
+            *(
+                [
+                    (
+                        "whole run carried into the map by",
+                        f"{self.anchor_inliers} of {self.count(LOCATED)} located scans"
+                        if self.anchor is not None
+                        else "none (the located scans agree on no one motion)",
+                        "",
+                    ),
+                    ("their residual, RMS", f"{self.anchor_rms:.3f}", "m"),
+                ]
+                if self.trajectory
+                else []
+            ),
             ("query time, median", f"{np.median(ms):.1f}", "ms"),
             ("query time, p95", f"{np.percentile(ms, 95):.1f}", "ms"),
             ("kernel loading (before the queries)", f"{self.loading_seconds:.1f}", "s"),
@@ -375,6 +399,11 @@ class LocateRun:
             "places": self.total_places,
             "seconds": self.seconds,
             "loading_seconds": self.loading_seconds,
+            "anchor": None
+            if self.anchor is None
+            else {"x": self.anchor.x, "y": self.anchor.y, "theta": self.anchor.theta},
+            "anchor_inliers": self.anchor_inliers,
+            "anchor_rms": None if math.isnan(self.anchor_rms) else self.anchor_rms,
             "scans": [
                 {
                     "index": i,
@@ -411,6 +440,7 @@ def run_locate(
     config: MatchConfig | None = None,
     laser: str = "main",
     progress: Callable[[int, int], None] | None = None,
+    whole: bool = False,
 ) -> LocateRun:
     """Localise the scans of a log in the map of a place database: topological
     localisation by recognition, scan by scan, with no prior pose (paper §2).
@@ -421,6 +451,12 @@ def run_locate(
     :attr:`PlaceHit.map_pose` (the place's map pose composed with the hit's pose; hits
     that disagree on where the query is are not accepted). Scans are queried
     independently: nothing is carried from one to the next.
+
+    ``whole=True`` also maps the log itself (:func:`scanclique.mapping.map_scans`, every
+    scan from ``start`` to ``stop``) and carries that map into the database's by the
+    rigid motion its located scans agree on (:func:`consensus_motion`): every scan's
+    pose in the database's map (:attr:`LocateRun.trajectory`), when at least
+    :data:`ANCHOR_MIN_INLIERS` located scans agree.
 
     Raises
     ------
@@ -459,11 +495,67 @@ def run_locate(
             confs.append(0.0 if best is None else best.confidence)
             if progress:
                 progress(n + 1, len(idx))
+    whole_run = {}
+    if whole:
+        from ..mapping import map_scans
+
+        span = range(start, len(scans) if stop is None else min(stop, len(scans)))
+        own = map_scans(
+            [scans[i] for i in span],
+            progress=None
+            if progress is None
+            else lambda d, n, _c: progress(len(idx) + d, len(idx) + n),
+        ).poses
+        pairs = [(own[i - start], p) for i, p in zip(idx, poses, strict=True)
+                 if p is not None and own[i - start] is not None]  # fmt: skip
+        motion, inliers, rms = consensus_motion(pairs)
+        anchored = motion is not None and inliers >= ANCHOR_MIN_INLIERS
+        whole_run = dict(
+            anchor=motion if anchored else None, anchor_inliers=inliers, anchor_rms=rms,
+            trajectory=tuple(None if q is None or not anchored else motion @ q for q in own),
+            trajectory_indices=tuple(span),
+            trajectory_times=tuple(scans[i].timestamp for i in span),
+        )  # fmt: skip
     return LocateRun(
         os.fspath(path), label, tuple(idx), tuple(scans[i].timestamp for i in idx),
         tuple(status), tuple(poses), tuple(places), tuple(confs), tuple(ms), mapped, total,
-        time.perf_counter() - t0, loading,
+        time.perf_counter() - t0, loading, **whole_run,
     )  # fmt: skip
+
+
+#: a log's own map is carried into a database's only when this many located scans agree
+#: on the motion (:func:`run_locate`'s ``whole``)
+ANCHOR_MIN_INLIERS = 3
+
+
+def consensus_motion(
+    pairs, metres: float = 1.0, radians: float = 0.2
+) -> tuple[Pose2 | None, int, float]:
+    """The rigid motion ``T`` that carries most poses ``a`` onto their ``b``: each pair
+    ``(a, b)`` proposes ``T = b a^-1``; the proposal with the most pairs it carries
+    within ``metres`` and ``radians`` wins (ties: the smaller residual), refitted to its
+    agreeing pairs' positions (:func:`scanclique.geometry.align_se2`, with one pair its
+    own proposal). Returns ``(T, agreeing pairs, their residual RMS in metres)``;
+    ``(None, 0, nan)`` without pairs."""
+    if not pairs:
+        return None, 0, math.nan
+
+    def agreeing(T: Pose2) -> tuple[int, float, list[int]]:
+        err = [(T @ a).distance_to(b) for a, b in pairs]
+        ok = [k for k, (dt, dr) in enumerate(err) if dt <= metres and dr <= radians]
+        return len(ok), -sum(err[k][0] for k in ok), ok
+
+    best = max((agreeing(b @ a.inverse()) for a, b in pairs), key=lambda r: r[:2])[2]
+    if len(best) >= 2:
+        src = np.array([[pairs[k][0].x, pairs[k][0].y] for k in best])
+        dst = np.array([[pairs[k][1].x, pairs[k][1].y] for k in best])
+        Rm, tr, ang = align_se2(src, dst)
+        T = Pose2(float(tr[0]), float(tr[1]), ang)
+    else:
+        a, b = pairs[best[0]]
+        T = b @ a.inverse()
+    res = [(T @ pairs[k][0]).distance_to(pairs[k][1])[0] for k in best]
+    return T, len(best), float(np.sqrt(np.mean(np.square(res))))
 
 
 def run_info(path: str | os.PathLike, check: bool = False) -> dict:
