@@ -70,6 +70,19 @@ def _config(config, paper):
     return _guard(lambda: load_config(config, paper))
 
 
+StartOpt = Annotated[int, typer.Option("--start", min=0, help="First scan index.")]
+StopOpt = Annotated[int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")]
+
+
+def _check_range(source: str, start: int, stop: int | None, laser: str = "main") -> None:
+    """Refuse a ``--stop`` not beyond ``--start``, and a ``--start`` beyond the log
+    (:func:`_check_start`)."""
+    if stop is not None and stop <= start:
+        raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
+    if start > 0:
+        _check_start(source, start, laser)
+
+
 def _check_start(source: str, start: int, laser: str = "main") -> None:
     """Refuse a ``--start`` at or beyond the end of the log before the database is opened
     (or created): one ``error:`` line, exit code 2, instead of "added 0 places". The log
@@ -93,10 +106,8 @@ def add(
     db: DbArg,
     source: SourceArg,
     every: Annotated[int, typer.Option("--every", min=1, help="One place per n-th scan.")] = 1,
-    start: Annotated[int, typer.Option("--start", min=0, help="First scan index.")] = 0,
-    stop: Annotated[
-        int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")
-    ] = None,
+    start: StartOpt = 0,
+    stop: StopOpt = None,
     laser: LaserOpt = "main",
     map_poses: Annotated[
         Path | None,
@@ -129,10 +140,7 @@ def add(
     from ..places.run import run_add
 
     cfg = _config(config, paper)
-    if stop is not None and stop <= start:
-        raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
-    if start > 0:
-        _check_start(source, start, laser)
+    _check_range(source, start, stop, laser)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
         task = bar.add_task("adding places", total=None)
         run = _guard(
@@ -229,10 +237,8 @@ def locate(
     db: DbArg,
     source: SourceArg,
     every: Annotated[int, typer.Option("--every", min=1, help="Query every n-th scan.")] = 1,
-    start: Annotated[int, typer.Option("--start", min=0, help="First scan index.")] = 0,
-    stop: Annotated[
-        int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")
-    ] = None,
+    start: StartOpt = 0,
+    stop: StopOpt = None,
     top: Annotated[int, typer.Option("--top", "-k", min=1, help="Hits per query.")] = 5,
     out: Annotated[
         Path | None,
@@ -271,10 +277,7 @@ def locate(
         if f is not None:
             _check_out_file(f, log=source)
     cfg = _config(config, paper)
-    if stop is not None and stop <= start:
-        raise _fail(f"--stop {stop} must be beyond --start {start}: no scan lies between them")
-    if start > 0:
-        _check_start(source, start, laser)
+    _check_range(source, start, stop, laser)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
         task = bar.add_task("locating scans", total=None)
         run = _guard(
