@@ -115,8 +115,8 @@ def add(
             "--map",
             help="Store each place's pose in a map: a TUM trajectory of the same log, or the "
             "--out directory of 'scanclique map' on it (its trajectory.tum); poses go to scans "
-            "by timestamp. A query then gives its pose in that map, and refuses hits that "
-            "disagree on it.",
+            "by timestamp. A query then gives its pose in that map, and does not accept hits "
+            "that others confidently contradict there.",
         ),
     ] = None,
     config: ConfigOpt = None,
@@ -223,8 +223,9 @@ def query(
         "matcher accepted no candidate)"
         + (
             "; in the map: the query's pose in the map of the places added with --map (an "
-            "accepted hit that another confident hit puts more than 1 m or 0.2 rad elsewhere "
-            "there is ambiguous)"
+            "accepted hit that other confident hits put more than 1 m or 0.2 rad elsewhere "
+            "there is ambiguous, unless the hits agreeing with it outweigh theirs a "
+            "thousandfold)"
             if run.mapped
             else ""
         ),
