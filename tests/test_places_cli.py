@@ -180,8 +180,11 @@ def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
     r = invoke("places", "locate", db, log)
     assert r.exit_code == 0 and "located in the map" in r.output and "Metric" in r.output
     whole = tmp_path / "whole.tum"  # the log mapped on its own, carried into the map
-    r = invoke("places", "locate", db, log, "--every", "2", "--trajectory", whole, "--json")
+    fig = tmp_path / "located.png"
+    r = invoke("places", "locate", db, log, "--every", "2", "--trajectory", whole, "--json",
+               "--plot", fig)  # fmt: skip
     assert r.exit_code == 0, r.output
+    assert fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     d = json.loads(r.stdout)
     assert d["anchor_inliers"] >= 3 and d["anchor_rms"] < 0.05
     rows = read_tum(whole)
@@ -195,3 +198,5 @@ def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
     assert r.exit_code == 2 and "none of its 4 places has a map pose" in r.output, r.output
     r = invoke("places", "locate", db, log, "--out", tmp_path / "no" / "x.tum")
     assert r.exit_code == 2 and "does not exist" in r.output
+    r = invoke("places", "locate", db, log, "--plot", tmp_path / "figure.txt")
+    assert r.exit_code == 2 and "a figure file must end in" in r.output

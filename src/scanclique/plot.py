@@ -35,7 +35,10 @@ from .geometry import Pose2
 from .kinds import kind_name
 from .scan import Scan
 
-__all__ = ["plot_features", "plot_match", "save_figure", "ellipse_outline", "FEATURE_STYLE"]
+__all__ = [
+    "plot_features", "plot_match", "plot_located", "save_figure", "ellipse_outline",
+    "FEATURE_STYLE",
+]  # fmt: skip
 
 #: marker, colour and legend label of each point-feature kind
 FEATURE_STYLE = {
@@ -531,3 +534,41 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 130, *, create_dirs: bo
 
         raise ArgumentError(f"{p}: cannot write the figure: {exc.strerror or exc}") from None
     return p
+
+
+def plot_located(
+    path: str | os.PathLike,
+    places: Sequence[Pose2],
+    located: Sequence[Pose2 | None],
+    trajectory: Sequence[Pose2 | None] = (),
+    title: str = "",
+) -> Path:
+    """A figure of a log located in a place database's map
+    (:func:`scanclique.places.run.run_locate`): the places' map positions (grey), each
+    located scan's pose (green, a short tick along its heading) and, when given, the
+    whole run carried into the map (blue line); metres, the map's frame. Returns the
+    path written."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 8))
+    xy = np.array([[p.x, p.y] for p in places]).reshape(-1, 2)
+    ax.plot(xy[:, 0], xy[:, 1], "s", color="0.45", ms=3, zorder=3, label=f"places ({len(xy)})")
+    run = np.array([[p.x, p.y] for p in trajectory if p is not None]).reshape(-1, 2)
+    if len(run):
+        ax.plot(run[:, 0], run[:, 1], "-", color="tab:blue", lw=0.8, label="the run, carried")
+    hit = [p for p in located if p is not None]
+    if hit:
+        q = np.array([[p.x, p.y, p.theta] for p in hit])
+        size = 0.03 * max(np.ptp(xy[:, 0]) if len(xy) else 1.0, 1.0)
+        ax.quiver(q[:, 0], q[:, 1], np.cos(q[:, 2]), np.sin(q[:, 2]), color="tab:green",
+                  angles="xy", scale_units="xy", scale=1.0 / size, width=0.003)  # fmt: skip
+        ax.plot(q[:, 0], q[:, 1], "o", color="tab:green", ms=3,
+                label=f"located scans ({len(hit)} of {len(located)})")  # fmt: skip
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    out = save_figure(fig, path)
+    plt.close(fig)
+    return out

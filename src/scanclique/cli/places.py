@@ -253,6 +253,13 @@ def locate(
             "map by the motion its located scans agree on; write it here (TUM).",
         ),
     ] = None,
+    plot: Annotated[
+        Path | None,
+        typer.Option(
+            "--plot",
+            help="Write a figure: the places, the located scans and the carried run (PNG).",
+        ),
+    ] = None,
     laser: LaserOpt = "main",
     config: ConfigOpt = None,
     paper: PaperOpt = False,
@@ -277,6 +284,10 @@ def locate(
     for f in (out, trajectory):
         if f is not None:
             _check_out_file(f, log=source)
+    if plot is not None:
+        from ..plot import check_figure_path
+
+        _guard(lambda: check_figure_path(plot))
     cfg = _config(config, paper)
     _check_range(source, start, stop, laser)
     with Progress(console=_err_console(), transient=True, disable=_quiet(json_out)) as bar:
@@ -298,6 +309,12 @@ def locate(
     elif trajectory is not None:
         n = _guard(lambda: write_tum(trajectory, run.trajectory, run.trajectory_times))
         _note(f"the whole run, {n} scans, written to {trajectory}")
+    if plot is not None:
+        from ..plot import plot_located
+
+        title = f"{run.label} located in {db.name}"
+        _guard(lambda: plot_located(plot, run.place_poses, run.poses, run.trajectory, title))
+        _note(f"wrote {plot}")
     if json_out:
         _print_json(run.to_dict())
         return

@@ -350,6 +350,8 @@ class LocateRun:
     trajectory: tuple = ()
     trajectory_indices: tuple = ()
     trajectory_times: tuple = ()
+    #: the map poses of the database's places that have one (for a figure)
+    place_poses: tuple = ()
 
     def count(self, status: str) -> int:
         return sum(s == status for s in self.status)
@@ -474,7 +476,10 @@ def run_locate(
     status, poses, places, confs, ms = [], [], [], [], []
     with PlaceDB(path, config, readonly=True) as db:
         total = len(db)
-        mapped = sum(p is not None for p in db._map_poses_of([int(i) for i in db.ids]).values())
+        place_poses = tuple(
+            p for p in db._map_poses_of([int(i) for i in db.ids]).values() if p is not None
+        )
+        mapped = len(place_poses)
         if not mapped:
             raise PlaceDatabaseError(
                 f"{os.fspath(path)}: none of its {total} places has a map pose: add them with "
@@ -521,7 +526,7 @@ def run_locate(
     return LocateRun(
         os.fspath(path), label, tuple(idx), tuple(scans[i].timestamp for i in idx),
         tuple(status), tuple(poses), tuple(places), tuple(confs), tuple(ms), mapped, total,
-        time.perf_counter() - t0, loading, **whole_run,
+        time.perf_counter() - t0, loading, **whole_run, place_poses=place_poses,
     )  # fmt: skip
 
 
