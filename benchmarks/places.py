@@ -392,7 +392,9 @@ def recognition(
 # ---------------------------------------------------------------------------------------
 # 1b. Localisation in a map (places locate)
 # ---------------------------------------------------------------------------------------
-def locate(name: str, every: int, candidates: int, tmp: Path, progress=True) -> dict:
+def locate(
+    name: str, every: int, candidates: int, tmp: Path, progress=True, figure: Path | None = None
+) -> dict:
     """Relocalisation in a known map: the first half of the log mapped (``map_scans``) and
     every scan of it stored as a place with its mapped pose; every ``every``-th scan of
     the second half localised by :func:`scanclique.places.run.run_locate` (each on its
@@ -452,6 +454,16 @@ def locate(name: str, every: int, candidates: int, tmp: Path, progress=True) -> 
             errors.append((to_ref @ pose).distance_to(scans[i].reference))
     n_true = sum(bool(v) for v in truth.values())
     e = np.array(errors) if errors else np.full((1, 2), np.nan)
+    if figure is not None:  # in the reference frame: the first half's map carried there
+        from scanclique.plot import plot_located
+
+        plot_located(
+            figure,
+            [to_ref @ p for p in run.place_poses],
+            [None if p is None else to_ref @ p for p in run.poses],
+            [None if p is None else to_ref @ p for p in run.trajectory],
+            f"{name}: the second half located in the first half's map",
+        )
     if progress:
         print(f"  {name}: located {located} of {len(queries)}", file=sys.stderr)
     return {
@@ -1060,7 +1072,11 @@ def main(argv=None) -> None:
                         flush=True,
                     )
         if "locate" in stages:
-            res["locate"] = [locate(n, a.query_every, a.candidates, tmp) for n in a.logs.split(",")]
+            res["locate"] = [
+                locate(n, a.query_every, a.candidates, tmp,
+                       figure=out_json.with_name(f"{out_json.stem}-{n}.png"))
+                for n in a.logs.split(",")
+            ]  # fmt: skip
         if "scale" in stages:
             res["scale"] = scale([int(x) for x in a.sizes.split(",")], a.scale_queries, tmp)
         if "scale_out" in stages:
