@@ -116,12 +116,13 @@ def test_consensus_motion_takes_the_motion_most_pairs_agree_on():
     T = Pose2(3.0, -1.0, 0.7)
     good = [(Pose2(k, 0.5 * k, 0.1 * k), T @ Pose2(k, 0.5 * k, 0.1 * k)) for k in range(6)]
     bad = [(Pose2(9, 9, 0), Pose2(-20, 4, 1)), (Pose2(1, 2, 3), Pose2(5, 5, 0))]
-    got, n, rms = consensus_motion(bad[:1] + good + bad[1:])
-    assert n == 6 and rms < 1e-12 and got.distance_to(T) == pytest.approx((0, 0), abs=1e-12)
-    got, n, rms = consensus_motion(bad[:1])
-    assert n == 1 and rms == 0.0 and (got @ bad[0][0]).distance_to(bad[0][1])[0] < 1e-12
-    got, n, rms = consensus_motion([])
-    assert got is None and n == 0 and math.isnan(rms)
+    got, agree, rms = consensus_motion(bad[:1] + good + bad[1:])
+    assert agree == (1, 2, 3, 4, 5, 6) and rms < 1e-12
+    assert got.distance_to(T) == pytest.approx((0, 0), abs=1e-12)
+    got, agree, rms = consensus_motion(bad[:1])
+    assert agree == (0,) and rms == 0.0 and (got @ bad[0][0]).distance_to(bad[0][1])[0] < 1e-12
+    got, agree, rms = consensus_motion([])
+    assert got is None and agree == () and math.isnan(rms)
 
 
 def test_hits_that_disagree_on_where_the_query_is_are_not_accepted(tmp_path):

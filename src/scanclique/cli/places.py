@@ -233,6 +233,11 @@ def query(
     )
 
 
+#: ``places locate --trajectory`` notes a run more than this many times wider than the
+#: located scans that carry it
+SPREAD_RATIO = 3.0
+
+
 @places_app.command("locate")
 def locate(
     db: DbArg,
@@ -309,6 +314,12 @@ def locate(
     elif trajectory is not None:
         n = _guard(lambda: write_tum(trajectory, run.trajectory, run.trajectory_times))
         _note(f"the whole run, {n} scans, written to {trajectory}")
+        if run.run_extent > SPREAD_RATIO * run.anchor_spread:
+            _note(
+                f"the located scans that carry the run lie within {run.anchor_spread:.1f} m of "
+                f"each other, in a run {run.run_extent:.1f} m across: far from them a small "
+                "turn of the carry moves the run a lot (check the figure, --plot)"
+            )
     if plot is not None:
         from ..plot import plot_located
 

@@ -352,6 +352,11 @@ class LocateRun:
     trajectory_times: tuple = ()
     #: the map poses of the database's places that have one (for a figure)
     place_poses: tuple = ()
+    #: with ``whole=True``: how far apart the agreeing located scans lie, and the run
+    #: (the diagonals of their bounding boxes, m): a run carried by scans at one end of it
+    #: may be off by the rotation's lever arm at the other
+    anchor_spread: float = math.nan
+    run_extent: float = math.nan
 
     def count(self, status: str) -> int:
         return sum(s == status for s in self.status)
@@ -381,6 +386,11 @@ class LocateRun:
                         "",
                     ),
                     ("their residual, RMS", f"{self.anchor_rms:.3f}", "m"),
+                    (
+                        "they lie within / the run spans",
+                        f"{self.anchor_spread:.1f} / {self.run_extent:.1f}",
+                        "m",
+                    ),
                 ]
                 if self.trajectory
                 else []
@@ -406,6 +416,8 @@ class LocateRun:
             else {"x": self.anchor.x, "y": self.anchor.y, "theta": self.anchor.theta},
             "anchor_inliers": self.anchor_inliers,
             "anchor_rms": None if math.isnan(self.anchor_rms) else self.anchor_rms,
+            "anchor_spread": None if math.isnan(self.anchor_spread) else self.anchor_spread,
+            "run_extent": None if math.isnan(self.run_extent) else self.run_extent,
             "scans": [
                 {
                     "index": i,
@@ -516,9 +528,12 @@ def run_locate(
         pairs = [(own[i - start], p) for i, p in zip(idx, poses, strict=True)
                  if p is not None and own[i - start] is not None]  # fmt: skip
         motion, inliers, rms = consensus_motion(pairs)
-        anchored = motion is not None and inliers >= ANCHOR_MIN_INLIERS
+        anchored = motion is not None and len(inliers) >= ANCHOR_MIN_INLIERS
+        run_xy = np.array([[q.x, q.y] for q in own if q is not None]).reshape(-1, 2)
         whole_run = dict(
-            anchor=motion if anchored else None, anchor_inliers=inliers, anchor_rms=rms,
+            anchor=motion if anchored else None, anchor_inliers=len(inliers), anchor_rms=rms,
+            anchor_spread=_extent(np.array([[pairs[i][0].x, pairs[i][0].y] for i in inliers])),
+            run_extent=_extent(run_xy),
             trajectory=tuple(None if q is None or not anchored else motion @ q for q in own),
             trajectory_indices=tuple(span),
             trajectory_times=tuple(scans[i].timestamp for i in span),
@@ -528,6 +543,12 @@ def run_locate(
         tuple(status), tuple(poses), tuple(places), tuple(confs), tuple(ms), mapped, total,
         time.perf_counter() - t0, loading, **whole_run, place_poses=place_poses,
     )  # fmt: skip
+
+
+def _extent(xy: np.ndarray) -> float:
+    """The diagonal of the bounding box of points ``(N, 2)`` (0 for fewer than two)."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return float(np.hypot(*np.ptp(xy, axis=0))) if len(xy) >= 2 else 0.0
 
 
 #: a log's own map is carried into a database's only when this many located scans agree
@@ -542,11 +563,11 @@ def consensus_motion(
     ``(a, b)`` proposes ``T = b a^-1``; the proposal with the most pairs it carries
     within ``metres`` and ``radians`` wins (ties: the smaller summed distance), refitted
     to its agreeing pairs' positions (:func:`scanclique.geometry.align_se2`, with one
-    pair its own proposal). Returns ``(T, agreeing pairs, their residual RMS in
-    metres)``; ``(None, 0, nan)`` without pairs. Vectorised, :data:`CONSENSUS_CHUNK`
-    proposals at a time (memory linear in the pairs)."""
+    pair its own proposal). Returns ``(T, the indices of the agreeing pairs, their
+    residual RMS in metres)``; ``(None, (), nan)`` without pairs. Vectorised,
+    :data:`CONSENSUS_CHUNK` proposals at a time (memory linear in the pairs)."""
     if not pairs:
-        return None, 0, math.nan
+        return None, (), math.nan
     a = np.array([p.as_array() for p, _ in pairs], dtype=float)
     b = np.array([q.as_array() for _, q in pairs], dtype=float)
     th = b[:, 2] - a[:, 2]  # each proposal's rotation, then its translation
@@ -572,7 +593,7 @@ def consensus_motion(
         p, q = pairs[int(best[0])]
         T = q @ p.inverse()
     res = [(T @ pairs[i][0]).distance_to(pairs[i][1])[0] for i in best]
-    return T, len(best), float(np.sqrt(np.mean(np.square(res))))
+    return T, tuple(int(i) for i in best), float(np.sqrt(np.mean(np.square(res))))
 
 
 #: proposals :func:`consensus_motion` weighs at once
