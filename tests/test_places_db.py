@@ -78,9 +78,10 @@ def test_a_place_keeps_its_map_pose(tmp_path, worlds):
 
 def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
     """``run_add(poses=...)`` with one Pose2 or None per scan: the places added get theirs
-    (counted in ``posed``); a list of another length is an ArgumentError before anything
-    is added."""
-    from scanclique.errors import ArgumentError
+    (counted in ``posed``); added again, a place without a map pose gets one, a place
+    with one keeps it; a list of another length is an ArgumentError before anything is
+    added."""
+    from scanclique.errors import ArgumentError, PlaceDatabaseError
     from scanclique.geometry import Pose2
     from scanclique.places.run import run_add
 
@@ -95,6 +96,20 @@ def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
     with PlaceDB(tmp_path / "p.db", readonly=True) as db:
         for pid, k in zip(run.ids, (1, 3, 5), strict=True):
             assert db.map_pose(pid).distance_to(poses[k]) == (0.0, 0.0)
+    # added again with other poses: places without one get theirs, the others keep theirs
+    other = [Pose2(-k, k, 0.0) for k in range(len(traj))]
+    assert run_add(tmp_path / "r.db", traj, stop=4, poses=poses).posed == 2  # scans 1, 3
+    again = run_add(tmp_path / "r.db", traj, stop=4, poses=other)
+    assert again.added == 0 and again.skipped == 4 and again.posed_present == 2
+    with PlaceDB(tmp_path / "r.db") as db:
+        names = {v: k for k, v in db.store.names(db.ids).items()}
+        for k in range(4):
+            want = poses[k] if poses[k] is not None else other[k]
+            assert db.map_pose(names[f"scans:{k}"]).distance_to(want) == (0.0, 0.0)
+        with pytest.raises(PlaceDatabaseError, match="no place with id 99"):
+            db.set_map_pose(99, Pose2(0, 0, 0))
+        with pytest.raises(ArgumentError, match="pose must be a Pose2"):
+            db.set_map_pose(names["scans:1"], (1.0, 2.0, 0.0))
     with pytest.raises(ArgumentError, match="one Pose2 or None per scan"):
         run_add(tmp_path / "q.db", traj, poses=poses[:3])
     with pytest.raises(

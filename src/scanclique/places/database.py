@@ -689,6 +689,24 @@ class PlaceDB:
             raise PlaceDatabaseError(f"{os.fspath(self.path)}: no place with id {pid}")
         return pose
 
+    def set_map_pose(self, place_id: int, pose: Pose2) -> None:
+        """Give the stored place ``place_id`` its pose in a map (as :meth:`add`'s
+        ``pose``), replacing any it had, in one transaction. Another process that already
+        read this place's map pose sees the new one once it reopens the database.
+
+        Raises
+        ------
+        PlaceDatabaseError
+            No such place.
+        ArgumentError
+            ``pose`` is not a :class:`~scanclique.geometry.Pose2`.
+        """
+        if not isinstance(pose, Pose2):
+            raise ArgumentError(f"PlaceDB.set_map_pose: pose must be a Pose2, got {pose!r}")
+        pid = _place_id(place_id)
+        self.store.set_array(pid, MAP_POSE, pose.as_array().astype(float))
+        self._map_poses[pid] = pose
+
     def _map_poses_of(self, ids: list[int]) -> dict[int, Pose2 | None]:
         """:meth:`map_pose` of each of ``ids``, read from the store once per place."""
         new = [i for i in ids if i not in self._map_poses]

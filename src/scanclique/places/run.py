@@ -77,6 +77,8 @@ class AddRun:
     posed: int = 0
     #: where the map poses came from (a TUM file), "" without
     poses_source: str = ""
+    #: places already present, added before without a map pose, given theirs now
+    posed_present: int = 0
 
     def rows(self) -> list[tuple[str, str, str]]:
         ms = np.array(self.add_ms) if self.add_ms else np.zeros(1)
@@ -88,6 +90,11 @@ class AddRun:
                 else []
             ),
             ("already present (same name)", str(self.skipped), ""),
+            *(
+                [("of them given a map pose (they had none)", str(self.posed_present), "")]
+                if self.poses_source
+                else []
+            ),
             ("places in the database", str(self.total), ""),
             ("add time, median", f"{np.median(ms):.2f}", "ms"),
             ("add time, p95", f"{np.percentile(ms, 95):.2f}", "ms"),
@@ -106,6 +113,7 @@ class AddRun:
             "ids": list(self.ids),
             "add_ms_median": float(np.median(ms)),
             "posed": self.posed,
+            "posed_present": self.posed_present,
             "poses": self.poses_source or None,
             "seconds": self.seconds,
             "loading_seconds": self.loading_seconds,
@@ -127,8 +135,9 @@ def run_add(
     """Add every ``every``-th scan of ``source`` (``start`` to ``stop``) to the database
     at ``path`` as places named ``"<log>:<index>"`` (``<log>`` the registered name of a
     registered log, given by name or by path, else the file's name); scans whose name is
-    already there are skipped (so a run can be repeated or resumed; they keep what they
-    were added with). ``laser``: which laser of the log
+    already there are skipped (so a run can be repeated or resumed), except that one
+    added without a map pose is given the one ``poses`` has for it (one that has a map
+    pose keeps it). ``laser``: which laser of the log
     (:func:`scanclique.io.read_scans`).
 
     ``poses``, optional: where the places are in a map (:meth:`PlaceDB.add`'s ``pose``),
@@ -144,12 +153,17 @@ def run_add(
     t0 = time.perf_counter()
     loading = warm_up()  # loading the kernels is reported apart from the adds' times
     ids, ms, skipped, posed = [], [], 0, 0
+    given = 0
     with PlaceDB(path, config) as db:
-        have = set(db.store.names(db.ids).values()) if len(db) else set()
+        have = {v: k for k, v in db.store.names(db.ids).items()} if len(db) else {}
         for n, i in enumerate(idx):
             name = f"{label}:{i}"
             if name in have:
                 skipped += 1
+                pid = have[name]
+                if place_poses[i] is not None and db.map_pose(pid) is None:
+                    db.set_map_pose(pid, place_poses[i])  # added before without one
+                    given += 1
             else:
                 t = time.perf_counter()
                 ids.append(db.add(scans[i], name=name, pose=place_poses[i]))
@@ -160,7 +174,7 @@ def run_add(
         total = len(db)
     return AddRun(
         os.fspath(path), label, len(ids), skipped, total, tuple(ids), tuple(ms),
-        time.perf_counter() - t0, loading, posed, poses_source,
+        time.perf_counter() - t0, loading, posed, poses_source, given,
     )  # fmt: skip
 
 

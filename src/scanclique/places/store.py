@@ -399,6 +399,24 @@ class PlaceStore:
             c.execute("INSERT INTO signatures VALUES (?, ?, ?, ?, ?)", (pid, *sig))
         return pid
 
+    def set_array(self, place_id: int, name: str, array: np.ndarray) -> None:
+        """Store (or replace) the array ``name`` of the existing place ``place_id``, in one
+        transaction.
+
+        Raises
+        ------
+        PlaceDatabaseError
+            No such place.
+        """
+        blob = encode_array(np.asarray(array))
+        with self._errors("set an array"), self._write() as c:
+            if c.execute("SELECT 1 FROM places WHERE id = ?", (int(place_id),)).fetchone() is None:
+                raise PlaceDatabaseError(f"{self._where}: no place with id {int(place_id)}")
+            c.execute(
+                "INSERT OR REPLACE INTO arrays VALUES (?, ?, ?, ?, ?, ?)",
+                (int(place_id), name, *blob),
+            )
+
     def rewrite_signatures(
         self, signature_of: Callable[[Scan], np.ndarray], meta: Mapping[str, str]
     ) -> int:
