@@ -125,6 +125,7 @@ def test_places_added_with_a_map_give_a_query_its_pose_in_the_map(tmp_path, log)
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
     assert d["added"] == 6 and d["posed"] == 6 and d["poses"].endswith("trajectory.tum")
+    assert json.loads(invoke("places", "info", db, "--json").stdout)["places_with_map_pose"] == 6
     r = invoke("places", "query", db, log, 5, "--top", "2", "--json")
     hit = json.loads(r.stdout)["hits"][0]
     m = hit["map_pose"]

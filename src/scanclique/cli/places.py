@@ -363,6 +363,7 @@ def info(
         return
     rows = [
         ("places", str(d["places"]), ""),
+        ("of them with a map pose", str(d["places_with_map_pose"]), ""),
         ("file size", f"{(d['file_bytes'] + d['wal_bytes']) / 1e6:.2f}", "MB"),
         ("array data", f"{d['array_bytes'] / 1e6:.2f}", "MB"),
         ("schema version", str(d["schema_version"]), ""),

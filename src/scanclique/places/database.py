@@ -74,7 +74,7 @@ from ..scan import Scan
 from .hashing import TriangleIndex, feature_triangles
 from .index import SignatureIndex
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature
-from .store import PlaceRecord, PlaceStore
+from .store import MAP_POSE, PlaceRecord, PlaceStore
 from .verify import (
     ACCEPT_MIN_CONFIDENCE,
     ACCEPT_MIN_FEATURES,
@@ -165,9 +165,6 @@ _FEATURE_FIELDS = (
 )
 
 
-#: the stored array of a place's pose in a map (x, y, theta), when :meth:`PlaceDB.add` was
-#: given one
-MAP_POSE = "map_pose"
 #: two hits agree on where the query is when the map poses they give it lie within this
 #: (m, rad) of each other; hits of other places with a confidence of at least
 #: :data:`RIVAL_CONFIDENCE` (accepted or ambiguous) that contradict an accepted hit make it

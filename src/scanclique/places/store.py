@@ -98,6 +98,9 @@ _TABLES = {"meta", "places", "arrays", "signatures"}
 #: ids in one ``IN (...)`` list: SQLite builds before 3.32 allow 999 parameters a
 #: statement (later ones 32766 by default), and a database may hold more places
 IN_CHUNK = 900
+#: the stored array of a place's pose in a map (x, y, theta), when
+#: :meth:`~scanclique.places.PlaceDB.add` was given one
+MAP_POSE = "map_pose"
 
 
 def _chunks(ids) -> Iterator[list[int]]:
@@ -573,7 +576,8 @@ class PlaceStore:
         return PlaceRecord(pid, name, scan, int(nf), float(added), arr)
 
     def stats(self) -> dict:
-        """Counts and sizes: places, array bytes, file bytes (with the WAL)."""
+        """Counts and sizes: places (and those with a map pose), array bytes, file bytes
+        (with the WAL)."""
         with self._errors("stats"):
             n = len(self)
             blob = self._conn.execute(
@@ -582,10 +586,14 @@ class PlaceStore:
             sig = self._conn.execute(
                 "SELECT COALESCE(SUM(LENGTH(data)), 0) FROM signatures"
             ).fetchone()[0]
+            posed = self._conn.execute(
+                "SELECT COUNT(*) FROM arrays WHERE name = ?", (MAP_POSE,)
+            ).fetchone()[0]
         size = self.path.stat().st_size if self.path.exists() else 0
         wal = Path(f"{self.path}-wal")
         return {
             "places": n,
+            "places_with_map_pose": int(posed),
             "array_bytes": int(blob),
             "signature_bytes": int(sig),
             "file_bytes": int(size),
