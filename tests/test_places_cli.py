@@ -165,7 +165,8 @@ def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
         == 0
     )
     out = tmp_path / "located.tum"
-    r = invoke("places", "locate", db, log, "--start", "1", "--every", "2", "--out", out, "--json")
+    r = invoke("places", "locate", db, log, "--start", "1", "--every", "2", "--out", out, "--json",
+               "--candidates", "4")  # fmt: skip
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
     assert d["queried"] == 6 and d["located"] >= 4 and d["mapped_places"] == 4

@@ -246,6 +246,10 @@ def locate(
     start: StartOpt = 0,
     stop: StopOpt = None,
     top: Annotated[int, typer.Option("--top", "-k", min=1, help="Hits per query.")] = 5,
+    candidates: Annotated[
+        int | None,
+        typer.Option("--candidates", min=1, help="Prefilter candidates to verify (default --top)."),
+    ] = None,
     out: Annotated[
         Path | None,
         typer.Option("--out", "-o", help="Write the located scans' poses as a TUM trajectory."),
@@ -299,9 +303,9 @@ def locate(
         task = bar.add_task("locating scans", total=None)
         run = _guard(
             lambda: run_locate(
-                db, source, every=every, start=start, stop=stop, k=top, config=cfg, laser=laser,
+                db, source, every=every, start=start, stop=stop, k=top, candidates=candidates,
+                config=cfg, laser=laser, whole=trajectory is not None,
                 progress=lambda d, t: bar.update(task, completed=d, total=t),
-                whole=trajectory is not None,
             )
         )  # fmt: skip
     from ..io import write_tum
