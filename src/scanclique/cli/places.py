@@ -70,6 +70,10 @@ def _config(config, paper):
     return _guard(lambda: load_config(config, paper))
 
 
+CandidatesOpt = Annotated[
+    int | None,
+    typer.Option("--candidates", min=1, help="Prefilter candidates to verify (default --top)."),
+]
 StartOpt = Annotated[int, typer.Option("--start", min=0, help="First scan index.")]
 StopOpt = Annotated[int | None, typer.Option("--stop", min=0, help="Stop before this scan index.")]
 
@@ -164,10 +168,7 @@ def query(
     source: SourceArg,
     index: Annotated[int, typer.Argument(help="Index of the query scan in the log.")],
     top: Annotated[int, typer.Option("--top", "-k", min=1, help="Hits to show.")] = 5,
-    candidates: Annotated[
-        int | None,
-        typer.Option("--candidates", min=1, help="Prefilter candidates to verify (default --top)."),
-    ] = None,
+    candidates: CandidatesOpt = None,
     min_score: Annotated[
         float | None,
         typer.Option(
@@ -246,10 +247,7 @@ def locate(
     start: StartOpt = 0,
     stop: StopOpt = None,
     top: Annotated[int, typer.Option("--top", "-k", min=1, help="Hits per query.")] = 5,
-    candidates: Annotated[
-        int | None,
-        typer.Option("--candidates", min=1, help="Prefilter candidates to verify (default --top)."),
-    ] = None,
+    candidates: CandidatesOpt = None,
     out: Annotated[
         Path | None,
         typer.Option("--out", "-o", help="Write the located scans' poses as a TUM trajectory."),

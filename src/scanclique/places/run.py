@@ -148,7 +148,7 @@ def run_add(
     ``scanclique map`` writes it, or any trajectory in time order, interpolated); a scan
     without one is added without a pose (counted in :attr:`AddRun.posed`)."""
     scans, label = _scans(source, laser)
-    idx = list(range(start, len(scans) if stop is None else min(stop, len(scans)), max(1, every)))
+    idx = list(_span(len(scans), start, stop)[:: max(1, every)])
     place_poses, poses_source = _place_poses(poses, scans)
     t0 = time.perf_counter()
     loading = warm_up()  # loading the kernels is reported apart from the adds' times
@@ -176,6 +176,11 @@ def run_add(
         os.fspath(path), label, len(ids), skipped, total, tuple(ids), tuple(ms),
         time.perf_counter() - t0, loading, posed, poses_source, given,
     )  # fmt: skip
+
+
+def _span(n: int, start: int, stop: int | None) -> range:
+    """The indices ``start`` to ``stop`` (None: the end) of a log of ``n`` scans."""
+    return range(start, n if stop is None else min(stop, n))
 
 
 #: the trajectory file in a ``scanclique map`` output directory
@@ -238,7 +243,7 @@ class QueryRun:
         return any(h.map_pose is not None for h in self.hits)
 
     def hit_rows(self) -> list[tuple[str, ...]]:
-        out = []
+        out, mapped = [], self.mapped
         for h, e in zip(self.hits, self.errors, strict=True):
             p, m = h.pose, h.map_pose
             out.append(
@@ -253,7 +258,7 @@ class QueryRun:
                     "-" if e is None else f"{e[0]:.2f} {math.degrees(e[1]):.1f}",
                     *(
                         ["-" if m is None else f"{m.x:.2f} {m.y:.2f} {math.degrees(m.theta):.1f}"]
-                        if self.mapped
+                        if mapped
                         else []
                     ),
                 )
@@ -495,7 +500,7 @@ def run_locate(
     from ..errors import PlaceDatabaseError
 
     scans, label = _scans(source, laser)
-    span = range(start, len(scans) if stop is None else min(stop, len(scans)))
+    span = _span(len(scans), start, stop)
     idx = list(span[:: max(1, every)])
     t0 = time.perf_counter()
     loading = warm_up()
