@@ -407,13 +407,15 @@ def locate(
     from scanclique.geometry import Pose2, align_se2
     from scanclique.io import odometry_is_reference
     from scanclique.mapping import map_scans
-    from scanclique.places.run import LOCATED, run_add, run_locate
+    from scanclique.places.run import LOCATED, TRACKED, run_add, run_locate
 
     scans = load_log(name)
     n, half = len(scans), len(scans) // 2
     first = scans[:half]
     t = time.perf_counter()
-    mapped = map_scans(first, use_odometry=False if odometry_is_reference(first) else None).poses
+    # a log whose odometry fields repeat the reference is mapped from the scans alone
+    odometry = False if odometry_is_reference(scans) else None
+    mapped = map_scans(first, use_odometry=odometry).poses
     map_s = time.perf_counter() - t
     path = tmp / f"{name}-locate.db"
     run_add(path, first, poses=list(mapped))
@@ -426,7 +428,10 @@ def locate(
     queries = list(range(half, n, every))
     truth = {i: {j for j in js if j < half} for i, js in true_places(scans, queries).items()}
     t = time.perf_counter()
-    run = run_locate(path, scans, start=half, every=every, candidates=candidates, whole=True)
+    run = run_locate(
+        path, scans, start=half, every=every, candidates=candidates, whole=True, track=True,
+        use_odometry=odometry,
+    )  # fmt: skip
     seconds = time.perf_counter() - t
     # the whole second half, carried into the map by its located scans, in the reference
     # frame; and its own map's shape error (the best rigid alignment to the reference)
@@ -439,21 +444,23 @@ def locate(
         shape = np.hypot(*(own @ R2.T + t2 - ref).T)
     else:
         shape = np.full(1, np.nan)
-    located = right = right_true = 0
-    errors = []
+    count = {s: [0, 0, 0] for s in (LOCATED, TRACKED)}  # placed, right, right with a true place
+    errors = {LOCATED: [], TRACKED: []}
     for i, status, pose, pid in zip(run.indices, run.status, run.poses, run.places, strict=True):
-        if status != LOCATED:
+        if status not in count:
             continue
-        located += 1
         k = pid - 1  # the place: scan k of the first half (added in order)
         rel = mapped[k].inverse() @ pose  # the hit's pose: the query in the place's frame
         ok_i = _right_pose(scans[k], rel, scans[i])
-        right += ok_i
-        right_true += ok_i and bool(truth[i])
+        c = count[status]
+        c[0], c[1], c[2] = c[0] + 1, c[1] + ok_i, c[2] + (ok_i and bool(truth[i]))
         if ok_i:  # where the map puts it: the map's own error included
-            errors.append((to_ref @ pose).distance_to(scans[i].reference))
+            errors[status].append((to_ref @ pose).distance_to(scans[i].reference))
+    located, right, right_true = count[LOCATED]
+    tracked, t_right, t_right_true = count[TRACKED]
     n_true = sum(bool(v) for v in truth.values())
-    e = np.array(errors) if errors else np.full((1, 2), np.nan)
+    e = np.array(errors[LOCATED]) if errors[LOCATED] else np.full((1, 2), np.nan)
+    e2 = np.array(errors[TRACKED]) if errors[TRACKED] else np.full((1, 2), np.nan)
     if figure is not None:  # in the reference frame: the first half's map carried there
         from scanclique.plot import plot_located
 
@@ -463,9 +470,14 @@ def locate(
             [None if p is None else to_ref @ p for p in run.poses],
             [None if p is None else to_ref @ p for p in run.trajectory],
             f"{name}: the second half located in the first half's map",
+            tracked=[s == TRACKED for s in run.status],
         )
     if progress:
-        print(f"  {name}: located {located} of {len(queries)}", file=sys.stderr)
+        print(
+            f"  {name}: located {located}, tracked {tracked} ({tracked - t_right} wrong) "
+            f"of {len(queries)}",
+            file=sys.stderr,
+        )
     return {
         "log": name,
         "places": half,
@@ -477,6 +489,15 @@ def locate(
         "precision": right / located if located else float("nan"),
         "recall": right_true / n_true if n_true else float("nan"),
         "doubtful": run.count("ambiguous"),
+        "tracked": tracked,
+        "tracked_right": t_right,
+        "tracked_wrong": tracked - t_right,
+        "tracked_precision": t_right / tracked if tracked else float("nan"),
+        "recall_tracking": (right_true + t_right_true) / n_true if n_true else float("nan"),
+        "placed_fraction": (located + tracked) / len(queries),
+        "tracked_error_median_m": float(np.median(e2[:, 0])),
+        "tracked_error_median_deg": float(np.degrees(np.median(e2[:, 1]))),
+        "track_ms_mean": float(np.mean(run.track_ms)),
         "error_median_m": float(np.median(e[:, 0])),
         "error_median_deg": float(np.degrees(np.median(e[:, 1]))),
         "map_fit_rms_m": float(np.sqrt(np.mean(fit**2))),
@@ -830,12 +851,35 @@ def report(res: dict) -> str:
             "best rigid alignment RMS m |",
             "|---|---|---|---|---|---|",
         ]
+        track = [
+            "",
+            "Tracking (`run_locate(track=True)`, `--track`): a queried scan recognition does "
+            "not locate, predicted from the last scan placed by the run's own online map and "
+            "matched against the places near the prediction with it as the prior:",
+            "",
+            "| log | queries | located | tracked | right | wrong | precision | "
+            "recall, located or tracked | placed | right: median error m | deg | "
+            "tracking ms per scan, mean |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in res["locate"]:
+            if "tracked" not in r:
+                continue
+            track.append(
+                f"| {r['log']} | {r['queries']} | {r['located']} | {r['tracked']} | "
+                f"{r['tracked_right']} | {r['tracked_wrong']} | {_f(r['tracked_precision'])} | "
+                f"{_f(r['recall_tracking'])} | {_f(r['placed_fraction'])} | "
+                f"{_f(r['tracked_error_median_m'])} | "
+                f"{_f(r['tracked_error_median_deg'], '.2f')} | "
+                f"{_f(r['track_ms_mean'], '.1f')} |"
+            )
         for r in res["locate"]:
             tail.append(
                 f"| {r['log']} | {r['whole_placed']} | {r['anchor_inliers']} | "
                 f"{_f(r['whole_ate_rms_m'])} | {_f(r['whole_ate_max_m'])} | "
                 f"{_f(r['whole_shape_rms_m'])} |"
             )
+        tail += track
         for r in res["locate"]:
             lines.append(
                 f"| {r['log']} | {r['places']} | {r['queries']} | {r['with_true_place']} | "

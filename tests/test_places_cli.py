@@ -194,6 +194,14 @@ def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
     for (_, x, y, th), want in zip(rows, truth, strict=True):
         dt, dr = Pose2(x, y, th).distance_to(want)
         assert dt < 0.1 and dr < 0.03, (dt, dr)
+    r = invoke("places", "locate", db, log, "--track", "--no-odometry", "--json", "--out", out)
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)  # tracking places what recognition leaves, never fewer
+    assert d["tracking"] is True and d["tracked"] >= 1 and d["located"] + d["tracked"] >= 10
+    assert len(read_tum(out)) == d["located"] + d["tracked"]
+    r = invoke("places", "locate", db, log, "--track", "--plot", tmp_path / "tracked.png")
+    assert r.exit_code == 0 and "tracked (a place near where the run predicts it)" in r.output
+    assert (tmp_path / "tracked.png").read_bytes()[:4] == b"\x89PNG"
     plain = tmp_path / "plain.db"
     invoke("places", "add", plain, log, "--every", "3")
     r = invoke("places", "locate", plain, log)

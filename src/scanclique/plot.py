@@ -542,12 +542,14 @@ def plot_located(
     located: Sequence[Pose2 | None],
     trajectory: Sequence[Pose2 | None] = (),
     title: str = "",
+    tracked: Sequence[bool] = (),
 ) -> Path:
     """A figure of a log located in a place database's map
     (:func:`scanclique.places.run.run_locate`): the places' map positions (grey), each
-    located scan's pose (green, a short tick along its heading) and, when given, the
-    whole run carried into the map (blue line); metres, the map's frame. Returns the
-    path written."""
+    located scan's pose (green, a short tick along its heading; orange for those
+    ``tracked`` flags, one flag per pose of ``located``) and, when given, the whole run
+    carried into the map (blue line); metres, the map's frame. Returns the path
+    written."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 8))
     xy = np.array([[p.x, p.y] for p in places]).reshape(-1, 2)
@@ -555,14 +557,17 @@ def plot_located(
     run = np.array([[p.x, p.y] for p in trajectory if p is not None]).reshape(-1, 2)
     if len(run):
         ax.plot(run[:, 0], run[:, 1], "-", color="tab:blue", lw=0.8, label="the run, carried")
-    hit = [p for p in located if p is not None]
-    if hit:
+    flags = list(tracked) or [False] * len(located)
+    size = 0.03 * max(np.ptp(xy[:, 0]) if len(xy) else 1.0, 1.0)
+    for kind, colour, label in ((False, "tab:green", "located"), (True, "tab:orange", "tracked")):
+        hit = [p for p, f in zip(located, flags, strict=True) if p is not None and f == kind]
+        if not hit:
+            continue
         q = np.array([[p.x, p.y, p.theta] for p in hit])
-        size = 0.03 * max(np.ptp(xy[:, 0]) if len(xy) else 1.0, 1.0)
-        ax.quiver(q[:, 0], q[:, 1], np.cos(q[:, 2]), np.sin(q[:, 2]), color="tab:green",
+        ax.quiver(q[:, 0], q[:, 1], np.cos(q[:, 2]), np.sin(q[:, 2]), color=colour,
                   angles="xy", scale_units="xy", scale=1.0 / size, width=0.003)  # fmt: skip
-        ax.plot(q[:, 0], q[:, 1], "o", color="tab:green", ms=3,
-                label=f"located scans ({len(hit)} of {len(located)})")  # fmt: skip
+        ax.plot(q[:, 0], q[:, 1], "o", color=colour, ms=3,
+                label=f"{label} scans ({len(hit)} of {len(located)})")  # fmt: skip
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -379,6 +379,17 @@ PaperOpt = Annotated[
     typer.Option("--paper", help="Start from the paper's exact configuration (paper_config())."),
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON only (for machines).")]
+OdometryOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--odometry/--no-odometry",
+        help="--no-odometry maps from the scans alone; --odometry uses the log's "
+        "odometry as it is. Default: use it when every scan has it and a sample of "
+        "matched pairs says it moves as the scans do (zeros, frozen or millimetres are "
+        "set aside, with a warning).",
+        show_default=False,
+    ),
+]
 PerMetreOpt = Annotated[
     float | None,
     typer.Option(

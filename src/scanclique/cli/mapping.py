@@ -14,6 +14,7 @@ import typer
 from . import (
     AppConfigOpt,
     JsonOpt,
+    OdometryOpt,
     SaveConfigOpt,
     _check_out_dir,
     _check_out_file,
@@ -38,17 +39,7 @@ def map_cmd(
         ),
     ],
     out: Annotated[str, typer.Option("--out", "-o", help="Output directory.")],
-    odometry: Annotated[
-        bool | None,
-        typer.Option(
-            "--odometry/--no-odometry",
-            help="--no-odometry maps from the scans alone; --odometry uses the log's "
-            "odometry as it is. Default: use it when every scan has it and a sample of "
-            "matched pairs says it moves as the scans do (zeros, frozen or millimetres are "
-            "set aside, with a warning).",
-            show_default=False,
-        ),
-    ] = None,
+    odometry: OdometryOpt = None,
     topic: Annotated[
         str | None,
         typer.Option("--topic", help="LaserScan topic of a ROS bag (default: the only one)."),

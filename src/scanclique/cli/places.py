@@ -16,6 +16,7 @@ import typer
 from . import (
     ConfigOpt,
     JsonOpt,
+    OdometryOpt,
     PaperOpt,
     _check_out_file,
     _console,
@@ -250,7 +251,9 @@ def locate(
     candidates: CandidatesOpt = None,
     out: Annotated[
         Path | None,
-        typer.Option("--out", "-o", help="Write the located scans' poses as a TUM trajectory."),
+        typer.Option(
+            "--out", "-o", help="Write the located (and tracked) scans' poses as a TUM trajectory."
+        ),
     ] = None,
     trajectory: Annotated[
         Path | None,
@@ -267,6 +270,15 @@ def locate(
             help="Write a figure: the places, the located scans and the carried run (PNG).",
         ),
     ] = None,
+    track: Annotated[
+        bool,
+        typer.Option(
+            "--track",
+            help="Also map the run as it goes and place a scan that is not recognised by "
+            "the places near where the run predicts it, from the last scan placed.",
+        ),
+    ] = False,
+    odometry: OdometryOpt = None,
     laser: LaserOpt = "main",
     config: ConfigOpt = None,
     paper: PaperOpt = False,
@@ -274,7 +286,9 @@ def locate(
 ) -> None:
     """Localise the scans of a log in the map of a place database (places added with
     --map): each scan on its own, by recognition, with no prior pose; a scan is located
-    when a hit is accepted, at the pose that hit gives it in the map.
+    when a hit is accepted, at the pose that hit gives it in the map. With --track, a scan
+    not recognised is matched against the places near where the run's own motion puts it
+    since the last scan placed (tracked).
 
     **Examples**
 
@@ -286,7 +300,7 @@ def locate(
     """
     from rich.progress import Progress
 
-    from ..places.run import run_locate
+    from ..places.run import TRACKED, run_locate
 
     for f in (out, trajectory):
         if f is not None:
@@ -302,7 +316,8 @@ def locate(
         run = _guard(
             lambda: run_locate(
                 db, source, every=every, start=start, stop=stop, k=top, candidates=candidates,
-                config=cfg, laser=laser, whole=trajectory is not None,
+                config=cfg, laser=laser, whole=trajectory is not None, track=track,
+                use_odometry=odometry,
                 progress=lambda d, t: bar.update(task, completed=d, total=t),
             )
         )  # fmt: skip
@@ -310,7 +325,7 @@ def locate(
 
     if out is not None:
         n = _guard(lambda: write_tum(out, run.poses, run.timestamps))
-        _note(f"{n} located scans written to {out}")
+        _note(f"{n} {'located or tracked' if track else 'located'} scans written to {out}")
     if trajectory is not None and run.anchor is None:
         _note(f"{trajectory} not written: the located scans agree on no one motion")
     elif trajectory is not None:
@@ -326,7 +341,12 @@ def locate(
         from ..plot import plot_located
 
         title = f"{run.label} located in {db.name}"
-        _guard(lambda: plot_located(plot, run.place_poses, run.poses, run.trajectory, title))
+        tracked = [s == TRACKED for s in run.status]
+        _guard(
+            lambda: plot_located(
+                plot, run.place_poses, run.poses, run.trajectory, title, tracked=tracked
+            )
+        )
         _note(f"wrote {plot}")
     if json_out:
         _print_json(run.to_dict())

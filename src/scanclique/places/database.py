@@ -704,6 +704,13 @@ class PlaceDB:
         self.store.set_array(pid, MAP_POSE, pose.as_array().astype(float))
         self._map_poses[pid] = pose
 
+    def map_poses(self) -> dict[int, Pose2]:
+        """Place id -> map pose of every place that has one (:meth:`map_pose`), in id
+        order; read from the store once per place."""
+        self.refresh()
+        got = self._map_poses_of([int(i) for i in self.ids])
+        return {i: p for i, p in got.items() if p is not None}
+
     def _map_poses_of(self, ids: list[int]) -> dict[int, Pose2 | None]:
         """:meth:`map_pose` of each of ``ids``, read from the store once per place."""
         new = [i for i in ids if i not in self._map_poses]

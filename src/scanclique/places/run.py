@@ -19,11 +19,12 @@ import math
 import os
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import MatchConfig
+from ..config import MatchConfig, require_flag
 from ..errors import ScanCliqueError
 from ..geometry import Pose2, align_se2, wrap_angle
 from ..match import warm_up
@@ -335,16 +336,20 @@ def run_query(
 #: what :func:`run_locate` says of each scan: placed in the map by an accepted hit; only
 #: an accepted hit of a place without a map pose; hits, none accepted (ambiguous); none
 LOCATED, UNMAPPED, DOUBTFUL, UNKNOWN = "located", "unmapped", "ambiguous", "not recognised"
+#: with ``track=True``: not located, but placed by a place near where the run predicts it
+#: (:mod:`scanclique.places.track`)
+TRACKED = "tracked"
 
 
 @dataclass(frozen=True, slots=True, eq=False)
 class LocateRun:
     """What :func:`run_locate` found: for each scan queried (``indices``, with their
-    ``timestamps``), its ``status`` (:data:`LOCATED`, :data:`UNMAPPED`, :data:`DOUBTFUL`
-    or :data:`UNKNOWN`), its pose in the database's map (``poses``: Pose2, None unless
-    located), the place that gave it and that hit's confidence (``places``,
-    ``confidences``: the best hit's, whatever its verdict; None and 0 without one), and
-    the query times (ms)."""
+    ``timestamps``), its ``status`` (:data:`LOCATED`, :data:`TRACKED`, :data:`UNMAPPED`,
+    :data:`DOUBTFUL` or :data:`UNKNOWN`), its pose in the database's map (``poses``:
+    Pose2, None unless located or tracked), the place that gave it and that hit's
+    confidence (``places``, ``confidences``: the best hit's, whatever its verdict; None
+    and 0 without one; a tracked scan's place is the one that fixed it, its confidence
+    NaN: no hit), and the query times (ms)."""
 
     path: str
     label: str
@@ -376,6 +381,10 @@ class LocateRun:
     #: may be off by the rotation's lever arm at the other
     anchor_spread: float = math.nan
     run_extent: float = math.nan
+    #: whether the scans not located were tracked (``track=True``), and the time that
+    #: took for each scan queried (ms, after its query; 0 for a located scan)
+    tracked: bool = False
+    track_ms: tuple = ()
 
     def count(self, status: str) -> int:
         return sum(s == status for s in self.status)
@@ -389,6 +398,11 @@ class LocateRun:
                 (what, f"{self.count(s)} ({100.0 * self.count(s) / n:.1f} %)", "")
                 for what, s in (
                     ("located in the map (an accepted hit)", LOCATED),
+                    *(
+                        [("tracked (a place near where the run predicts it)", TRACKED)]
+                        if self.tracked
+                        else []
+                    ),
                     ("accepted, by places without a map pose only", UNMAPPED),
                     ("recognised, none accepted (ambiguous)", DOUBTFUL),
                     ("not recognised", UNKNOWN),
@@ -416,6 +430,11 @@ class LocateRun:
             ),
             ("query time, median", f"{np.median(ms):.1f}", "ms"),
             ("query time, p95", f"{np.percentile(ms, 95):.1f}", "ms"),
+            *(
+                [("tracking time per scan, mean", f"{np.mean(self.track_ms):.1f}", "ms")]
+                if self.track_ms
+                else []
+            ),
             ("kernel loading (before the queries)", f"{self.loading_seconds:.1f}", "s"),
             ("wall time", f"{self.seconds:.1f}", "s"),
         ]
@@ -425,11 +444,13 @@ class LocateRun:
             "path": self.path,
             "source": self.label,
             "queried": len(self.indices),
-            **{s: self.count(s) for s in (LOCATED, UNMAPPED, DOUBTFUL, UNKNOWN)},
+            **{s: self.count(s) for s in (LOCATED, TRACKED, UNMAPPED, DOUBTFUL, UNKNOWN)},
             "mapped_places": self.mapped_places,
             "places": self.total_places,
             "seconds": self.seconds,
             "loading_seconds": self.loading_seconds,
+            "tracking": self.tracked,
+            "track_ms_mean": float(np.mean(self.track_ms)) if self.track_ms else None,
             "anchor": None
             if self.anchor is None
             else {"x": self.anchor.x, "y": self.anchor.y, "theta": self.anchor.theta},
@@ -444,7 +465,7 @@ class LocateRun:
                     "status": s,
                     "pose": None if p is None else {"x": p.x, "y": p.y, "theta": p.theta},
                     "place_id": pid,
-                    "confidence": c,
+                    "confidence": None if math.isnan(c) else c,
                     "query_ms": ms,
                 }
                 for i, t, s, p, pid, c, ms in zip(
@@ -474,6 +495,8 @@ def run_locate(
     laser: str = "main",
     progress: Callable[[int, int], None] | None = None,
     whole: bool = False,
+    track: bool = False,
+    use_odometry: bool | None = None,
 ) -> LocateRun:
     """Localise the scans of a log in the map of a place database: topological
     localisation by recognition, scan by scan, with no prior pose (paper §2).
@@ -482,8 +505,16 @@ def run_locate(
     :func:`scanclique.io.read_scans`) is a query (:meth:`PlaceDB.query`, ``k`` hits of
     ``candidates`` verified); its pose in the map is the first accepted hit's
     :attr:`PlaceHit.map_pose` (the place's map pose composed with the hit's pose; hits
-    that disagree on where the query is are not accepted). Scans are queried
-    independently: nothing is carried from one to the next.
+    that disagree on where the query is are not accepted). Without ``track`` scans are
+    queried independently: nothing is carried from one to the next.
+
+    ``track=True`` also maps the run as it goes (:class:`scanclique.mapping.OnlineMapper`,
+    every scan from ``start`` on): a queried scan that recognition does not locate is
+    predicted from the last scan placed, by the run's own motion since, and matched
+    against the places near the prediction with it as the prior
+    (:func:`scanclique.places.track.fix_near`): status
+    :data:`TRACKED` when one accepts. Recognition still decides wherever it locates a
+    scan (a robot carried elsewhere is found again).
 
     ``whole=True`` also maps the log itself (:func:`scanclique.mapping.map_scans`, every
     scan from ``start`` to ``stop``) and carries that map into the database's by the
@@ -491,35 +522,52 @@ def run_locate(
     pose in the database's map (:attr:`LocateRun.trajectory`), when at least
     :data:`ANCHOR_MIN_INLIERS` located scans agree.
 
+    ``use_odometry`` is the mappers' (:func:`scanclique.mapping.map_scans`): None uses
+    the scans' odometry when they all carry it and it moves as the scans do.
+
     Raises
     ------
     PlaceDatabaseError
         No place of the database has a map pose (add them with
         ``scanclique places add DB LOG --map DIR``), or no such database.
+    ArgumentError
+        ``use_odometry`` not True, False or None.
     """
     from ..errors import PlaceDatabaseError
+    from ..mapping import MapConfig, OnlineMapper, map_scans
+    from .track import TRACK_MAX_PATH, Fix, fix_near, predict
 
+    require_flag("run_locate: ", use_odometry=use_odometry)
     scans, label = _scans(source, laser)
     span = _span(len(scans), start, stop)
     idx = list(span[:: max(1, every)])
     t0 = time.perf_counter()
     loading = warm_up()
-    status, poses, places, confs, ms = [], [], [], [], []
-    with PlaceDB(path, config, readonly=True) as db:
+    status, poses, places, confs, ms, track_ms = [], [], [], [], [], []
+    map_cfg = MapConfig.online()
+    with (
+        PlaceDB(path, config, readonly=True) as db,
+        (
+            OnlineMapper(use_odometry=use_odometry, config=map_cfg) if track else nullcontext()
+        ) as mapper,
+    ):
         total = len(db)
-        place_poses = tuple(
-            p for p in db._map_poses_of([int(i) for i in db.ids]).values() if p is not None
-        )
-        mapped = len(place_poses)
+        map_poses = db.map_poses()
+        mapped = len(map_poses)
         if not mapped:
             raise PlaceDatabaseError(
                 f"{os.fspath(path)}: none of its {total} places has a map pose: add them with "
                 "'scanclique places add DB LOG --map DIR' (the --out of 'scanclique map LOG')"
             )
+        fed, run_path, last, fix = start, 0.0, None, None
         for n, i in enumerate(idx):
+            while mapper is not None and fed <= i:  # the run's own map, up to this scan
+                now = mapper.add(scans[fed])
+                run_path += 0.0 if last is None else now.distance_to(last)[0]
+                last, fed = now, fed + 1
             t = time.perf_counter()
-            hits = db.query(scans[i], k=k, candidates=candidates)
-            ms.append(1e3 * (time.perf_counter() - t))
+            query = db.prepare(scans[i])
+            hits = db.query(query, k=k, candidates=candidates)
             best = hits[0] if hits else None
             if best is not None and best.verdict == ACCEPTED:
                 first = next(
@@ -532,19 +580,31 @@ def run_locate(
             poses.append(best.map_pose if status[-1] == LOCATED else None)
             places.append(None if best is None else best.place_id)
             confs.append(0.0 if best is None else best.confidence)
+            ms.append(1e3 * (time.perf_counter() - t))
+            t = time.perf_counter()
+            if status[-1] != LOCATED and fix is not None and run_path - fix.path <= TRACK_MAX_PATH:
+                pred, sigma = predict(fix, mapper.pose(fix.index - start), last, run_path)
+                got = fix_near(db, query, pred, sigma, map_poses, map_cfg.front_end)
+                if got is not None:
+                    status[-1], poses[-1], places[-1], confs[-1] = (
+                        TRACKED, got.map_pose, got.place_id, math.nan
+                    )  # fmt: skip
+            if track and poses[-1] is not None:
+                fix = Fix(i, poses[-1], run_path)
+            track_ms.append(1e3 * (time.perf_counter() - t))
             if progress:
                 progress(n + 1, len(idx))
     whole_run = {}
     if whole:
-        from ..mapping import map_scans
-
         own = map_scans(
             [scans[i] for i in span],
+            use_odometry=use_odometry,
             progress=None
             if progress is None
             else lambda d, n, _c: progress(len(idx) + d, len(idx) + n),
         ).poses
-        pairs = [(own[i - start], p) for i, p in zip(idx, poses, strict=True)
+        located = [p if s == LOCATED else None for s, p in zip(status, poses, strict=True)]
+        pairs = [(own[i - start], p) for i, p in zip(idx, located, strict=True)
                  if p is not None and own[i - start] is not None]  # fmt: skip
         motion, inliers, rms = consensus_motion(pairs)
         anchored = motion is not None and len(inliers) >= ANCHOR_MIN_INLIERS
@@ -560,7 +620,8 @@ def run_locate(
     return LocateRun(
         os.fspath(path), label, tuple(idx), tuple(scans[i].timestamp for i in idx),
         tuple(status), tuple(poses), tuple(places), tuple(confs), tuple(ms), mapped, total,
-        time.perf_counter() - t0, loading, **whole_run, place_poses=place_poses,
+        time.perf_counter() - t0, loading, **whole_run, place_poses=tuple(map_poses.values()),
+        tracked=track, track_ms=tuple(track_ms) if track else (),
     )  # fmt: skip
 
 

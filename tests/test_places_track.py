@@ -1,0 +1,95 @@
+"""Tracking in a place database's map (``run_locate(track=True)``, ``places.track``)."""
+
+from __future__ import annotations
+
+import pytest
+
+from scanclique.geometry import Pose2
+from scanclique.io import read_scans
+from scanclique.places import PlaceDB
+from scanclique.places import track as tr
+from scanclique.places.run import LOCATED, TRACKED, UNKNOWN, run_add, run_locate
+
+
+@pytest.fixture(scope="module")
+def mapped_db(drive_log, tmp_path_factory):
+    """Every 3rd scan of the simulated drive stored with its true pose in the map (the
+    first scan's frame); returns (database, scans, true poses)."""
+    scans = read_scans(drive_log)
+    start = scans[0].reference.inverse()
+    truth = [start @ s.reference for s in scans]
+    path = tmp_path_factory.mktemp("track") / "p.db"
+    run_add(path, scans, every=3, poses=truth)
+    return path, scans, truth
+
+
+def _recognise_first_only(monkeypatch):
+    """Recognition answers the first query only: every later scan is left to tracking."""
+    real, calls = PlaceDB.query, []
+
+    def query(self, scan, k=5, **kw):
+        calls.append(1)
+        return real(self, scan, k, **kw) if len(calls) == 1 else []
+
+    monkeypatch.setattr(PlaceDB, "query", query)
+
+
+def test_tracking_places_the_scans_recognition_leaves(mapped_db, monkeypatch):
+    """After one recognised scan, the others are placed by the places near where the
+    run's own motion predicts them, at their true pose; without tracking they are not."""
+    path, scans, truth = mapped_db
+    _recognise_first_only(monkeypatch)
+    run = run_locate(path, scans, start=1, track=True, use_odometry=False)
+    assert run.status[0] == LOCATED and run.tracked
+    tracked = [k for k, s in enumerate(run.status) if s == TRACKED]
+    assert len(tracked) >= 8, run.status
+    for k in tracked:
+        dt, dr = run.poses[k].distance_to(truth[run.indices[k]])
+        assert dt < 0.05 and dr < 0.02, (run.indices[k], dt, dr)
+        assert run.places[k] is not None and run.confidences[k] != run.confidences[k]  # NaN
+    assert len(run.track_ms) == len(run.indices)
+    d = run.to_dict()
+    assert d["tracked"] == len(tracked) and d["tracking"] is True
+    assert all(s["confidence"] is None for s in d["scans"] if s["status"] == TRACKED)
+    assert any("tracked" in what for what, _, _ in run.rows())
+    monkeypatch.undo()
+    _recognise_first_only(monkeypatch)
+    plain = run_locate(path, scans, start=1)
+    assert plain.status[0] == LOCATED and set(plain.status[1:]) == {UNKNOWN}
+    assert not plain.tracked and not plain.track_ms
+
+
+def test_the_track_is_dropped_after_its_longest_path(mapped_db, monkeypatch):
+    path, scans, _ = mapped_db
+    _recognise_first_only(monkeypatch)
+    monkeypatch.setattr(tr, "TRACK_MAX_PATH", 0.0)
+    run = run_locate(path, scans, start=1, track=True, use_odometry=False)
+    assert run.status[0] == LOCATED and set(run.status[1:]) == {UNKNOWN}
+
+
+def test_fix_near_needs_the_prediction_to_agree(mapped_db):
+    """A place near the prediction fixes the scan at its true pose; a prediction a metre
+    off with a tight prior is refused by the gate, and one with no place near is None."""
+    from scanclique.mapping import MapConfig
+
+    path, scans, truth = mapped_db
+    fe = MapConfig.online().front_end
+    with PlaceDB(path, readonly=True) as db:
+        poses = db.map_poses()
+        assert sorted(poses) == [1, 2, 3, 4]
+        q = db.prepare(scans[4])
+        got = tr.fix_near(db, q, truth[4], (0.5, 0.05), poses, fe)
+        assert got is not None and got.place_id in poses and got.tried >= 1
+        dt, dr = got.map_pose.distance_to(truth[4])
+        assert dt < 0.05 and dr < 0.02
+        off = truth[4] @ Pose2(1.0, 0.0, 0.0)
+        assert tr.fix_near(db, q, off, (0.05, 0.01), poses, fe) is None
+        far = truth[4] @ Pose2(50.0, 0.0, 0.0)
+        assert tr.fix_near(db, q, far, (0.05, 0.01), poses, fe) is None
+
+
+def test_near_places_orders_by_distance_then_heading():
+    poses = {7: Pose2(1, 0, 3.0), 3: Pose2(1, 0, 0.1), 5: Pose2(0, 2.5, 0), 9: Pose2(-1, 0, 0)}
+    assert tr.near_places(poses, Pose2(0, 0, 0), 2.0, 5) == [9, 3, 7]
+    assert tr.near_places(poses, Pose2(0, 0, 0), 2.0, 1) == [9]
+    assert tr.near_places({}, Pose2(0, 0, 0), 2.0, 5) == []
