@@ -40,6 +40,7 @@ __all__ = [
     "appearance_candidates",
     "verify",
     "verify_by_icp",
+    "closure_doubt",
 ]
 
 log = logging.getLogger(__name__)
@@ -241,6 +242,25 @@ def verify(
             return verify_by_icp(pi, pj, est_i.inverse() @ est_j, sigma, config, sigma_floor,
                                  front_end)  # fmt: skip
     return None, None, v.verdict, float(m.score), reason
+
+
+def closure_doubt(cov: np.ndarray, score: float, cfg: LoopConfig) -> tuple[str, str] | None:
+    """Why a loop closure that :func:`verify` accepted is still not taken: its raw-scan
+    ``score`` below ``cfg.min_score`` (verdict ``"low_score"``), or its covariance
+    ``cov`` giving a standard deviation above ``cfg.max_sigma_metres`` (largest of the
+    position's) or ``cfg.max_sigma_radians`` (``"imprecise"``). Returns ``(verdict,
+    reason)``, None when neither."""
+    if score < cfg.min_score:
+        return "low_score", f"raw-scan score {score:.2f} < loops.min_score={cfg.min_score:g}"
+    s_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+    s_th = math.sqrt(max(float(cov[2, 2]), 0.0))
+    if s_xy > cfg.max_sigma_metres or s_th > cfg.max_sigma_radians:
+        return "imprecise", (
+            f"its covariance gives sigma {s_xy:.3f} m / {math.degrees(s_th):.2f} deg > "
+            f"loops.max_sigma_metres={cfg.max_sigma_metres:.3f} / max_sigma_radians="
+            f"{math.degrees(cfg.max_sigma_radians):.2f} deg"
+        )
+    return None
 
 
 def verify_by_icp(

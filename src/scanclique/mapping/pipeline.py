@@ -65,7 +65,7 @@ from .frontend import (
     sample_odometry_scale,
     step_scale,
 )
-from .loops import LoopClosure
+from .loops import LoopClosure, closure_doubt
 from .parallel import Verifier
 from .pcm import pcm_select
 
@@ -660,20 +660,9 @@ class _Mapper:
         for kidx, meta, handle in self.batch:
             for (i, local, source), out in zip(meta, handle.result(), strict=True):
                 pose, cov, verdict, score, reason = out
-                if pose is not None and not local and score < lc.min_score:
-                    pose, verdict = None, "low_score"
-                    reason = f"raw-scan score {score:.2f} < loops.min_score={lc.min_score:g}"
-                elif pose is not None and not local:
-                    s_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
-                    s_th = math.sqrt(max(float(cov[2, 2]), 0.0))
-                    if s_xy > lc.max_sigma_metres or s_th > lc.max_sigma_radians:
-                        pose, verdict = None, "imprecise"
-                        reason = (
-                            f"its covariance gives sigma {s_xy:.3f} m / "
-                            f"{math.degrees(s_th):.2f} deg > loops.max_sigma_metres="
-                            f"{lc.max_sigma_metres:.3f} / max_sigma_radians="
-                            f"{math.degrees(lc.max_sigma_radians):.2f} deg"
-                        )
+                doubt = None if pose is None or local else closure_doubt(cov, score, lc)
+                if doubt is not None:
+                    pose, (verdict, reason) = None, doubt
                 if pose is not None and not local:
                     why = self.turned(i, kidx, pose)
                     if why:
