@@ -6,7 +6,7 @@ import pytest
 
 from scanclique.geometry import Pose2
 from scanclique.io import read_scans
-from scanclique.places import PlaceDB
+from scanclique.places import PlaceDB, locate
 from scanclique.places import track as tr
 from scanclique.places.run import LOCATED, TRACKED, UNKNOWN, run_add, run_locate
 
@@ -62,7 +62,7 @@ def test_tracking_places_the_scans_recognition_leaves(mapped_db, monkeypatch):
 def test_the_track_is_dropped_after_its_longest_path(mapped_db, monkeypatch):
     path, scans, _ = mapped_db
     _recognise_first_only(monkeypatch)
-    monkeypatch.setattr(tr, "TRACK_MAX_PATH", 0.0)
+    monkeypatch.setattr(locate, "TRACK_MAX_PATH", 0.0)
     run = run_locate(path, scans, start=1, track=True, use_odometry=False)
     assert run.status[0] == LOCATED and set(run.status[1:]) == {UNKNOWN}
 
@@ -93,3 +93,39 @@ def test_near_places_orders_by_distance_then_heading():
     assert tr.near_places(poses, Pose2(0, 0, 0), 2.0, 5) == [9, 3, 7]
     assert tr.near_places(poses, Pose2(0, 0, 0), 2.0, 1) == [9]
     assert tr.near_places({}, Pose2(0, 0, 0), 2.0, 5) == []
+
+
+def test_localiser_streams_what_run_locate_gives(mapped_db, tmp_path):
+    """``Localiser.add`` scan by scan is ``run_locate``: the same statuses and poses; a
+    scan added with ``query=False`` only feeds the tracker."""
+    from scanclique.places.locate import Localiser
+
+    path, scans, _ = mapped_db
+    run = run_locate(path, scans, start=2, every=2, track=True, use_odometry=False)
+    with PlaceDB(path, readonly=True) as db, Localiser(db, track=True, use_odometry=False) as loc:
+        assert loc.tracking and sorted(loc.map_poses) == [1, 2, 3, 4]
+        got = [loc.add(s, query=(i - 2) % 2 == 0) for i, s in enumerate(scans[2:], start=2)]
+    streamed = [g for g in got if g is not None]
+    assert [g.index for g in streamed] == [i - 2 for i in run.indices]
+    assert [g.status for g in streamed] == list(run.status)
+    for g, p in zip(streamed, run.poses, strict=True):
+        assert (g.pose is None) == (p is None) and g.placed == (p is not None)
+        assert p is None or g.pose.distance_to(p)[0] < 1e-9
+
+
+def test_localiser_refuses_what_it_cannot_use(mapped_db, tmp_path):
+    from scanclique.errors import ArgumentError, PlaceDatabaseError, ScanError
+    from scanclique.places.locate import Localiser
+
+    path, scans, _ = mapped_db
+    with pytest.raises(ArgumentError, match="must be an open PlaceDB"):
+        Localiser(str(path))
+    with PlaceDB(path, readonly=True) as db:
+        with pytest.raises(ArgumentError, match="use_odometry"):
+            Localiser(db, use_odometry="yes")
+        with Localiser(db) as loc, pytest.raises(ScanError, match="must be a Scan"):
+            loc.add([1.0, 2.0])
+    plain = tmp_path / "plain.db"
+    run_add(plain, scans, every=4)
+    with PlaceDB(plain, readonly=True) as db, pytest.raises(PlaceDatabaseError, match="map pose"):
+        Localiser(db)

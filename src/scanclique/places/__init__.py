@@ -11,11 +11,14 @@ pose relative to each, verified by the clique matcher and validated (paper §7).
 * :mod:`.store` — the SQLite store (WAL, typed blobs, schema version, stored config);
 * :mod:`.verify` — match and validate a candidate: accepted / ambiguous / rejected;
 * :mod:`.database` — :class:`PlaceDB` and :class:`PlaceHit`, the contract;
+* :mod:`.locate` — :class:`Localiser`: a run's scans located in the places' map as they
+  come, by recognition and (:mod:`.track`) by tracking from the last scan placed;
 * :mod:`.loops` — every revisit of a log, serially, over local processes or Dask.
 """
 
 from .database import PlaceDB, PlaceHit
 from .index import SignatureIndex
+from .locate import Localiser, Located
 from .signature import SIGNATURE_SIZE, SIGNATURE_VERSION, scan_signature, signature_distance
 from .store import PlaceStore
 from .verify import ACCEPTED, AMBIGUOUS, REJECTED, Verification, verify_pair
@@ -26,6 +29,8 @@ __all__ = [
     "REJECTED",
     "SIGNATURE_SIZE",
     "SIGNATURE_VERSION",
+    "Localiser",
+    "Located",
     "PlaceDB",
     "PlaceHit",
     "PlaceStore",

@@ -19,7 +19,6 @@ import math
 import os
 import time
 from collections.abc import Callable
-from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +29,7 @@ from ..geometry import Pose2, align_se2, wrap_angle
 from ..match import warm_up
 from ..scan import Scan
 from .database import PlaceDB
+from .locate import DOUBTFUL, LOCATED, TRACKED, UNKNOWN, UNMAPPED, Localiser, Located
 from .loops import LoopSearch, find_loops
 from .verify import ACCEPT_MIN_FEATURES, ACCEPT_MIN_SCORE, ACCEPTED, AMBIGUOUS, REJECTED
 
@@ -333,14 +333,6 @@ def run_query(
     return QueryRun(os.fspath(path), label, index, tuple(hits), tuple(errors), n, seconds, loading)
 
 
-#: what :func:`run_locate` says of each scan: placed in the map by an accepted hit; only
-#: an accepted hit of a place without a map pose; hits, none accepted (ambiguous); none
-LOCATED, UNMAPPED, DOUBTFUL, UNKNOWN = "located", "unmapped", "ambiguous", "not recognised"
-#: with ``track=True``: not located, but placed by a place near where the run predicts it
-#: (:mod:`scanclique.places.track`)
-TRACKED = "tracked"
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class LocateRun:
     """What :func:`run_locate` found: for each scan queried (``indices``, with their
@@ -533,67 +525,29 @@ def run_locate(
     ArgumentError
         ``use_odometry`` not True, False or None.
     """
-    from ..errors import PlaceDatabaseError
-    from ..mapping import MapConfig, OnlineMapper, map_scans
-    from .track import TRACK_MAX_PATH, Fix, fix_near, predict
+    from ..mapping import map_scans
 
-    require_flag("run_locate: ", use_odometry=use_odometry)
+    require_flag("run_locate: ", track=track, use_odometry=use_odometry)
     scans, label = _scans(source, laser)
     span = _span(len(scans), start, stop)
     idx = list(span[:: max(1, every)])
     t0 = time.perf_counter()
     loading = warm_up()
-    status, poses, places, confs, ms, track_ms = [], [], [], [], [], []
-    map_cfg = MapConfig.online()
+    found: list[Located] = []
     with (
         PlaceDB(path, config, readonly=True) as db,
-        (
-            OnlineMapper(use_odometry=use_odometry, config=map_cfg) if track else nullcontext()
-        ) as mapper,
+        Localiser(db, k=k, candidates=candidates, track=track, use_odometry=use_odometry) as loc,
     ):
-        total = len(db)
-        map_poses = db.map_poses()
-        mapped = len(map_poses)
-        if not mapped:
-            raise PlaceDatabaseError(
-                f"{os.fspath(path)}: none of its {total} places has a map pose: add them with "
-                "'scanclique places add DB LOG --map DIR' (the --out of 'scanclique map LOG')"
-            )
-        fed, run_path, last, fix = start, 0.0, None, None
-        for n, i in enumerate(idx):
-            while mapper is not None and fed <= i:  # the run's own map, up to this scan
-                now = mapper.add(scans[fed])
-                run_path += 0.0 if last is None else now.distance_to(last)[0]
-                last, fed = now, fed + 1
-            t = time.perf_counter()
-            query = db.prepare(scans[i])
-            hits = db.query(query, k=k, candidates=candidates)
-            best = hits[0] if hits else None
-            if best is not None and best.verdict == ACCEPTED:
-                first = next(
-                    (h for h in hits if h.verdict == ACCEPTED and h.map_pose is not None), None
-                )
-                best = first or best
-                status.append(LOCATED if first else UNMAPPED)
-            else:
-                status.append(DOUBTFUL if best and best.verdict == AMBIGUOUS else UNKNOWN)
-            poses.append(best.map_pose if status[-1] == LOCATED else None)
-            places.append(None if best is None else best.place_id)
-            confs.append(0.0 if best is None else best.confidence)
-            ms.append(1e3 * (time.perf_counter() - t))
-            t = time.perf_counter()
-            if status[-1] != LOCATED and fix is not None and run_path - fix.path <= TRACK_MAX_PATH:
-                pred, sigma = predict(fix, mapper.pose(fix.index - start), last, run_path)
-                got = fix_near(db, query, pred, sigma, map_poses, map_cfg.front_end)
-                if got is not None:
-                    status[-1], poses[-1], places[-1], confs[-1] = (
-                        TRACKED, got.map_pose, got.place_id, math.nan
-                    )  # fmt: skip
-            if track and poses[-1] is not None:
-                fix = Fix(i, poses[-1], run_path)
-            track_ms.append(1e3 * (time.perf_counter() - t))
-            if progress:
-                progress(n + 1, len(idx))
+        want = set(idx)
+        for i in range(start, idx[-1] + 1 if idx else start):
+            r = loc.add(scans[i], query=i in want)
+            if r is not None:
+                found.append(r)
+                if progress:
+                    progress(len(found), len(idx))
+        total, place_poses = len(db), tuple(loc.map_poses.values())
+    status = [r.status for r in found]
+    poses = [r.pose for r in found]
     whole_run = {}
     if whole:
         own = map_scans(
@@ -619,9 +573,11 @@ def run_locate(
         )  # fmt: skip
     return LocateRun(
         os.fspath(path), label, tuple(idx), tuple(scans[i].timestamp for i in idx),
-        tuple(status), tuple(poses), tuple(places), tuple(confs), tuple(ms), mapped, total,
-        time.perf_counter() - t0, loading, **whole_run, place_poses=tuple(map_poses.values()),
-        tracked=track, track_ms=tuple(track_ms) if track else (),
+        tuple(status), tuple(poses), tuple(r.place_id for r in found),
+        tuple(r.confidence for r in found), tuple(r.query_ms for r in found),
+        len(place_poses), total, time.perf_counter() - t0, loading, **whole_run,
+        place_poses=place_poses, tracked=track,
+        track_ms=tuple(r.track_ms for r in found) if track else (),
     )  # fmt: skip
 
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..geometry import Pose2
 from ..match import PreparedScan
+from .verify import ACCEPT_MIN_SCORE
 
 __all__ = [
     "TRACK_RADIUS",
@@ -143,14 +144,18 @@ def fix_near(
     map_poses: dict[int, Pose2],
     front_end,
     n: int = TRACK_PLACES,
+    min_score: float = ACCEPT_MIN_SCORE,
 ) -> TrackFix | None:
     """Match ``query`` against the places near the prediction ``pred`` (at most ``n``,
     :func:`near_places` within :data:`TRACK_RADIUS` + 3 ``sigma[0]``), each with the
     prediction as the prior (:func:`scanclique.mapping.loops.verify`, standard
     deviations ``sigma`` in m and rad, ``front_end`` a
     :class:`scanclique.mapping.FrontEndConfig`, its ICP fitness lowered to
-    :data:`TRACK_MIN_FITNESS`); the first place that accepts fixes the scan. None when
-    none does."""
+    :data:`TRACK_MIN_FITNESS`), whose raw-scan score at the refined pose is at least
+    ``min_score`` (a recognised hit's floor, :data:`.verify.ACCEPT_MIN_SCORE`: a
+    look-alike a metre along a corridor passes a prior broadened by a long path, with
+    its raw scans barely agreeing); the first place that passes fixes the scan. None
+    when none does."""
     from ..mapping.loops import verify
 
     fe = replace(front_end, icp_min_fitness=min(front_end.icp_min_fitness, TRACK_MIN_FITNESS))
@@ -161,6 +166,6 @@ def fix_near(
         pose, _, verdict, score, _ = verify(
             db.prepared(pid), query, at, pred, sigma, db.config, floor, fe
         )
-        if verdict == "accepted" and pose is not None:
+        if verdict == "accepted" and pose is not None and score >= min_score:
             return TrackFix(pid, at @ pose, pose, float(score), k + 1)
     return None
