@@ -835,8 +835,8 @@ def report(res: dict) -> str:
             "reference frame includes the map's)",
             "",
             "| log | places | queries | with true place | located | right | wrong | "
-            "precision | recall | ambiguous | right: median error in the reference frame m | "
-            "deg | map fit RMS m | "
+            "precision | recall | ambiguous, not tracked | "
+            "right: median error in the reference frame m | deg | map fit RMS m | "
             "query ms median | p95 |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
