@@ -513,6 +513,38 @@ def locate(
     }
 
 
+def locate_ring(seed: int, odometry: bool, every: int, tmp: Path) -> dict:
+    """Localisation where every corner looks alike (``sim.simulate_ring_drive``: a 60 x
+    40 m ring corridor driven twice): the first lap's every 4th scan stored as a place at
+    its true pose, every ``every``-th scan of the second lap located with tracking
+    (``run_locate(track=True)``, the run's own map with or without its odometry). Right
+    within 0.5 m and 0.2 rad of the true pose."""
+    from scanclique.places.run import LOCATED, TRACKED, run_add, run_locate
+    from scanclique.sim import simulate_ring_drive
+
+    scans = simulate_ring_drive(np.random.default_rng(seed), loops=2.0)
+    half = len(scans) // 2
+    start = scans[0].reference.inverse()
+    truth = [start @ s.reference for s in scans]
+    path = tmp / f"ring-{seed}-{odometry}.db"
+    first = list(range(0, half, 4))
+    run_add(path, [scans[k] for k in first], poses=[truth[k] for k in first])
+    run = run_locate(
+        path, scans, start=half, every=every, track=True, use_odometry=None if odometry else False
+    )
+    out = {"seed": seed, "odometry": odometry, "queries": len(run.indices)}
+    for status in (LOCATED, TRACKED):
+        got = [(i, p) for i, s, p in zip(run.indices, run.status, run.poses, strict=True)
+               if s == status]  # fmt: skip
+        right = sum(
+            p.distance_to(truth[i])[0] <= RIGHT_T and p.distance_to(truth[i])[1] <= RIGHT_R
+            for i, p in got
+        )
+        out[status] = {"placed": len(got), "right": right, "wrong": len(got) - right}
+    out["contested"] = int(sum(run.contested))
+    return out
+
+
 #: ``--ceiling``: a query's true places verified directly (bypassing the prefilter), the
 #: most overlapping first
 CEILING_PLACES = 3
@@ -889,6 +921,24 @@ def report(res: dict) -> str:
                 f"{_f(r['query_ms_median'], '.1f')} | {_f(r['query_ms_p95'], '.1f')} |"
             )
         lines += tail + [""]
+    if "ring" in res:
+        lines += [
+            "## Localisation where every corner looks alike (`--stages ring`: "
+            "`sim.simulate_ring_drive`, the first lap's every 4th scan a place at its true "
+            "pose, the second lap located with tracking; right within 0.5 m, 0.2 rad)",
+            "",
+            "| seed | odometry | queries | located | right | wrong | tracked | right | wrong | "
+            "tracked, though recognised elsewhere |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in res["ring"]:
+            lo, tr = r["located"], r["tracked"]
+            lines.append(
+                f"| {r['seed']} | {'yes' if r['odometry'] else 'no'} | {r['queries']} | "
+                f"{lo['placed']} | {lo['right']} | {lo['wrong']} | {tr['placed']} | "
+                f"{tr['right']} | {tr['wrong']} | {r['contested']} |"
+            )
+        lines.append("")
     if "scale" in res:
         lines += [
             "## Scale (one database grown; queries k=5 from a second connection)",
@@ -962,7 +1012,7 @@ def main(argv=None) -> None:
     ap.add_argument(
         "--stages",
         default="recognition,scale,scale_out",
-        help="of recognition, locate, scale, scale_out",
+        help="of recognition, locate, ring, scale, scale_out",
     )
     ap.add_argument("--logs", default=",".join(LOGS))
     ap.add_argument("--query-every", type=int, default=3, help="every n-th scan is a query")
@@ -1121,6 +1171,12 @@ def main(argv=None) -> None:
                        figure=out_json.with_name(f"{out_json.stem}-{n}.png"))
                 for n in a.logs.split(",")
             ]  # fmt: skip
+        if "ring" in stages:
+            res["ring"] = [
+                locate_ring(seed, odometry, a.query_every, tmp)
+                for odometry in (True, False)
+                for seed in range(4)
+            ]
         if "scale" in stages:
             res["scale"] = scale([int(x) for x in a.sizes.split(",")], a.scale_queries, tmp)
         if "scale_out" in stages:
@@ -1130,7 +1186,7 @@ def main(argv=None) -> None:
     if out_json.exists():
         old = json.loads(out_json.read_text())
         ran = set(res)
-        for stage in ("recognition", "calibration", "locate", "scale", "scale_out"):
+        for stage in ("recognition", "calibration", "locate", "ring", "scale", "scale_out"):
             # the calibration goes with the recognition it was fitted on
             if (
                 stage not in ran

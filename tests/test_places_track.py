@@ -129,3 +129,58 @@ def test_localiser_refuses_what_it_cannot_use(mapped_db, tmp_path):
     run_add(plain, scans, every=4)
     with PlaceDB(plain, readonly=True) as db, pytest.raises(PlaceDatabaseError, match="map pose"):
         Localiser(db)
+
+
+def _look_alike_at(monkeypatch, call: int, shift):
+    """Recognition puts the ``call``-th query (from 1) ``shift`` away, confidently: the
+    first accepted hit's map pose moved, as a look-alike's would be."""
+    from dataclasses import replace
+
+    real, calls = PlaceDB.query, []
+
+    def query(self, scan, k=5, **kw):
+        calls.append(1)
+        hits = real(self, scan, k, **kw)
+        if len(calls) != call:
+            return hits
+        return [
+            replace(h, map_pose=h.map_pose @ shift) if h.verdict == "accepted" else h for h in hits
+        ]
+
+    monkeypatch.setattr(PlaceDB, "query", query)
+
+
+def test_a_look_alike_recognised_against_a_verified_track_is_not_followed(mapped_db, monkeypatch):
+    """A scan recognition puts 3 m from where the track predicts it, while a place near
+    the prediction verifies it there: it is tracked at its true pose (contested), and
+    the scans after it too."""
+    from scanclique.places.locate import Localiser
+
+    path, scans, truth = mapped_db
+    _look_alike_at(monkeypatch, 4, Pose2(3.0, 0.0, 0.0))
+    with PlaceDB(path, readonly=True) as db, Localiser(db, track=True, use_odometry=False) as loc:
+        got = [loc.add(s) for s in scans]
+    assert got[3].status == TRACKED and got[3].contested
+    for g in got:
+        assert g.pose is not None and g.pose.distance_to(truth[g.index])[0] < 0.05
+    assert sum(g.contested for g in got) == 1
+
+
+def test_recognition_elsewhere_decides_when_the_track_cannot_be_verified(mapped_db, monkeypatch):
+    """A robot carried elsewhere (the kidnapped robot): recognition places the scan 3 m
+    from the prediction and no place near the prediction verifies it: located where
+    recognition says, and the track follows from there."""
+    from scanclique.places.locate import Localiser
+
+    path, scans, truth = mapped_db
+    _look_alike_at(monkeypatch, 4, Pose2(3.0, 0.0, 0.0))
+    real = locate.fix_near
+
+    def fix_near(*a, **kw):
+        return None if a[1].scan is scans[3] else real(*a, **kw)
+
+    monkeypatch.setattr(locate, "fix_near", fix_near)
+    with PlaceDB(path, readonly=True) as db, Localiser(db, track=True, use_odometry=False) as loc:
+        got = [loc.add(s) for s in scans]
+    assert got[3].status == LOCATED and not got[3].contested
+    assert got[3].pose.distance_to(truth[3])[0] == pytest.approx(3.0, abs=0.05)

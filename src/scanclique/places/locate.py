@@ -14,8 +14,11 @@ have map poses (``scanclique places add DB LOG --map DIR``):
   (:class:`scanclique.mapping.OnlineMapper`); a queried scan recognition does not locate
   is predicted from the last scan placed by the run's own motion since, and matched
   against the places near the prediction with it as the prior
-  (:func:`.track.fix_near`): :data:`TRACKED` when one passes. Recognition decides
-  wherever it locates a scan, so a robot carried elsewhere is found again.
+  (:func:`.track.fix_near`): :data:`TRACKED` when one passes. Where recognition locates
+  a scan outside the prediction's gate (4 sigma, ``front_end.icp_gate``) the prediction
+  is verified too: when a place near it passes, the track holds (a look-alike recognised
+  with confidence, as a ring of identical corners has, is not followed; ``contested``);
+  when none does, recognition decides (a robot carried elsewhere is found again).
 
 :func:`scanclique.places.run.run_locate` runs a whole log through it (``scanclique places
 locate``).
@@ -54,8 +57,10 @@ class Located:
     in the database's map (maps the scan's points into the map frame; m, rad; None unless
     located or tracked), the place that gave it (``place_id``: the best hit's, whatever
     its verdict, or the place that tracked it; None without one) and the hit's
-    ``confidence`` (0 without a hit; NaN when tracked: no hit), and the time the query
-    and the tracking took (ms; ``track_ms`` 0 when not tried)."""
+    ``confidence`` (0 without a hit; NaN when tracked: no hit), the time the query and
+    the tracking took (ms; ``track_ms`` 0 when not tried), and whether recognition
+    located the scan elsewhere than the track put it (``contested``: the track's
+    prediction was verified and holds; see :class:`Localiser`)."""
 
     index: int
     timestamp: float | None
@@ -65,6 +70,7 @@ class Located:
     confidence: float
     query_ms: float
     track_ms: float = 0.0
+    contested: bool = False
 
     @property
     def placed(self) -> bool:
@@ -157,7 +163,8 @@ class Localiser:
         index = self._n
         if self._mapper is not None:
             now = self._mapper.add(scan)
-            self._path += 0.0 if self._last is None else now.distance_to(self._last)[0]
+            if index:  # the step as now estimated: a closure's correction is no motion
+                self._path += now.distance_to(self._mapper.pose(index - 1))[0]
             self._last = now
         self._n += 1
         if not query:
@@ -179,17 +186,27 @@ class Localiser:
         conf = 0.0 if best is None else best.confidence
         query_ms = 1e3 * (time.perf_counter() - t)
         t = time.perf_counter()
-        fix = self._fix
-        if status != LOCATED and fix is not None and self._path - fix.path <= TRACK_MAX_PATH:
+        from ..mapping.frontend import within_gate
+
+        fix, contested = self._fix, False
+        if fix is not None and self._path - fix.path <= TRACK_MAX_PATH:
             own_fix = self._mapper.pose(fix.index)
             pred, sigma = predict(fix, own_fix, self._last, self._path)
-            got = fix_near(self.db, q, pred, sigma, self.map_poses, self._cfg.front_end)
-            if got is not None:
-                status, pose, place, conf = TRACKED, got.map_pose, got.place_id, math.nan
+            fe = self._cfg.front_end
+            contested = status == LOCATED and not within_gate(
+                pose, pred, (sigma[0], sigma[0], sigma[1]), fe.icp_gate
+            )
+            if status != LOCATED or contested:
+                got = fix_near(self.db, q, pred, sigma, self.map_poses, fe)
+                if got is not None:
+                    status, pose, place, conf = TRACKED, got.map_pose, got.place_id, math.nan
+                contested = contested and got is not None
         if self._mapper is not None and pose is not None:
             self._fix = Fix(index, pose, self._path)
         track_ms = 1e3 * (time.perf_counter() - t) if self._mapper is not None else 0.0
-        return Located(index, scan.timestamp, status, pose, place, conf, query_ms, track_ms)
+        return Located(
+            index, scan.timestamp, status, pose, place, conf, query_ms, track_ms, contested
+        )
 
     def close(self) -> None:
         """End the online mapper (tracking); the database stays open (the caller's)."""

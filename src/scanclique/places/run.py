@@ -373,10 +373,12 @@ class LocateRun:
     #: may be off by the rotation's lever arm at the other
     anchor_spread: float = math.nan
     run_extent: float = math.nan
-    #: whether the scans not located were tracked (``track=True``), and the time that
-    #: took for each scan queried (ms, after its query; 0 for a located scan)
+    #: whether the scans not located were tracked (``track=True``), the time that took
+    #: for each scan queried (ms, after its query; 0 when not tried), and whether each
+    #: tracked scan was one recognition located elsewhere (:attr:`Located.contested`)
     tracked: bool = False
     track_ms: tuple = ()
+    contested: tuple = ()
 
     def count(self, status: str) -> int:
         return sum(s == status for s in self.status)
@@ -399,6 +401,11 @@ class LocateRun:
                     ("recognised, none accepted (ambiguous)", DOUBTFUL),
                     ("not recognised", UNKNOWN),
                 )
+            ),
+            *(
+                [("tracked, though recognised elsewhere", str(sum(self.contested)), "")]
+                if self.tracked
+                else []
             ),
             ("places with a map pose", f"{self.mapped_places} of {self.total_places}", ""),
             *(
@@ -443,6 +450,7 @@ class LocateRun:
             "loading_seconds": self.loading_seconds,
             "tracking": self.tracked,
             "track_ms_mean": float(np.mean(self.track_ms)) if self.track_ms else None,
+            "contested": int(sum(self.contested)),
             "anchor": None
             if self.anchor is None
             else {"x": self.anchor.x, "y": self.anchor.y, "theta": self.anchor.theta},
@@ -504,9 +512,10 @@ def run_locate(
     every scan from ``start`` on): a queried scan that recognition does not locate is
     predicted from the last scan placed, by the run's own motion since, and matched
     against the places near the prediction with it as the prior
-    (:func:`scanclique.places.track.fix_near`): status
-    :data:`TRACKED` when one accepts. Recognition still decides wherever it locates a
-    scan (a robot carried elsewhere is found again).
+    (:func:`scanclique.places.track.fix_near`): status :data:`TRACKED` when one accepts.
+    A scan recognition locates outside the prediction's gate stays with the track when
+    the prediction is verified too (:attr:`Located.contested`), else recognition decides
+    (a robot carried elsewhere is found again): :class:`scanclique.places.Localiser`.
 
     ``whole=True`` also maps the log itself (:func:`scanclique.mapping.map_scans`, every
     scan from ``start`` to ``stop``) and carries that map into the database's by the
@@ -578,6 +587,7 @@ def run_locate(
         len(place_poses), total, time.perf_counter() - t0, loading, **whole_run,
         place_poses=place_poses, tracked=track,
         track_ms=tuple(r.track_ms for r in found) if track else (),
+        contested=tuple(r.contested for r in found) if track else (),
     )  # fmt: skip
 
 
