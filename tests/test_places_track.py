@@ -49,7 +49,8 @@ def test_tracking_places_the_scans_recognition_leaves(mapped_db, monkeypatch):
         assert run.places[k] is not None and run.confidences[k] != run.confidences[k]  # NaN
     assert len(run.track_ms) == len(run.indices)
     d = run.to_dict()
-    assert d["tracked"] == len(tracked) and d["tracking"] is True
+    assert d["tracked"] == len(tracked) and d["tracking"] is True and d["contested"] == 0
+    assert not any(s["contested"] for s in d["scans"])
     assert all(s["confidence"] is None for s in d["scans"] if s["status"] == TRACKED)
     assert any("tracked" in what for what, _, _ in run.rows())
     monkeypatch.undo()

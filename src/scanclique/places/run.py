@@ -467,8 +467,9 @@ class LocateRun:
                     "place_id": pid,
                     "confidence": None if math.isnan(c) else c,
                     "query_ms": ms,
+                    "contested": bool(con),
                 }
-                for i, t, s, p, pid, c, ms in zip(
+                for i, t, s, p, pid, c, ms, con in zip(
                     self.indices,
                     self.timestamps,
                     self.status,
@@ -476,6 +477,7 @@ class LocateRun:
                     self.places,
                     self.confidences,
                     self.query_ms,
+                    self.contested or (False,) * len(self.indices),
                     strict=True,
                 )  # fmt: skip
             ],
