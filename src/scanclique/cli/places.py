@@ -296,6 +296,7 @@ def locate(
     scanclique map intel --out runs/intel
     scanclique places add intel.db intel --every 5 --map runs/intel
     scanclique places locate intel.db my-run.clf --out my-run-in-intel.tum
+    scanclique places locate intel.db my-run.clf --track --out my-run-tracked.tum
     ```
     """
     from rich.progress import Progress
