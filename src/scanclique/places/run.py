@@ -536,7 +536,8 @@ def run_locate(
     ArgumentError
         ``use_odometry`` not True, False or None.
     """
-    from ..mapping import map_scans
+    from ..mapping import MapConfig, map_scans
+    from ..mapping.pipeline import choose_odometry
 
     require_flag("run_locate: ", track=track, use_odometry=use_odometry)
     scans, label = _scans(source, laser)
@@ -545,9 +546,12 @@ def run_locate(
     t0 = time.perf_counter()
     loading = warm_up()
     found: list[Located] = []
+    online = use_odometry
+    if track:  # as map_scans decides it, from the whole log (a live robot could not)
+        online, _ = choose_odometry([scans[i] for i in span], use_odometry, MapConfig.online())
     with (
         PlaceDB(path, config, readonly=True) as db,
-        Localiser(db, k=k, candidates=candidates, track=track, use_odometry=use_odometry) as loc,
+        Localiser(db, k=k, candidates=candidates, track=track, use_odometry=online) as loc,
     ):
         want = set(idx)
         for i in range(start, idx[-1] + 1 if idx else start):
