@@ -79,21 +79,25 @@ def test_fix_near_needs_the_prediction_to_agree(mapped_db):
         poses = db.map_poses()
         assert sorted(poses) == [1, 2, 3, 4]
         q = db.prepare(scans[4])
-        got = tr.fix_near(db, q, truth[4], (0.5, 0.05), poses, fe)
+        got = tr.fix_near(db, q, truth[4], (0.5, 0.05), tr.MapPoses.of(poses), fe)
         assert got is not None and got.place_id in poses and got.tried >= 1
         dt, dr = got.map_pose.distance_to(truth[4])
         assert dt < 0.05 and dr < 0.02
         off = truth[4] @ Pose2(1.0, 0.0, 0.0)
-        assert tr.fix_near(db, q, off, (0.05, 0.01), poses, fe) is None
+        assert tr.fix_near(db, q, off, (0.05, 0.01), tr.MapPoses.of(poses), fe) is None
         far = truth[4] @ Pose2(50.0, 0.0, 0.0)
-        assert tr.fix_near(db, q, far, (0.05, 0.01), poses, fe) is None
+        assert tr.fix_near(db, q, far, (0.05, 0.01), tr.MapPoses.of(poses), fe) is None
 
 
 def test_near_places_orders_by_distance_then_heading():
-    poses = {7: Pose2(1, 0, 3.0), 3: Pose2(1, 0, 0.1), 5: Pose2(0, 2.5, 0), 9: Pose2(-1, 0, 0)}
+    poses = tr.MapPoses.of(
+        {7: Pose2(1, 0, 3.0), 3: Pose2(1, 0, 0.1), 5: Pose2(0, 2.5, 0), 9: Pose2(-1, 0, 0)}
+    )
     assert tr.near_places(poses, Pose2(0, 0, 0), 2.0, 5) == [9, 3, 7]
     assert tr.near_places(poses, Pose2(0, 0, 0), 2.0, 1) == [9]
-    assert tr.near_places({}, Pose2(0, 0, 0), 2.0, 5) == []
+    assert tr.near_places(tr.MapPoses.of({}), Pose2(0, 0, 0), 2.0, 5) == []
+    with pytest.raises(KeyError):
+        poses.pose(4)
 
 
 def test_localiser_streams_what_run_locate_gives(mapped_db, tmp_path):

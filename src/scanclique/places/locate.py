@@ -35,7 +35,7 @@ from ..errors import ArgumentError, PlaceDatabaseError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
 from .database import PlaceDB
-from .track import TRACK_MAX_PATH, Fix, fix_near, predict
+from .track import TRACK_MAX_PATH, Fix, MapPoses, fix_near, predict
 from .verify import ACCEPTED, AMBIGUOUS
 
 __all__ = [
@@ -137,6 +137,7 @@ class Localiser:
                 f"{db.path}: none of its {len(db)} places has a map pose: add them with "
                 "'scanclique places add DB LOG --map DIR' (the --out of 'scanclique map LOG')"
             )
+        self._places = MapPoses.of(self.map_poses)
         self._cfg = MapConfig.online()
         self._mapper = OnlineMapper(use_odometry=use_odometry, config=self._cfg) if track else None
         self._n = 0  # scans added
@@ -197,7 +198,7 @@ class Localiser:
                 pose, pred, (sigma[0], sigma[0], sigma[1]), fe.icp_gate
             )
             if status != LOCATED or contested:
-                got = fix_near(self.db, q, pred, sigma, self.map_poses, fe)
+                got = fix_near(self.db, q, pred, sigma, self._places, fe)
                 if got is not None:
                     status, pose, place, conf = TRACKED, got.map_pose, got.place_id, math.nan
                 contested = contested and got is not None

@@ -38,6 +38,7 @@ __all__ = [
     "TRACK_PLACES",
     "TRACK_MIN_FITNESS",
     "track_std",
+    "MapPoses",
     "Fix",
     "TrackFix",
     "predict",
@@ -50,7 +51,7 @@ __all__ = [
 #: scans of a building overlap too little to be matched reliably
 TRACK_RADIUS = 2.0
 #: the track is dropped after this much path (m) with no fix (:func:`track_std` is then
-#: 1.15 m, 11.5 deg: half a corridor's door spacing at its 3.4-sigma gate)
+#: 1.15 m and 11.5 deg)
 TRACK_MAX_PATH = 20.0
 #: at most this many places near the prediction are matched, nearest first
 TRACK_PLACES = 10
@@ -61,6 +62,37 @@ TRACK_MIN_FITNESS = 0.3
 #: map pose and its match) and their growth per metre of path (the run's own drift)
 TRACK_SIGMA = (0.15, math.radians(1.5))
 TRACK_GROWTH = (0.05, math.radians(0.5))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MapPoses:
+    """The map poses of a database's places, as arrays for :func:`near_places`: place
+    ``ids`` ``(N,)`` and their ``(x, y, theta)`` rows ``xyt`` ``(N, 3)`` (m, rad).
+
+    >>> m = MapPoses.of({4: Pose2(1.0, 2.0, 0.5)})
+    >>> m.ids.tolist(), m.pose(4)
+    ([4], Pose2(x=1.0000, y=2.0000, theta=0.5000))
+    """
+
+    ids: np.ndarray
+    xyt: np.ndarray
+
+    @classmethod
+    def of(cls, poses: dict[int, Pose2]) -> MapPoses:
+        """From place id -> map pose (:meth:`PlaceDB.map_poses`)."""
+        ids = np.fromiter(poses, dtype=np.int64, count=len(poses))
+        xyt = np.array([p.as_array() for p in poses.values()], dtype=float).reshape(-1, 3)
+        return cls(ids, xyt)
+
+    def pose(self, place_id: int) -> Pose2:
+        """The map pose of place ``place_id`` (KeyError when it has none)."""
+        at = np.flatnonzero(self.ids == place_id)
+        if not len(at):
+            raise KeyError(place_id)
+        return Pose2.from_array(self.xyt[at[0]])
+
+    def __len__(self) -> int:
+        return len(self.ids)
 
 
 @dataclass(frozen=True, slots=True)
@@ -117,18 +149,17 @@ def predict(
     return pred, track_std(path_now - fix.path)
 
 
-def near_places(map_poses: dict[int, Pose2], pred: Pose2, radius: float, n: int) -> list[int]:
+def near_places(places: MapPoses, pred: Pose2, radius: float, n: int) -> list[int]:
     """The ids of at most ``n`` places whose map position lies within ``radius`` (m) of
     ``pred``, nearest first (ties: the smaller heading difference, then the smaller id).
 
-    >>> near_places({1: Pose2(0, 0, 0), 2: Pose2(1, 0, 0), 3: Pose2(5, 0, 0)},
+    >>> near_places(MapPoses.of({1: Pose2(0, 0, 0), 2: Pose2(1, 0, 0), 3: Pose2(5, 0, 0)}),
     ...             Pose2(0.9, 0, 0), 2.0, 5)
     [2, 1]
     """
-    if not map_poses or n <= 0:
+    if not len(places) or n <= 0:
         return []
-    ids = np.fromiter(map_poses, dtype=np.int64, count=len(map_poses))
-    a = np.array([p.as_array() for p in map_poses.values()], dtype=float)
+    ids, a = places.ids, places.xyt
     d = np.hypot(a[:, 0] - pred.x, a[:, 1] - pred.y)
     turn = np.abs(np.angle(np.exp(1j * (a[:, 2] - pred.theta))))
     ok = np.flatnonzero(d <= radius)
@@ -141,7 +172,7 @@ def fix_near(
     query: PreparedScan,
     pred: Pose2,
     sigma: tuple[float, float],
-    map_poses: dict[int, Pose2],
+    places: MapPoses,
     front_end,
     n: int = TRACK_PLACES,
     min_score: float = ACCEPT_MIN_SCORE,
@@ -160,9 +191,9 @@ def fix_near(
 
     fe = replace(front_end, icp_min_fitness=min(front_end.icp_min_fitness, TRACK_MIN_FITNESS))
     floor = (fe.sigma_floor_metres, fe.sigma_floor_radians)
-    tried = near_places(map_poses, pred, TRACK_RADIUS + 3.0 * sigma[0], n)
+    tried = near_places(places, pred, TRACK_RADIUS + 3.0 * sigma[0], n)
     for k, pid in enumerate(tried):
-        at = map_poses[pid]
+        at = places.pose(pid)
         pose, _, verdict, score, _ = verify(
             db.prepared(pid), query, at, pred, sigma, db.config, floor, fe
         )
