@@ -17,7 +17,10 @@ import numpy as np
 
 from .errors import ScanError
 
-__all__ = ["Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses", "pose_at", "align_se2"]
+__all__ = [
+    "Pose2", "wrap_angle", "rotation_matrix", "interpolate_poses", "pose_at", "align_se2",
+    "align_poses",
+]  # fmt: skip
 
 
 def wrap_angle(angle):
@@ -116,6 +119,55 @@ def align_se2(src, dst):
     c, s = math.cos(ang), math.sin(ang)
     Rm = np.array([[c, -s], [s, c]])
     return Rm, md - Rm @ ms, ang
+
+
+def align_poses(a, b, sigma_xy: float, sigma_theta: float) -> tuple[float, float, float]:
+    """The rigid motion ``T = (x, y, theta)`` that best carries poses ``a`` onto poses
+    ``b`` (rows ``(x, y, theta)``, (N, 3); m, rad), positions and headings alike: it
+    minimises ``sum |R a_xy + t - b_xy|^2 / sigma_xy^2 + sum wrap(b_th - a_th -
+    theta)^2 / sigma_theta^2``. Poses bunched together fix the rotation by their headings
+    (:func:`align_se2`, by positions alone, leaves it loose there); poses far apart by
+    their positions. One pair gives its own motion ``b a^-1``.
+
+    The rotation is found on a 0.5 degree grid, then by Newton's method; the translation
+    follows in closed form.
+
+    >>> x, y, th = align_poses([[0, 0, 0], [1, 0, 0]], [[2, 1, 1.5708], [2, 2, 1.5708]],
+    ...                        0.1, 0.01)
+    >>> round(x, 4), round(y, 4), round(th, 4)
+    (2.0, 1.0, 1.5708)
+    """
+    a = np.asarray(a, dtype=float).reshape(-1, 3)
+    b = np.asarray(b, dtype=float).reshape(-1, 3)
+    ma, mb = a[:, :2].mean(0), b[:, :2].mean(0)
+    ac, bc = a[:, :2] - ma, b[:, :2] - mb
+    # the positions' cost is const - 2 r cos(theta - phi)
+    dot = float(np.sum(ac * bc))
+    cross = float(np.sum(ac[:, 0] * bc[:, 1] - ac[:, 1] * bc[:, 0]))
+    r, phi = math.hypot(dot, cross), math.atan2(cross, dot)
+    d = b[:, 2] - a[:, 2]
+    wp, wt = 1.0 / sigma_xy**2, 1.0 / sigma_theta**2
+
+    def cost(th):
+        return -2.0 * r * wp * np.cos(th - phi) + wt * np.sum(
+            wrap_angle(d[None, :] - np.atleast_1d(th)[:, None]) ** 2, axis=1
+        )
+
+    grid = np.radians(np.arange(-180.0, 180.0, 0.5))
+    th = float(grid[np.argmin(cost(grid))])
+    for _ in range(30):
+        e = wrap_angle(d - th)
+        g = 2.0 * r * wp * math.sin(th - phi) - 2.0 * wt * float(np.sum(e))
+        h = 2.0 * r * wp * math.cos(th - phi) + 2.0 * wt * len(d)
+        if h <= 0.0:
+            break
+        step = g / h
+        th -= step
+        if abs(step) < 1e-13:
+            break
+    th = float(wrap_angle(th))
+    t = mb - rotation_matrix(th) @ ma
+    return float(t[0]), float(t[1]), th
 
 
 def rotation_matrix(theta: float) -> np.ndarray:
