@@ -45,7 +45,17 @@ One command::
    ``--full``) serially, over 2 local worker processes, and over a local Dask cluster of
    2 worker processes: wall time, speedup, and whether the results are identical.
 
-Results: ``benchmarks/results/places-2026-12-04-s14.json`` / ``.md`` / ``.png`` (earlier
+Not in the default run (``--stages locate,ring``):
+
+* **Localisation in a map** (``locate``, :func:`locate`): each log's first half mapped
+  and stored as places with their mapped poses, every ``--query-every``-th scan of the
+  second half located (``places locate``: recognition, then tracking), and the whole
+  second half carried into the map (``--trajectory``).
+* **Every corner alike** (``ring``, :func:`locate_ring`): the simulated ring corridor,
+  located with tracking, 4 seeds with and without odometry.
+
+Results: ``benchmarks/results/places-2026-12-04-s14.json`` / ``.md`` / ``.png``;
+localisation ``places-2026-12-06-s34-locate.*`` (earlier
 sessions: ``places-2026-12-04-s13.*``, ``places-2026-12-02-s9.*``, ``-s8.*``,
 ``places-2026-12-01*``); degraded scanners: ``places-degraded-2026-12-04-s14-<variant>.*``
 (``-range-5.6-alias-rival.*``: after :data:`scanclique.places.verify.ALIAS_SURPRISE`).
