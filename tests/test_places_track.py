@@ -189,3 +189,22 @@ def test_recognition_elsewhere_decides_when_the_track_cannot_be_verified(mapped_
         got = [loc.add(s) for s in scans]
     assert got[3].status == LOCATED and not got[3].contested
     assert got[3].pose.distance_to(truth[3])[0] == pytest.approx(3.0, abs=0.05)
+
+
+def test_places_added_while_localising_are_tracked_against(mapped_db, tmp_path):
+    """A place another connection adds (with its map pose) while the localiser runs is
+    among its places from the next query on."""
+    import shutil
+
+    from scanclique.places.locate import Localiser
+
+    path, scans, truth = mapped_db
+    copy = tmp_path / "grow.db"
+    shutil.copy(path, copy)
+    with PlaceDB(copy, readonly=True) as db, Localiser(db, track=True, use_odometry=False) as loc:
+        loc.add(scans[0])
+        assert len(loc.map_poses) == 4
+        with PlaceDB(copy) as writer:
+            new = writer.add(scans[1], name="late", pose=truth[1])
+        loc.add(scans[1])
+        assert new in loc.map_poses and len(loc.map_poses) == 5

@@ -89,7 +89,8 @@ class Localiser:
         As for :meth:`PlaceDB.query`: hits per query and prefilter candidates verified.
     track : bool
         Also map the run as it goes and track the scans recognition leaves (module
-        docstring). Use the localiser in a ``with`` block (or :meth:`close` it).
+        docstring). Use the localiser in a ``with`` block (or :meth:`close` it). Places
+        another process adds while it runs are tracked against from the next query on.
     use_odometry : bool, optional
         The online mapper's (:class:`scanclique.mapping.OnlineMapper`): None uses the
         odometry when the first scan carries it.
@@ -137,7 +138,7 @@ class Localiser:
                 f"{db.path}: none of its {len(db)} places has a map pose: add them with "
                 "'scanclique places add DB LOG --map DIR' (the --out of 'scanclique map LOG')"
             )
-        self._places = MapPoses.of(self.map_poses)
+        self._places, self._known = MapPoses.of(self.map_poses), len(db)
         self._cfg = MapConfig.online()
         self._mapper = OnlineMapper(use_odometry=use_odometry, config=self._cfg) if track else None
         self._n = 0  # scans added
@@ -173,6 +174,9 @@ class Localiser:
         t = time.perf_counter()
         q = self.db.prepare(scan)
         hits = self.db.query(q, k=self.k, candidates=self.candidates)
+        if len(self.db) != self._known:  # places added since (by any process)
+            self.map_poses = self.db.map_poses()
+            self._places, self._known = MapPoses.of(self.map_poses), len(self.db)
         best = hits[0] if hits else None
         if best is not None and best.verdict == ACCEPTED:
             first = next(
