@@ -260,7 +260,7 @@ def locate(
         typer.Option(
             "--trajectory",
             help="Also map the log itself and carry its whole trajectory into the database's "
-            "map by the motion its located scans agree on; write it here (TUM).",
+            "map by the motion its located (and tracked) scans agree on; write it here (TUM).",
         ),
     ] = None,
     plot: Annotated[

@@ -357,8 +357,8 @@ class LocateRun:
     seconds: float
     loading_seconds: float = 0.0
     #: with ``whole=True``: the motion carrying the log's own map (``map_scans``) into the
-    #: database's (None when its located scans agree on none), how many located scans
-    #: agree on it and their residual RMS (m), and every scan's pose in the database's
+    #: database's (None when its located, or tracked, scans agree on none), how many of
+    #: them agree on it and their residual RMS (m), and every scan's pose in the database's
     #: map (``trajectory``, one per scan from ``start`` to ``stop``; None unplaced)
     anchor: Pose2 | None = None
     anchor_inliers: int = 0
@@ -412,7 +412,8 @@ class LocateRun:
                 [
                     (
                         "whole run carried into the map by",
-                        f"{self.anchor_inliers} of {self.count(LOCATED)} located scans"
+                        f"{self.anchor_inliers} of {self.count(LOCATED) + self.count(TRACKED)} "
+                        "located or tracked scans"
                         if self.anchor is not None
                         else "none (the located scans agree on no one motion)",
                         "",
@@ -521,9 +522,9 @@ def run_locate(
 
     ``whole=True`` also maps the log itself (:func:`scanclique.mapping.map_scans`, every
     scan from ``start`` to ``stop``) and carries that map into the database's by the
-    rigid motion its located scans agree on (:func:`consensus_motion`): every scan's
-    pose in the database's map (:attr:`LocateRun.trajectory`), when at least
-    :data:`ANCHOR_MIN_INLIERS` located scans agree.
+    rigid motion its located (and tracked) scans agree on (:func:`consensus_motion`):
+    every scan's pose in the database's map (:attr:`LocateRun.trajectory`), when at least
+    :data:`ANCHOR_MIN_INLIERS` of them agree.
 
     ``use_odometry`` is the mappers' (:func:`scanclique.mapping.map_scans`): None uses
     the scans' odometry when they all carry it and it moves as the scans do.
@@ -572,7 +573,10 @@ def run_locate(
             if progress is None
             else lambda d, n, _c: progress(len(idx) + d, len(idx) + n),
         ).poses
-        located = [p if s == LOCATED else None for s, p in zip(status, poses, strict=True)]
+        # the scans placed in the map (located, and tracked with track=True)
+        located = [
+            p if s in (LOCATED, TRACKED) else None for s, p in zip(status, poses, strict=True)
+        ]
         pairs = [(own[i - start], p) for i, p in zip(idx, located, strict=True)
                  if p is not None and own[i - start] is not None]  # fmt: skip
         motion, inliers, rms = consensus_motion(pairs)
