@@ -885,11 +885,11 @@ def report(res: dict) -> str:
         tail = [
             "",
             "The whole second half mapped on its own (`map_scans`) and carried into the "
-            "database's map by the rigid motion its located scans agree on "
+            "database's map by the rigid motion its located and tracked scans agree on "
             "(`run_locate(whole=True)`, `--trajectory`); its error in the reference frame, "
             "and the least any rigid motion leaves of it (its own map's shape):",
             "",
-            "| log | scans placed | located scans agreeing | error RMS m | max m | "
+            "| log | scans placed | located or tracked scans agreeing | error RMS m | max m | "
             "best rigid alignment RMS m |",
             "|---|---|---|---|---|---|",
         ]
