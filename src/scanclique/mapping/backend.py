@@ -122,17 +122,18 @@ class PoseGraph:
     3.0
     """
 
-    def __init__(self) -> None:
+    def __init__(self, anchor: bool = True) -> None:
         gtsam = _gtsam()
         self._g = gtsam
         self.graph = gtsam.NonlinearFactorGraph()
         self.values = gtsam.Values()
         self.n_edges = 0
-        self._anchored = False
+        self._anchored = not anchor
         self.result = None
 
     def add_node(self, key: int, guess: Pose2) -> None:
-        """Node ``key`` with initial guess ``guess``; the first node added is anchored."""
+        """Node ``key`` with initial guess ``guess``; the first node added is anchored
+        (unless the graph was made with ``anchor=False``: its priors place it)."""
         gtsam = self._g
         self.values.insert(key, gtsam.Pose2(guess.x, guess.y, guess.theta))
         if not self._anchored:
@@ -152,17 +153,30 @@ class PoseGraph:
         gtsam = self._g
         if tangent is None:
             tangent = tangent_covariance(Z, covariance)
-        noise = gtsam.noiseModel.Gaussian.Covariance(tangent)
-        if robust == "cauchy":
-            noise = gtsam.noiseModel.Robust.Create(
-                gtsam.noiseModel.mEstimator.Cauchy.Create(robust_scale), noise
-            )
-        elif robust == "huber":
-            noise = gtsam.noiseModel.Robust.Create(
-                gtsam.noiseModel.mEstimator.Huber.Create(robust_scale), noise
-            )
+        noise = self._robust(gtsam.noiseModel.Gaussian.Covariance(tangent), robust, robust_scale)
         self.graph.add(gtsam.BetweenFactorPose2(i, j, gtsam.Pose2(Z.x, Z.y, Z.theta), noise))
         self.n_edges += 1
+
+    def _robust(self, noise, robust: str, scale: float):
+        """``noise`` under the M-estimator ``robust`` (``"cauchy"``, ``"huber"``, or
+        ``"none"``: as it is) of scale ``scale``."""
+        m = self._g.noiseModel
+        if robust == "cauchy":
+            return m.Robust.Create(m.mEstimator.Cauchy.Create(scale), noise)
+        if robust == "huber":
+            return m.Robust.Create(m.mEstimator.Huber.Create(scale), noise)
+        return noise
+
+    def add_prior(
+        self, key: int, pose: Pose2, sigmas, robust: str = "none", robust_scale: float = 1.0
+    ) -> None:
+        """A prior on node ``key``: at ``pose`` with standard deviations ``sigmas`` ``(x,
+        y, theta)`` (m, m, rad; tangent space), under an optional M-estimator as
+        :meth:`add_edge`."""
+        gtsam = self._g
+        noise = gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, dtype=float))
+        noise = self._robust(noise, robust, robust_scale)
+        self.graph.add(gtsam.PriorFactorPose2(key, gtsam.Pose2(pose.x, pose.y, pose.theta), noise))
 
     def optimize(self, max_iterations: int = 100) -> dict[int, Pose2]:
         """Levenberg–Marquardt from the initial guesses; the optimised pose of every node."""
