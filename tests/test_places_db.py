@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -463,3 +465,25 @@ def test_bad_scans_are_refused_naming_the_method(tmp_path, worlds):
             h.place_id for h in db.query(traj[3], k=2)
         ]
         assert db.verify(2, same).verdict == db.verify(2, traj[3]).verdict
+
+
+def test_bend_onto_brings_a_bent_run_back_onto_its_fixes():
+    """A straight 40 m run whose own map bends (0.2 deg more heading a metre): carried
+    rigidly by its first fixes it ends metres off; bent onto fixes at both ends (and a
+    wrong one 5 m off, which the Cauchy kernel outweighs) it follows the truth."""
+    from scanclique.geometry import Pose2
+    from scanclique.places.run import bend_onto
+
+    truth = [Pose2(0.5 * k, 0.0, 0.0) for k in range(81)]
+    own, p = [truth[0]], truth[0]
+    for _ in range(1, 81):
+        p = p @ Pose2(0.5, 0.0, math.radians(0.1))
+        own.append(p)
+    rigid = list(own)  # the first scans' fixes agree with the own map
+    fixes = [(0, truth[0]), (5, truth[5]), (75, truth[75]), (80, truth[80]),
+             (40, truth[40] @ Pose2(0.0, 5.0, 0.0))]  # fmt: skip
+    bent = bend_onto(own, rigid, fixes)
+    err_rigid = max(q.distance_to(t)[0] for q, t in zip(rigid, truth, strict=True))
+    err_bent = max(q.distance_to(t)[0] for q, t in zip(bent, truth, strict=True))
+    assert err_rigid > 2.0 and err_bent < 0.3, (err_rigid, err_bent)
+    assert bend_onto([None, *own[1:]], [None, *rigid[1:]], fixes[1:])[0] is None

@@ -373,6 +373,9 @@ class LocateRun:
     #: may be off by the rotation's lever arm at the other
     anchor_spread: float = math.nan
     run_extent: float = math.nan
+    #: whether the carried run was bent onto its placed scans (:func:`bend_onto`: some
+    #: of them disagree with the rigid carry)
+    bent: bool = False
     #: whether the scans not located were tracked (``track=True``), the time that took
     #: for each scan queried (ms, after its query; 0 when not tried), and whether each
     #: tracked scan was one recognition located elsewhere (:attr:`Located.contested`)
@@ -420,6 +423,11 @@ class LocateRun:
                     ),
                     ("their residual, RMS", f"{self.anchor_rms:.3f}", "m"),
                     (
+                        "then bent onto every placed scan",
+                        "yes (some disagree with the rigid carry)" if self.bent else "no",
+                        "",
+                    ),
+                    (
                         "they lie within / the run spans",
                         f"{self.anchor_spread:.1f} / {self.run_extent:.1f}",
                         "m",
@@ -459,6 +467,7 @@ class LocateRun:
             "anchor_rms": None if math.isnan(self.anchor_rms) else self.anchor_rms,
             "anchor_spread": None if math.isnan(self.anchor_spread) else self.anchor_spread,
             "run_extent": None if math.isnan(self.run_extent) else self.run_extent,
+            "bent": self.bent,
             "scans": [
                 {
                     "index": i,
@@ -582,11 +591,16 @@ def run_locate(
         motion, inliers, rms = consensus_motion(pairs)
         anchored = motion is not None and len(inliers) >= ANCHOR_MIN_INLIERS
         run_xy = np.array([[q.x, q.y] for q in own if q is not None]).reshape(-1, 2)
+        carried = [None if q is None or not anchored else motion @ q for q in own]
+        bent = anchored and len(inliers) < len(pairs)
+        if bent:  # placed scans the rigid carry leaves out: the run's own map is bent
+            fixes = [(i - start, p) for i, p in zip(idx, located, strict=True)
+                     if p is not None and own[i - start] is not None]  # fmt: skip
+            carried = bend_onto(own, carried, fixes)
         whole_run = dict(
             anchor=motion if anchored else None, anchor_inliers=len(inliers), anchor_rms=rms,
             anchor_spread=_extent(np.array([[pairs[i][0].x, pairs[i][0].y] for i in inliers])),
-            run_extent=_extent(run_xy),
-            trajectory=tuple(None if q is None or not anchored else motion @ q for q in own),
+            run_extent=_extent(run_xy), trajectory=tuple(carried), bent=bent,
             trajectory_indices=tuple(span),
             trajectory_times=tuple(scans[i].timestamp for i in span),
         )  # fmt: skip
@@ -599,6 +613,50 @@ def run_locate(
         track_ms=tuple(r.track_ms for r in found) if track else (),
         contested=tuple(r.contested for r in found) if track else (),
     )  # fmt: skip
+
+
+#: the run's own map as a random walk between consecutive scans (``bend_onto``): standard
+#: deviation per square root of metre travelled (m, rad), the rates of the mapper's own
+#: chain model (``mapping.pipeline``: 0.02 m and 0.3 deg per metre), and of heading per
+#: radian turned
+BEND_WALK = (0.02, math.radians(0.3))
+BEND_TURN = 0.01
+#: the M-estimator of the fixes' priors in :func:`bend_onto`, and its scale (in sigmas):
+#: a wrong fix is outweighed, while a run bent by metres (ten sigmas and more from the
+#: rigid carry) still pulls (scale 1 left a simulated 8 deg bend 1.75 m off; CSAIL the same)
+BEND_KERNEL = ("cauchy", 3.0)
+
+
+def bend_onto(own, carried, fixes) -> list:
+    """The run's own map ``own`` (Pose2 or None per scan), carried rigidly into the
+    database's map (``carried``), bent onto its placed scans ``fixes`` (``(index in own,
+    map pose)``): a pose graph (GTSAM, :class:`scanclique.mapping.backend.PoseGraph`) of
+    the own map's steps between consecutive scans as a random walk
+    (:data:`BEND_WALK` per square root of metre, :data:`BEND_TURN` of each turn) and a
+    prior at each fix (:data:`ANCHOR_SIGMA`, under :data:`BEND_KERNEL`: a wrong fix is
+    outweighed), solved from the rigid carry. Returns the poses, None where ``own`` has
+    none.
+
+    A run that closes no loop bends as it goes (CSAIL's second half: its own map's best
+    rigid alignment leaves 0.30 m); the rigid carry then leaves out the fixes at its far
+    end, and this brings them back."""
+    from ..mapping.backend import PoseGraph
+
+    valid = [j for j, q in enumerate(own) if q is not None]
+    g = PoseGraph(anchor=False)
+    for j in valid:
+        g.add_node(j, carried[j])
+    for a, b in zip(valid, valid[1:], strict=False):
+        rel = own[a].inverse() @ own[b]
+        d = math.hypot(rel.x, rel.y)
+        s_xy = math.sqrt(1e-6 + BEND_WALK[0] ** 2 * d)
+        s_th = math.sqrt(1e-8 + BEND_WALK[1] ** 2 * d + (BEND_TURN * rel.theta) ** 2)
+        g.add_edge(a, b, rel, np.diag([s_xy**2, s_xy**2, s_th**2]))
+    sigmas = (ANCHOR_SIGMA[0], ANCHOR_SIGMA[0], ANCHOR_SIGMA[1])
+    for j, p in fixes:
+        g.add_prior(j, p, sigmas, robust=BEND_KERNEL[0], robust_scale=BEND_KERNEL[1])
+    got = g.optimize()
+    return [got.get(j) for j in range(len(own))]
 
 
 def _extent(xy: np.ndarray) -> float:
