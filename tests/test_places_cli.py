@@ -210,3 +210,24 @@ def test_locate_places_a_logs_scans_in_the_map_of_the_database(tmp_path, log):
     assert r.exit_code == 2 and "does not exist" in r.output
     r = invoke("places", "locate", db, log, "--plot", tmp_path / "figure.txt")
     assert r.exit_code == 2 and "a figure file must end in" in r.output
+
+
+def test_locate_says_when_the_run_was_bent_onto_its_placed_scans(tmp_path, log, monkeypatch):
+    from scanclique.geometry import Pose2
+    from scanclique.places import run as prun
+
+    def fake(path, source, **kw):
+        assert kw["whole"] is True
+        return prun.LocateRun(
+            str(path), "fake", (0,), (0.0,), ("located",), (Pose2(0, 0, 0),), (1,), (1.0,),
+            (1.0,), 1, 1, 0.1, anchor=Pose2(0, 0, 0), anchor_inliers=3, anchor_rms=0.01,
+            trajectory=(Pose2(0, 0, 0),), trajectory_indices=(0,), trajectory_times=(0.0,),
+            anchor_spread=1.0, run_extent=50.0, bent=True,
+        )  # fmt: skip
+
+    monkeypatch.setattr(prun, "run_locate", fake)
+    db = tmp_path / "p.db"
+    r = invoke("places", "locate", db, log, "--trajectory", tmp_path / "run.tum")
+    assert r.exit_code == 0, r.output
+    assert "the run was bent onto all of them" in r.output
+    assert "small turn of the carry" not in r.output

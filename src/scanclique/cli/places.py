@@ -332,7 +332,12 @@ def locate(
     elif trajectory is not None:
         n = _guard(lambda: write_tum(trajectory, run.trajectory, run.trajectory_times))
         _note(f"the whole run, {n} scans, written to {trajectory}")
-        if run.run_extent > SPREAD_RATIO * run.anchor_spread:
+        if run.bent:
+            _note(
+                "some placed scans disagree with one rigid carry: the run was bent onto all "
+                "of them (its own map bends, or one of them is wrong: check the figure, --plot)"
+            )
+        elif run.run_extent > SPREAD_RATIO * run.anchor_spread:
             _note(
                 f"the located scans that carry the run lie within {run.anchor_spread:.1f} m of "
                 f"each other, in a run {run.run_extent:.1f} m across: far from them a small "
