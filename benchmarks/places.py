@@ -512,6 +512,7 @@ def locate(
         "error_median_deg": float(np.degrees(np.median(e[:, 1]))),
         "map_fit_rms_m": float(np.sqrt(np.mean(fit**2))),
         "anchor_inliers": run.anchor_inliers if run.anchor is not None else 0,
+        "bent": run.bent,
         "whole_placed": len(whole),
         "whole_ate_rms_m": float(np.sqrt(np.mean(ate**2))) if len(ate) else float("nan"),
         "whole_ate_max_m": float(ate.max()) if len(ate) else float("nan"),
@@ -889,9 +890,9 @@ def report(res: dict) -> str:
             "(`run_locate(whole=True)`, `--trajectory`); its error in the reference frame, "
             "and the least any rigid motion leaves of it (its own map's shape):",
             "",
-            "| log | scans placed | located or tracked scans agreeing | error RMS m | max m | "
-            "best rigid alignment RMS m |",
-            "|---|---|---|---|---|---|",
+            "| log | scans placed | located or tracked scans agreeing | bent onto all | "
+            "error RMS m | max m | best rigid alignment RMS m |",
+            "|---|---|---|---|---|---|---|",
         ]
         track = [
             "",
@@ -918,6 +919,7 @@ def report(res: dict) -> str:
         for r in res["locate"]:
             tail.append(
                 f"| {r['log']} | {r['whole_placed']} | {r['anchor_inliers']} | "
+                f"{({True: 'yes', False: 'no'}).get(r.get('bent'), '')} | "
                 f"{_f(r['whole_ate_rms_m'])} | {_f(r['whole_ate_max_m'])} | "
                 f"{_f(r['whole_shape_rms_m'])} |"
             )

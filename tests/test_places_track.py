@@ -208,3 +208,19 @@ def test_places_added_while_localising_are_tracked_against(mapped_db, tmp_path):
             new = writer.add(scans[1], name="late", pose=truth[1])
         loc.add(scans[1])
         assert new in loc.map_poses and len(loc.map_poses) == 5
+
+
+def test_tracking_and_the_whole_run_map_the_run_once(mapped_db, monkeypatch):
+    """With ``track`` and ``whole`` the tracker's online map of the span is the run's map
+    carried into the database's (no second mapping of the log); it covers every scan."""
+    import scanclique.mapping as mapping
+
+    def no(*a, **kw):
+        raise AssertionError("the run was mapped a second time")
+
+    path, scans, truth = mapped_db
+    monkeypatch.setattr(mapping, "map_scans", no)
+    run = run_locate(path, scans, start=1, every=3, track=True, whole=True, use_odometry=False)
+    assert run.anchor is not None and len(run.trajectory) == len(scans) - 1
+    for i, q in zip(run.trajectory_indices, run.trajectory, strict=True):
+        assert q.distance_to(truth[i])[0] < 0.1

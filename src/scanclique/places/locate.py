@@ -213,6 +213,13 @@ class Localiser:
             index, scan.timestamp, status, pose, place, conf, query_ms, track_ms, contested
         )
 
+    def finish(self):
+        """The run's own map of every scan added (tracking only: the online mapper's
+        :meth:`~scanclique.mapping.OnlineMapper.finish`, a
+        :class:`~scanclique.mapping.MapResult` in the frame of the first scan added);
+        None without tracking."""
+        return None if self._mapper is None else self._mapper.finish()
+
     def close(self) -> None:
         """End the online mapper (tracking); the database stays open (the caller's)."""
         if self._mapper is not None:

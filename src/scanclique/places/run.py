@@ -530,7 +530,8 @@ def run_locate(
     (a robot carried elsewhere is found again): :class:`scanclique.places.Localiser`.
 
     ``whole=True`` also maps the log itself (:func:`scanclique.mapping.map_scans`, every
-    scan from ``start`` to ``stop``) and carries that map into the database's by the
+    scan from ``start`` to ``stop``; with ``track``, the tracker's online map of them,
+    finished) and carries that map into the database's by the
     rigid motion its located (and tracked) scans agree on (:func:`consensus_motion`):
     every scan's pose in the database's map (:attr:`LocateRun.trajectory`), when at least
     :data:`ANCHOR_MIN_INLIERS` of them agree.
@@ -564,23 +565,29 @@ def run_locate(
         Localiser(db, k=k, candidates=candidates, track=track, use_odometry=online) as loc,
     ):
         want = set(idx)
-        for i in range(start, idx[-1] + 1 if idx else start):
+        # with track and whole the tracker's own map of the whole span is the run's map
+        last = span[-1] if track and whole and len(span) else (idx[-1] if idx else start - 1)
+        for i in range(start, last + 1):
             r = loc.add(scans[i], query=i in want)
             if r is not None:
                 found.append(r)
                 if progress:
                     progress(len(found), len(idx))
         total, place_poses = len(db), tuple(loc.map_poses.values())
+        tracked_map = loc.finish() if track and whole else None
     status = [r.status for r in found]
     poses = [r.pose for r in found]
     whole_run = {}
     if whole:
-        own = map_scans(
-            [scans[i] for i in span],
-            use_odometry=use_odometry,
-            progress=None
-            if progress is None
-            else lambda d, n, _c: progress(len(idx) + d, len(idx) + n),
+        own = (
+            tracked_map
+            or map_scans(
+                [scans[i] for i in span],
+                use_odometry=use_odometry,
+                progress=None
+                if progress is None
+                else lambda d, n, _c: progress(len(idx) + d, len(idx) + n),
+            )
         ).poses
         # the scans placed in the map (located, and tracked with track=True)
         located = [
