@@ -224,3 +224,28 @@ def test_tracking_and_the_whole_run_map_the_run_once(mapped_db, monkeypatch):
     assert run.anchor is not None and len(run.trajectory) == len(scans) - 1
     for i, q in zip(run.trajectory_indices, run.trajectory, strict=True):
         assert q.distance_to(truth[i])[0] < 0.1
+
+
+def test_scans_before_the_first_fix_are_tracked_backwards(mapped_db, monkeypatch):
+    """Recognition answers only the last query: the forward tracker has nothing to start
+    from, and ``run_locate`` tracks the scans before it backwards, at their true poses;
+    the streaming ``Localiser`` (no future) leaves them."""
+    from scanclique.places.locate import Localiser
+
+    path, scans, truth = mapped_db
+    real = PlaceDB.query
+    last = scans[-1]
+
+    def query(self, scan, k=5, **kw):
+        return real(self, scan, k, **kw) if scan.scan is last else []
+
+    monkeypatch.setattr(PlaceDB, "query", query)
+    run = run_locate(path, scans, start=1, track=True, use_odometry=False)
+    assert run.status[-1] == LOCATED
+    back = [k for k, s in enumerate(run.status[:-1]) if s == TRACKED]
+    assert len(back) >= 8, run.status
+    for k in back:
+        assert run.poses[k].distance_to(truth[run.indices[k]])[0] < 0.05
+    with PlaceDB(path, readonly=True) as db, Localiser(db, track=True, use_odometry=False) as loc:
+        got = [loc.add(s) for s in scans[1:]]
+    assert all(g.status == UNKNOWN for g in got[:-1]) and got[-1].status == LOCATED

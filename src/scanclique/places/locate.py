@@ -150,6 +150,11 @@ class Localiser:
     def tracking(self) -> bool:
         return self._mapper is not None
 
+    @property
+    def places(self) -> MapPoses:
+        """The map poses of the database's places, as tracking uses them."""
+        return self._places
+
     def add(self, scan: Scan, *, query: bool = True) -> Located | None:
         """Take the next scan of the run; with ``query`` (default) locate it in the map
         and return what was found, else (a scan the caller does not need placed, only

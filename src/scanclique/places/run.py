@@ -528,6 +528,8 @@ def run_locate(
     A scan recognition locates outside the prediction's gate stays with the track when
     the prediction is verified too (:attr:`Located.contested`), else recognition decides
     (a robot carried elsewhere is found again): :class:`scanclique.places.Localiser`.
+    Then, the log being whole, the scans still unplaced are tracked backwards from the
+    next scan placed after them, along the run's finished own map (:data:`TRACK_BACK`).
 
     ``whole=True`` also maps the log itself (:func:`scanclique.mapping.map_scans`, every
     scan from ``start`` to ``stop``; with ``track``, the tracker's online map of them,
@@ -574,7 +576,11 @@ def run_locate(
                 if progress:
                     progress(len(found), len(idx))
         total, place_poses = len(db), tuple(loc.map_poses.values())
-        tracked_map = loc.finish() if track and whole else None
+        tracked_map = loc.finish() if track else None
+        if track and TRACK_BACK:
+            found = _track_back(db, loc, found, scans, start, tracked_map.poses)
+    if not whole:
+        tracked_map = None
     status = [r.status for r in found]
     poses = [r.pose for r in found]
     whole_run = {}
@@ -620,6 +626,51 @@ def run_locate(
         track_ms=tuple(r.track_ms for r in found) if track else (),
         contested=tuple(r.contested for r in found) if track else (),
     )  # fmt: skip
+
+
+#: ``run_locate(track=True)`` also tracks backwards, from each scan placed to the
+#: queried scans before it that are not (offline: the run's finished own map)
+TRACK_BACK = True
+
+
+def _track_back(db, loc, found: list, scans, start: int, own) -> list:
+    """``found`` (:class:`Located` per queried scan, in order) with the scans left
+    unplaced tracked from the next placed scan after them, backwards along the run's own
+    map ``own`` (Pose2 or None per scan added, the first at ``start``): the same
+    prediction, prior and matching as forward (:mod:`scanclique.places.track`), not
+    past :data:`~scanclique.places.track.TRACK_MAX_PATH` of path."""
+    from dataclasses import replace
+
+    from ..mapping import MapConfig
+    from .track import TRACK_MAX_PATH, fix_near, track_std
+
+    xy = np.array([[q.x, q.y] if q is not None else [np.nan, np.nan] for q in own])
+    steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
+    path = np.concatenate([[0.0], np.cumsum(np.nan_to_num(steps))])
+    fe = MapConfig.online().front_end
+    out, nxt = list(found), None
+    for k in range(len(out) - 1, -1, -1):
+        r = out[k]
+        j = r.index
+        if r.pose is not None:
+            nxt = (j, r.pose)
+            continue
+        if nxt is None or own[j] is None or own[nxt[0]] is None:
+            continue
+        d = float(path[nxt[0]] - path[j])
+        if d > TRACK_MAX_PATH:
+            continue
+        t = time.perf_counter()
+        pred = nxt[1] @ (own[nxt[0]].inverse() @ own[j])
+        got = fix_near(db, db.prepare(scans[start + j]), pred, track_std(d), loc.places, fe)
+        ms = r.track_ms + 1e3 * (time.perf_counter() - t)
+        if got is not None:
+            out[k] = replace(r, status=TRACKED, pose=got.map_pose, place_id=got.place_id,
+                             confidence=math.nan, track_ms=ms)  # fmt: skip
+            nxt = (j, got.map_pose)
+        else:
+            out[k] = replace(r, track_ms=ms)
+    return out
 
 
 #: the run's own map as a random walk between consecutive scans (``bend_onto``): standard
