@@ -275,7 +275,8 @@ def locate(
         typer.Option(
             "--track",
             help="Also map the run as it goes and place a scan that is not recognised by "
-            "the places near where the run predicts it, from the last scan placed.",
+            "the places near where the run predicts it from the last scan placed (and, "
+            "afterwards, from the next one: the log is whole).",
         ),
     ] = False,
     odometry: OdometryOpt = None,
@@ -288,7 +289,7 @@ def locate(
     --map): each scan on its own, by recognition, with no prior pose; a scan is located
     when a hit is accepted, at the pose that hit gives it in the map. With --track, a scan
     not recognised is matched against the places near where the run's own motion puts it
-    since the last scan placed (tracked).
+    since the last scan placed, or back from the next one (tracked).
 
     **Examples**
 
