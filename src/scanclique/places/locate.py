@@ -151,6 +151,12 @@ class Localiser:
         return self._mapper is not None
 
     @property
+    def front_end(self):
+        """The front-end configuration tracking matches with
+        (:meth:`MapConfig.online() <scanclique.mapping.MapConfig.online>`'s)."""
+        return self._cfg.front_end
+
+    @property
     def places(self) -> MapPoses:
         """The map poses of the database's places, as tracking uses them."""
         return self._places
@@ -202,7 +208,7 @@ class Localiser:
         if fix is not None and self._path - fix.path <= TRACK_MAX_PATH:
             own_fix = self._mapper.pose(fix.index)
             pred, sigma = predict(fix, own_fix, self._last, self._path)
-            fe = self._cfg.front_end
+            fe = self.front_end
             contested = status == LOCATED and not within_gate(
                 pose, pred, (sigma[0], sigma[0], sigma[1]), fe.icp_gate
             )

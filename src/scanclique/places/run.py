@@ -596,10 +596,10 @@ def run_locate(
             )
         ).poses
         # the scans placed in the map (located, and tracked with track=True)
-        located = [
+        placed = [
             p if s in (LOCATED, TRACKED) else None for s, p in zip(status, poses, strict=True)
         ]
-        pairs = [(own[i - start], p) for i, p in zip(idx, located, strict=True)
+        pairs = [(own[i - start], p) for i, p in zip(idx, placed, strict=True)
                  if p is not None and own[i - start] is not None]  # fmt: skip
         motion, inliers, rms = consensus_motion(pairs)
         anchored = motion is not None and len(inliers) >= ANCHOR_MIN_INLIERS
@@ -607,7 +607,7 @@ def run_locate(
         carried = [None if q is None or not anchored else motion @ q for q in own]
         bent = anchored and len(inliers) < len(pairs)
         if bent:  # placed scans the rigid carry leaves out: the run's own map is bent
-            fixes = [(i - start, p) for i, p in zip(idx, located, strict=True)
+            fixes = [(i - start, p) for i, p in zip(idx, placed, strict=True)
                      if p is not None and own[i - start] is not None]  # fmt: skip
             carried = bend_onto(own, carried, fixes)
         whole_run = dict(
@@ -641,33 +641,30 @@ def _track_back(db, loc, found: list, scans, start: int, own) -> list:
     past :data:`~scanclique.places.track.TRACK_MAX_PATH` of path."""
     from dataclasses import replace
 
-    from ..mapping import MapConfig
-    from .track import TRACK_MAX_PATH, fix_near, track_std
+    from .track import TRACK_MAX_PATH, Fix, fix_near, predict
 
     xy = np.array([[q.x, q.y] if q is not None else [np.nan, np.nan] for q in own])
     steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
     path = np.concatenate([[0.0], np.cumsum(np.nan_to_num(steps))])
-    fe = MapConfig.online().front_end
-    out, nxt = list(found), None
+    out, nxt = list(found), None  # nxt: the next scan placed, as a Fix
     for k in range(len(out) - 1, -1, -1):
         r = out[k]
         j = r.index
         if r.pose is not None:
-            nxt = (j, r.pose)
+            nxt = Fix(j, r.pose, float(path[j]))
             continue
-        if nxt is None or own[j] is None or own[nxt[0]] is None:
+        if nxt is None or own[j] is None or own[nxt.index] is None:
             continue
-        d = float(path[nxt[0]] - path[j])
-        if d > TRACK_MAX_PATH:
+        if nxt.path - path[j] > TRACK_MAX_PATH:
             continue
         t = time.perf_counter()
-        pred = nxt[1] @ (own[nxt[0]].inverse() @ own[j])
-        got = fix_near(db, db.prepare(scans[start + j]), pred, track_std(d), loc.places, fe)
+        pred, sigma = predict(nxt, own[nxt.index], own[j], float(path[j]))
+        got = fix_near(db, db.prepare(scans[start + j]), pred, sigma, loc.places, loc.front_end)
         ms = r.track_ms + 1e3 * (time.perf_counter() - t)
         if got is not None:
             out[k] = replace(r, status=TRACKED, pose=got.map_pose, place_id=got.place_id,
                              confidence=math.nan, track_ms=ms)  # fmt: skip
-            nxt = (j, got.map_pose)
+            nxt = Fix(j, got.map_pose, float(path[j]))
         else:
             out[k] = replace(r, track_ms=ms)
     return out

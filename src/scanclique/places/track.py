@@ -138,7 +138,8 @@ def predict(
     ``own_fix`` and ``own_now`` are the fix's scan and this scan in the run's own map
     (one frame, the online mapper's current estimate); their relative motion carried
     from the fix's map pose is the prediction; its standard deviations ``(m, rad)`` are
-    :func:`track_std` of the path since the fix (``path_now`` is the run's path so far).
+    :func:`track_std` of the path between the two (``path_now`` is the run's path at
+    this scan: after the fix when tracking forwards, before it when backwards).
 
     >>> f = Fix(0, Pose2(10.0, 0.0, math.pi / 2), 0.0)
     >>> p, s = predict(f, Pose2(0, 0, 0), Pose2(1.0, 0, 0), 1.0)
@@ -146,7 +147,7 @@ def predict(
     (10.0, 1.0, [0.2, 0.035])
     """
     pred = fix.pose @ (own_fix.inverse() @ own_now)
-    return pred, track_std(path_now - fix.path)
+    return pred, track_std(abs(path_now - fix.path))
 
 
 def near_places(places: MapPoses, pred: Pose2, radius: float, n: int) -> list[int]:
