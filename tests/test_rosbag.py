@@ -506,7 +506,38 @@ def test_a_laser_mounted_upside_down_is_mirrored_upright(tmp_path, caplog):
 
 
 @pytest.mark.parametrize("ros1", [True, False])
-def test_multi_echo_scans_read_their_first_echoes(tmp_path, ros1):
+def test_multi_echo_bytes_of_another_layout_go_to_rosbags(ros1):
+    """The MultiEchoLaserScan byte reader answers only for the standard layout to the last
+    byte: a LaserScan's bytes, a message cut short or one byte longer, and big-endian CDR
+    give None (rosbags then deserialises them and names what is wrong)."""
+    from scanclique.io.rosbag import _multi_echo_fast
+
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    T = ts.types
+    laser, _, _ = _msgs(ts, ros1=ros1)
+    scan = _drive(1, 6)[0]
+    m = laser(scan, 0)
+    ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    echo = T["sensor_msgs/msg/LaserEcho"]
+    fields = {f: getattr(m, f) for f in m.__dataclass_fields__ if f != "__msgtype__"}
+    fields.update(ranges=[echo(echoes=np.array([r], np.float32)) for r in scan.ranges],
+                  intensities=[])  # fmt: skip
+    kind = "sensor_msgs/msg/MultiEchoLaserScan"
+    good = bytes(ser(T[kind](**fields), kind))
+    got = _multi_echo_fast(good, not ros1)
+    assert got is not None and got.header.frame_id == m.header.frame_id
+    np.testing.assert_array_equal(got.ranges, np.asarray(scan.ranges, np.float32))
+    assert got.angle_increment == np.float32(m.angle_increment)
+    assert _multi_echo_fast(bytes(ser(m, "sensor_msgs/msg/LaserScan")), not ros1) is None
+    assert _multi_echo_fast(good[:-4], not ros1) is None
+    assert _multi_echo_fast(good + b"\0" * 4, not ros1) is None
+    assert _multi_echo_fast(b"", not ros1) is None
+    if not ros1:
+        assert _multi_echo_fast(b"\0\0" + good[2:], True) is None  # big-endian CDR
+
+
+@pytest.mark.parametrize("ros1", [True, False])
+def test_multi_echo_scans_read_their_first_echoes(tmp_path, ros1, monkeypatch):
     """sensor_msgs/MultiEchoLaserScan (Cartographer's Deutsches Museum bags, a Hokuyo
     UTM-30LX-EW): each beam's first echo, NaN for a beam with none; mapped as the
     LaserScan of the same ranges."""
@@ -544,7 +575,17 @@ def test_multi_echo_scans_read_their_first_echoes(tmp_path, ros1):
         path = tmp_path / "multi2"
         _write_bag2(path, (("/horizontal_laser_2d", int(s.timestamp * 1e9), multi(s, k))
                            for k, s in enumerate(scans)))  # fmt: skip
+    import scanclique.io.rosbag as rb
+
+    fast, read = rb._multi_echo_fast, []
+    monkeypatch.setattr(rb, "_multi_echo_fast", lambda *a: read.append(fast(*a)) or read[-1])
     back = read_bag(path)
+    assert len(read) == len(scans) and all(m is not None for m in read)  # from the bytes
+    monkeypatch.setattr(rb, "_multi_echo_fast", lambda *a: None)  # rosbags' deserialiser
+    for a, b in zip(read_bag(path), back, strict=True):
+        assert np.array_equal(a.ranges, b.ranges, equal_nan=True)
+        assert np.array_equal(a.angles, b.angles) and a.timestamp == b.timestamp
+        assert (a.range_min, a.range_max, a.source) == (b.range_min, b.range_max, b.source)
     assert len(back) == len(scans) and all(b.odometry is None for b in back)
     for s, b in zip(scans, back, strict=True):
         none = np.arange(s.n_beams) % 17 == 5
