@@ -522,4 +522,8 @@ def test_a_long_loop_is_not_closed_on_a_corner_a_quarter_turn_round():
     assert "a quarter or half turn round" in turned[0].reason
     cfg = MapConfig()
     off = dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, max_turn=math.pi))
-    assert mean_error(map_scans(scans, config=off)) > 5.0  # what the rule prevents
+    # since session 35 a closure that moves the estimate beyond the drift model's cap
+    # waits for a second one too, which the look-alike never gets; without both rules:
+    assert mean_error(map_scans(scans, config=off)) < 0.5
+    off = dataclasses.replace(off, loops=dataclasses.replace(off.loops, corroborate_batches=0))
+    assert mean_error(map_scans(scans, config=off)) > 5.0  # what the rules prevent

@@ -857,10 +857,12 @@ def test_the_drift_path_runs_through_the_closures_on_the_way():
     from scanclique.mapping.loops import drift_std
 
     # keyframes 1 m apart on a line; a closure of 0 m between 25 and 35 (as if the line
-    # folded back there), then the drift of keyframe 38's estimate from keyframe 10
+    # folded back there), then the drift of keyframe 38's estimate from keyframe 10 (the
+    # closure moves the estimate 10 m, beyond the drift model's cap: not waiting for a
+    # second one here)
     P = np.diag([0.02**2, 0.02**2, math.radians(0.3) ** 2])
     for odo in (False, True):
-        m, _truth = _line_mapper(jump=0.0)
+        m, _truth = _line_mapper(jump=0.0, corroborate_batches=0)
         m.odo = odo
         assert m.drift_path(38)[10] == pytest.approx(28.0)  # no closure yet: the chain
         m.pending = [(25, 35, Pose2.identity(), P, "estimate", 0.8, "")]
@@ -942,12 +944,30 @@ def test_a_lone_appearance_closure_across_a_jump_waits_for_a_second_one():
     m.pending = [_closure(truth, 2, 30, "appearance"), _closure(truth, 3, 31, "appearance")]
     m.flush(final=True)
     assert [c.verdict for c in m.closures] == ["uncorroborated"] * 2
-    # a closure by the estimate (proposed by position, not by looks) needs no second one,
+    # a closure by the estimate (proposed by position, not by looks) needs no second one
+    # while it moves the estimate within the drift model's cap (5 m < max_radius, 6 m),
     # nor does a closure within the path's drift
     m, truth = _line_mapper(corroborate_batches=3)
     m.pending = [_closure(truth, 2, 30, "estimate")]
     m.flush()
     assert [c.verdict for c in m.closures] == ["accepted"]
+    # beyond the cap (8 m: found only because the front end's own uncertainty widened the
+    # search) it waits for a second one as an appearance closure does, and is taken with it
+    m, truth = _line_mapper(jump=8.0, loose_xy=3.0, corroborate_batches=3)
+    assert m.moves_far(2, 30, truth[2].inverse() @ truth[30])
+    assert not m.moves_far(2, 19, truth[2].inverse() @ truth[19])  # before the jump
+    m.pending = [_closure(truth, 2, 30, "estimate")]
+    m.flush()
+    assert m.closures == [] and len(m.deferred) == 1
+    m.flush()
+    m.flush()
+    assert [c.verdict for c in m.closures] == ["uncorroborated"]
+    m, truth = _line_mapper(jump=8.0, loose_xy=3.0, corroborate_batches=3)
+    m.pending = [_closure(truth, 2, 30, "estimate")]
+    m.flush()
+    m.pending = [_closure(truth, 12, 31, "estimate")]
+    m.flush()
+    assert sorted(c.verdict for c in m.closures) == ["accepted", "accepted"]
     m, truth = _line_mapper(jump=0.0, corroborate_batches=3)
     m.pending = [_closure(truth, 2, 30, "appearance")]
     m.flush()

@@ -276,7 +276,9 @@ class LoopConfig:
         ``"uncorroborated"`` (0: no such rule). Measured (Intel / CSAIL without odometry):
         0: 0.121 m (1.9 degrees: a 90-degree look-alike 7 m away corrects a step placed
         by the prediction) / 0.0777 m; 1: 0.0621 / 0.0787 m; 3 and 6: 0.0621 / 0.0777
-        m.
+        m. So must a closure by the estimate that moves it by more than ``max_radius``
+        too (session 35: after a loop of hundreds of metres the front end's own
+        uncertainty reaches a parallel corridor; every shared map the same).
     min_score : float
         A loop closure's match needs at least this raw-scan agreement
         (:func:`scanclique.match.pose_score`; the matcher's own floor is 0.1): a revisit
