@@ -128,6 +128,15 @@ def log_available(name: str, known: tuple[str, ...], why: str = "") -> bool:
     return True
 
 
+def publish(out: str | None, stem: str, title: str, lines: list[str], t0: float, rows: list):
+    """Print the table ``lines``, then write them under the heading ``title`` with
+    :func:`write_results` to ``out``, else ``benchmarks/results/<stem>-<date>``; say where."""
+    print("\n".join(lines))
+    base = results_path(out, f"{stem}-{TODAY}")
+    write_results(base, f"# {title}\n\n" + "\n".join(lines) + "\n", t0, rows)
+    print(f"written: {base}.md, {base}.json")
+
+
 def write_results(base: Path | str, text: str, t0: float, rows: list) -> None:
     """``base``.md holding ``text`` and ``base``.json holding the run's
     :func:`provenance` and ``rows``."""

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import math
 import sys
 import time
@@ -146,12 +145,14 @@ def main(argv=None) -> None:
         "",
         *table(rows),
     ]
-    print("\n".join(lines))
-    date = datetime.date.today().isoformat()
-    base = common.results_path(args.out, f"mapping-ring-{date}")
-    text = "# Long loops in a ring corridor (benchmarks/mapping_ring.py)\n\n" + "\n".join(lines)
-    common.write_results(base, text + "\n", t0, rows)
-    print(f"written: {base}.md, {base}.json")
+    common.publish(
+        args.out,
+        "mapping-ring",
+        "Long loops in a ring corridor (benchmarks/mapping_ring.py)",
+        lines,
+        t0,
+        rows,
+    )
 
 
 if __name__ == "__main__":

@@ -19,7 +19,6 @@ Writes benchmarks/results/reading-<date>.json and .md.
 from __future__ import annotations
 
 import argparse
-import datetime
 import sys
 import tempfile
 import time
@@ -140,12 +139,7 @@ def main(argv=None) -> None:
         f"x{r['ratio']:.2f} | {r['identical']} |"
         for r in rows
     ]
-    print("\n".join(lines))
-    date = datetime.date.today().isoformat()
-    base = common.results_path(args.out, f"reading-{date}")
-    text = "# Reading ROS bags (benchmarks/reading.py)\n\n" + "\n".join(lines)
-    common.write_results(base, text + "\n", t0, rows)
-    print(f"written: {base}.md, {base}.json")
+    common.publish(args.out, "reading", "Reading ROS bags (benchmarks/reading.py)", lines, t0, rows)
 
 
 if __name__ == "__main__":
