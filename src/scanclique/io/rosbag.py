@@ -422,9 +422,14 @@ def read_bag(
         out: list[Scan] = []
         mount: Pose2 | None = None
         mirrored = False  # the laser is upside down (its beams mirrored, mounting())
+        # a MultiEchoLaserScan from its bytes (ROS 2's CDR or ROS 1's); rosbags else
+        is2 = getattr(reader, "is2", None)
+        bytewise = is2 if isinstance(is2, bool) else None
         for k, (c, t_ns, raw) in enumerate(reader.messages(connections=scans_c)):
             where = f"{name}:{c.topic}#{k}"
-            fast = _multi_echo_fast(raw, reader.is2) if c.msgtype in MULTIECHO else None
+            fast = None
+            if c.msgtype in MULTIECHO and bytewise is not None:
+                fast = _multi_echo_fast(raw, bytewise)
             try:
                 msg = fast or reader.deserialize(raw, c.msgtype)
             except Exception as exc:  # noqa: BLE001
