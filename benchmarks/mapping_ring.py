@@ -132,7 +132,10 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     rows = []
-    size = tuple(float(v) for v in args.size.lower().split("x"))
+    try:
+        size = tuple(float(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        size = ()
     configs = tuple(c for c in args.configs.split(",") if c)
     unknown = sorted(set(configs) - set(CONFIGS))
     if len(size) != 2 or unknown:
