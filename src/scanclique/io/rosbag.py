@@ -126,7 +126,7 @@ def _first_echoes(echoes) -> list[float]:
 _NAN_BITS = int(np.array(np.nan, dtype=np.float32).view(np.uint32))
 
 
-def _echo_firsts(words: list, k: int) -> tuple[list, int]:
+def _first_echo_words(words: list, k: int) -> tuple[list, int]:
     """A ``LaserEcho[]`` from ``words`` (uint32, from word ``k``): its length, then per
     beam a count and that many float32s. Returns each beam's first float32's bits (NaN
     bits for none) and the word after the array; IndexError when the words run out."""
@@ -169,8 +169,8 @@ def _multi_echo_fast(raw: bytes, ros2: bool):
         fields = struct.unpack_from("<7f", raw, pos)
         pos += 28
         words = np.frombuffer(raw, dtype="<u4", count=(n - pos) // 4, offset=pos).tolist()
-        first, k = _echo_firsts(words, 0)
-        _, k = _echo_firsts(words, k)
+        first, k = _first_echo_words(words, 0)
+        _, k = _first_echo_words(words, k)
     except (struct.error, IndexError, ValueError):
         return None
     if n - (pos + 4 * k) not in ((0,) if not ros2 else (0, 1, 2, 3)):
