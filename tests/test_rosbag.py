@@ -581,6 +581,18 @@ def test_multi_echo_scans_read_their_first_echoes(tmp_path, ros1, monkeypatch):
     monkeypatch.setattr(rb, "_multi_echo_fast", lambda *a: read.append(fast(*a)) or read[-1])
     back = read_bag(path)
     assert len(read) == len(scans) and all(m is not None for m in read)  # from the bytes
+    import rosbags.highlevel as hl
+
+    class Vague(hl.AnyReader):  # a rosbags whose reader does not say ROS 1 or 2 by a bool
+        is2 = property(lambda self: np.bool_(self._two), lambda self, v: setattr(self, "_two", v))
+
+    monkeypatch.setattr(hl, "AnyReader", Vague)
+    read.clear()
+    vague = read_bag(path)
+    assert read == []  # rosbags' deserialiser, not the bytes
+    monkeypatch.undo()
+    for a, b in zip(vague, back, strict=True):
+        assert np.array_equal(a.ranges, b.ranges, equal_nan=True) and a.timestamp == b.timestamp
     monkeypatch.setattr(rb, "_multi_echo_fast", lambda *a: None)  # rosbags' deserialiser
     for a, b in zip(read_bag(path), back, strict=True):
         assert np.array_equal(a.ranges, b.ranges, equal_nan=True)
