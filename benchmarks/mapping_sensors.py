@@ -17,7 +17,10 @@ steps, resampled at the scanner's rate by ``simulate_sensor_drive``: the robot r
 * ``tim571`` (SICK TiM571): 270 degrees, 811 beams, 25 m, sigma 2 cm, 15 Hz at 1 m/s;
 * ``rplidar`` (RPLIDAR A1 / LDS-01 class): 360 degrees (``angle_min`` -pi, 360 beams 1
   degree apart), 10 m, sigma 1.5 % of the range, 7 % of the beams without a return, 7 Hz at
-  0.5 m/s.
+  0.5 m/s;
+* ``lds`` (TurtleBot3's LDS-01, session 36): 360 degrees (360 beams from 0), 3.5 m, sigma
+  1.5 % of the range, 5 % of the beams without a return, 5 Hz at 0.2 m/s: a short reach,
+  so that walls recede out of it.
 
 Each with and without odometry (``use_odometry``), for a few seeds (one world and drive
 per seed, the same for every profile). Columns: ATE (position error after expressing the
@@ -88,6 +91,10 @@ PROFILES = {
     "rplidar": dict(
         n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=-math.pi, max_range=10.0,
         range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.07, scan_rate=7.0, speed=0.5,
+    ),
+    "lds": dict(
+        n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=0.0, max_range=3.5,
+        range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.05, scan_rate=5.0, speed=0.2,
     ),
 }  # fmt: skip
 
