@@ -14,7 +14,9 @@ of them alike, with exact reference poses) for the scanners people use today:
 * ``hokuyo``: 270 deg, 1081 beams, 30 m, sigma 2 cm (Hokuyo UTM-30LX class);
 * ``tim571``: 270 deg, 811 beams, 25 m, sigma 2 cm (SICK TiM571 class);
 * ``rplidar``: 360 deg, 360 beams, 10 m, sigma 1.5 % of the range, 7 % of beams without
-  return (RPLIDAR A1 / LDS-01 class).
+  return (RPLIDAR A1 class);
+* ``lds``: 360 deg, 360 beams, 3.5 m, sigma 1.5 % of the range, 5 % of beams without return
+  (TurtleBot3's LDS-01; session 36: precision 0.965, rooms of one shape alike within reach).
 
 These are ``benchmarks/mapping_sensors.py``'s scanners (its ``PROFILES``, one definition).
 
@@ -27,7 +29,8 @@ overlap (``scanclique.pairsets``' revisit rule). Precision is over the default a
 wrong answers are listed with their evidence (mapped features, clique surprise, the rival
 pose's score over the hit's, free-space conflicts).
 
-Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``.
+Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``; ``lds`` and
+``rplidar`` again in ``places-sensors-2026-12-07-s36.{md,json}``.
 """
 
 from __future__ import annotations
