@@ -15,7 +15,7 @@ steps, resampled at the scanner's rate by ``simulate_sensor_drive``: the robot r
 * ``hokuyo`` (UTM-30LX): 270 degrees, 1081 beams, 30 m, sigma 2 cm, 40 Hz at 1 m/s
   (2.5 cm and at most 2.25 degrees between scans);
 * ``tim571`` (SICK TiM571): 270 degrees, 811 beams, 25 m, sigma 2 cm, 15 Hz at 1 m/s;
-* ``rplidar`` (RPLIDAR A1 / LDS-01 class): 360 degrees (``angle_min`` -pi, 360 beams 1
+* ``rplidar`` (RPLIDAR A1 class): 360 degrees (``angle_min`` -pi, 360 beams 1
   degree apart), 10 m, sigma 1.5 % of the range, 7 % of the beams without a return, 7 Hz at
   0.5 m/s;
 * ``lds`` (TurtleBot3's LDS-01, session 36): 360 degrees (360 beams from 0), 3.5 m, sigma
