@@ -120,6 +120,8 @@ def main(argv=None) -> int:
         lengths = [float(x) for x in args.lengths.split(",") if x.strip()]
     except ValueError:
         ap.error(f"--lengths: metres separated by commas, got {args.lengths!r}")
+    if not all(0.0 < x < math.inf for x in lengths):
+        ap.error(f"--lengths: each a positive number of metres, got {args.lengths!r}")
     names = [n.strip() for n in args.logs.split(",") if n.strip()]
     if unknown := [n for n in names if n not in LOGS]:
         ap.error(f"--logs: unknown {', '.join(unknown)}; of {', '.join(LOGS)}")
