@@ -16,9 +16,9 @@ mapped with chained matching alone (``LoopConfig.enabled`` False). Then, for up 
 keyframes ``a`` drawn at random and the keyframe ``b`` a path ``L`` further on, the chain's
 relative heading error against the reference's, divided by the summed heading sigma
 (``z``), and its translation error divided by the translation sigma (``front_std``'s
-form). Columns: pairs, median |heading error| (deg), median heading sigma (deg), the rms
-of ``z`` (1 for an honest sigma; below 1 too cautious, above it overconfident), the share
-of |z| > 3, the median translation error / sigma.
+form, ``pipeline._chain_sigma_xy``). Columns: pairs, median |heading error| (deg), median
+heading sigma (deg), the rms of ``z`` (1 for an honest sigma; below 1 too cautious, above
+it overconfident), the share of |z| > 3, the median translation error / sigma.
 
     python benchmarks/mapping_calibration.py
     python benchmarks/mapping_calibration.py --logs intel --lengths 10,100
@@ -43,6 +43,7 @@ import common  # noqa: E402
 
 from scanclique import map_scans  # noqa: E402
 from scanclique.mapping import MapConfig  # noqa: E402
+from scanclique.mapping.pipeline import _chain_sigma_xy  # noqa: E402
 
 #: log -> the ``use_odometry`` values mapped (freiburg's odometry is its reference)
 LOGS = {"intel": (None, False), "csail": (None, False), "freiburg": (False,), "ring": (None, False)}
@@ -91,7 +92,9 @@ def calibrate(scans, result, lengths, pairs: int = 3000, seed: int = 1) -> list[
             est = chain[a].inverse() @ chain[b]
             e_th = math.remainder(est.theta - truth.theta, 2 * math.pi)
             s_th = math.sqrt(c_th[b] - c_th[a])
-            s_xy = math.sqrt(max(c_xy[b] - c_xy[a] + (c_th[b] - c_th[a]) * L * L / 3.0, 0.0))
+            if s_th <= 0.0:  # no chain edge between them claims anything
+                continue
+            s_xy = float(_chain_sigma_xy(c_xy[b] - c_xy[a], c_th[b] - c_th[a], L))
             z.append(e_th / s_th)
             err.append(abs(e_th))
             sig.append(s_th)
