@@ -56,6 +56,7 @@ __all__ = [
     "odometry_sees_reversing",
     "ReversingWatch",
     "along_corridor",
+    "slides",
     "contest_by_odometry",
     "associate",
     "VelocityModel",
@@ -313,6 +314,17 @@ def along_corridor(
     if weak is None or weak[1] >= fe.icp_min_constraint:
         return pose, cov
     return _prior_along(pose, cov, weak[0], *odometry_prior(prior_a, prior_b, noise))
+
+
+def slides(pk: PreparedScan, pj: PreparedScan, pose: Pose2, fe) -> bool:
+    """Whether the raw scans leave ``pose`` (maps B into A) free along one direction
+    (:func:`weak_direction` below ``fe.icp_min_constraint``: a corridor), so that
+    :func:`along_corridor` takes that component from the prior: such a pose cannot
+    confirm the prior it was matched against. False without a front-end config."""
+    if fe is None or not fe.icp_fallback:
+        return False
+    weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
+    return weak is not None and weak[1] < fe.icp_min_constraint
 
 
 def _prior_along(pose: Pose2, cov: np.ndarray, e: np.ndarray, prior: Pose2, prior_cov):

@@ -63,6 +63,7 @@ from .frontend import (
     prior_step,
     reversed_increment,
     sample_odometry_scale,
+    slides,
     step_scale,
 )
 from .loops import LoopClosure, closure_doubt
@@ -915,7 +916,12 @@ class _Mapper:
                     pk, pj, prior_a, back_b, noise, self.cfg.match, path=back_path,
                     sigma_floor=self.floor, front_end=fe,
                 )  # fmt: skip
-                if back.kind == MATCH:
+                # in a corridor the reversed match takes its position along it from
+                # the reversed odometry (along_corridor): the scans do not say the
+                # robot is still backing up, and the odometry as logged decides (a
+                # 3.5 m scanner: a slid match read as backing up, then every step of the
+                # corridor reversed, 0.27 m each)
+                if back.kind == MATCH and not slides(pk, pj, back.pose, fe):
                     self.reasons[j] = (
                         "the scans say the robot is backing up: matched against the "
                         "odometry reversed (it never reports backing up)"
