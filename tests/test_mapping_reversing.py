@@ -108,7 +108,8 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
     never reports backing up: one slid match reads as a step backwards, and the match
     against the odometry reversed, free along the corridor, took its position there from
     that reversed odometry (``along_corridor``), so every next step said "still backing
-    up" (8 scans, the chain 0.66 m off). Such a match is not taken (``frontend.slides``)."""
+    up" (8 scans, the chain 0.66 m off). Such a match is not taken
+    (``frontend.corridor_direction``)."""
     import math
 
     from scanclique.sim import simulate_sensor_drive
@@ -131,7 +132,7 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
         return sum("odometry reversed" in r for r in res.reasons.values()), worst
 
     reversed_now, worst_now = run()
-    monkeypatch.setattr(pipeline, "slides", lambda *a: False)
+    monkeypatch.setattr(pipeline, "corridor_direction", lambda *a: None)
     reversed_before, worst_before = run()
     assert reversed_now <= 1 < 4 <= reversed_before
     assert worst_now < 0.3 < worst_before

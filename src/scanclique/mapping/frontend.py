@@ -56,7 +56,7 @@ __all__ = [
     "odometry_sees_reversing",
     "ReversingWatch",
     "along_corridor",
-    "slides",
+    "corridor_direction",
     "contest_by_odometry",
     "associate",
     "VelocityModel",
@@ -302,29 +302,27 @@ def along_corridor(
     fe,
 ) -> tuple[Pose2, np.ndarray]:
     """A consecutive match in a corridor: when the raw scans do not fix ``pose`` (maps B
-    into A) along one direction ``e`` (:func:`weak_direction` below
-    ``fe.icp_min_constraint``), only the features place it along ``e``, and doors and
-    pillars repeat along corridors; the component along ``e`` is then the wheel
-    odometry's (``prior_a^-1 prior_b``), with the odometry's variance along ``e`` added to
-    ``cov``, as the ICP fallback does (:func:`icp_fallback`). ``(pose, cov)`` unchanged
-    otherwise, or without a front-end config."""
-    if fe is None or not fe.icp_fallback:
+    into A) along one direction ``e`` (:func:`corridor_direction`), only the features
+    place it along ``e``, and doors and pillars repeat along corridors; the component along
+    ``e`` is then the wheel odometry's (``prior_a^-1 prior_b``), with the odometry's
+    variance along ``e`` added to ``cov``, as the ICP fallback does (:func:`icp_fallback`).
+    ``(pose, cov)`` unchanged otherwise, or without a front-end config."""
+    e = corridor_direction(pk, pj, pose, fe)
+    if e is None:
         return pose, cov
-    weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
-    if weak is None or weak[1] >= fe.icp_min_constraint:
-        return pose, cov
-    return _prior_along(pose, cov, weak[0], *odometry_prior(prior_a, prior_b, noise))
+    return _prior_along(pose, cov, e, *odometry_prior(prior_a, prior_b, noise))
 
 
-def slides(pk: PreparedScan, pj: PreparedScan, pose: Pose2, fe) -> bool:
-    """Whether the raw scans leave ``pose`` (maps B into A) free along one direction
-    (:func:`weak_direction` below ``fe.icp_min_constraint``: a corridor), so that
-    :func:`along_corridor` takes that component from the prior: such a pose cannot
-    confirm the prior it was matched against. False without a front-end config."""
+def corridor_direction(pk: PreparedScan, pj: PreparedScan, pose: Pose2, fe) -> np.ndarray | None:
+    """The unit direction (A's frame) along which the raw scans leave ``pose`` (maps B into
+    A) free (:func:`weak_direction` below ``fe.icp_min_constraint``: a corridor), where
+    :func:`along_corridor` takes the prior's component: a pose matched against a prior
+    cannot confirm that prior along it. None when the scans fix every direction, or without
+    a front-end config (or with ``fe.icp_fallback`` off)."""
     if fe is None or not fe.icp_fallback:
-        return False
+        return None
     weak = weak_direction(pk.cloud, np.ascontiguousarray(pj.points), pose, 0.1)
-    return weak is not None and weak[1] < fe.icp_min_constraint
+    return None if weak is None or weak[1] >= fe.icp_min_constraint else weak[0]
 
 
 def _prior_along(pose: Pose2, cov: np.ndarray, e: np.ndarray, prior: Pose2, prior_cov):

@@ -58,12 +58,12 @@ from .frontend import (
     associate_by_scans,
     constant_velocity,
     contest_by_odometry,
+    corridor_direction,
     icp_fallback,
     odometry_sees_reversing,
     prior_step,
     reversed_increment,
     sample_odometry_scale,
-    slides,
     step_scale,
 )
 from .loops import LoopClosure, closure_doubt
@@ -921,7 +921,7 @@ class _Mapper:
                 # robot is still backing up, and the odometry as logged decides (a
                 # 3.5 m scanner: a slid match read as backing up, then every step of the
                 # corridor reversed, 0.27 m each)
-                if back.kind == MATCH and not slides(pk, pj, back.pose, fe):
+                if back.kind == MATCH and corridor_direction(pk, pj, back.pose, fe) is None:
                     self.reasons[j] = (
                         "the scans say the robot is backing up: matched against the "
                         "odometry reversed (it never reports backing up)"
