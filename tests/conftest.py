@@ -101,3 +101,19 @@ def circle_drive(rng, laps=2, n_per_lap=36, people=False):
                           source=f"circle:{k}")
         )  # fmt: skip
     return scans
+
+
+def short_reach_drive(seed: int):
+    """Drive ``seed`` of ``benchmarks/mapping_sensors.py``'s ``lds`` profile (a TurtleBot3's
+    LDS-01: 360 beams, 3.5 m reach, 1.5 % range noise per metre, 5 % dropout, 5 Hz at
+    0.2 m/s) through a simulated office (60 poses 0.25 m apart, 414 scans), with its
+    odometry. Importable as ``from conftest import short_reach_drive``."""
+    from scanclique.sim import office_world, simulate_sensor_drive
+
+    rng = np.random.default_rng(seed)
+    world = office_world(rng)
+    return simulate_sensor_drive(
+        rng, world, 60, 0.25, n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=0.0,
+        max_range=3.5, range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.05,
+        scan_rate=5.0, speed=0.2,
+    )  # fmt: skip

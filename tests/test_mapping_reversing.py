@@ -110,17 +110,9 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
     that reversed odometry (``along_corridor``), so every next step said "still backing
     up" (8 scans, the chain 0.66 m off). Such a match is not taken
     (``frontend.corridor_direction``)."""
-    import math
+    from conftest import short_reach_drive
 
-    from scanclique.sim import simulate_sensor_drive
-
-    rng = np.random.default_rng(2)
-    world = office_world(rng)
-    scans = simulate_sensor_drive(
-        rng, world, 60, 0.25, n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=0.0,
-        max_range=3.5, range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.05,
-        scan_rate=5.0, speed=0.2,
-    )[:80]  # fmt: skip
+    scans = short_reach_drive(2)[:80]
     assert not odometry_sees_reversing(scans)
 
     def run():
