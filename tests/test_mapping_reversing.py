@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import scanclique.mapping.frontend as frontend
 import scanclique.mapping.pipeline as pipeline
 from scanclique.mapping import MapConfig, map_scans
 from scanclique.mapping.frontend import odometry_sees_reversing, reversed_increment
@@ -108,8 +109,8 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
     never reports backing up: one slid match reads as a step backwards, and the match
     against the odometry reversed, free along the corridor, took its position there from
     that reversed odometry (``along_corridor``), so every next step said "still backing
-    up" (8 scans, the chain 0.66 m off). Such a match is not taken
-    (``frontend.corridor_direction``)."""
+    up" (8 scans, the chain 0.66 m off). Such a match (``Step.along_prior``) is not
+    taken."""
     from conftest import short_reach_drive
 
     scans = short_reach_drive(2)[:80]
@@ -124,7 +125,9 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
         return sum("odometry reversed" in r for r in res.reasons.values()), worst
 
     reversed_now, worst_now = run()
-    monkeypatch.setattr(pipeline, "corridor_direction", lambda *a: None)
+    along = frontend._along_corridor
+    # as before: the position along the corridor still the prior's, but not said so
+    monkeypatch.setattr(frontend, "_along_corridor", lambda *a: (*along(*a)[:2], False))
     reversed_before, worst_before = run()
     assert reversed_now <= 1 < 4 <= reversed_before
     assert worst_now < 0.3 < worst_before

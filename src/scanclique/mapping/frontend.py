@@ -86,7 +86,9 @@ class Step:
     along a direction the raw scans fix loosely (:func:`soften`, a corridor's axis), or
     all of it for a scan placed by the prediction alone, in the earlier scan's frame; None
     when it added nothing. The next prediction inherits it
-    (:meth:`VelocityModel.carried`)."""
+    (:meth:`VelocityModel.carried`). ``along_prior``: a match whose position along a
+    corridor is the prior's (:func:`along_corridor`), which it therefore cannot
+    confirm."""
 
     pose: Pose2
     covariance: np.ndarray
@@ -95,6 +97,7 @@ class Step:
     score: float
     reason: str | None = None
     loose: np.ndarray | None = None
+    along_prior: bool = False
 
 
 def floored(P: np.ndarray | None, sigma_m: float, sigma_rad: float) -> np.ndarray:
@@ -307,10 +310,16 @@ def along_corridor(
     ``e`` is then the wheel odometry's (``prior_a^-1 prior_b``), with the odometry's
     variance along ``e`` added to ``cov``, as the ICP fallback does (:func:`icp_fallback`).
     ``(pose, cov)`` unchanged otherwise, or without a front-end config."""
+    return _along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, fe)[:2]
+
+
+def _along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, fe):
+    """:func:`along_corridor`, and whether it took the prior's component: ``(pose, cov,
+    taken)``."""
     e = corridor_direction(pk, pj, pose, fe)
     if e is None:
-        return pose, cov
-    return _prior_along(pose, cov, e, *odometry_prior(prior_a, prior_b, noise))
+        return pose, cov, False
+    return *_prior_along(pose, cov, e, *odometry_prior(prior_a, prior_b, noise)), True
 
 
 def corridor_direction(pk: PreparedScan, pj: PreparedScan, pose: Pose2, fe) -> np.ndarray | None:
@@ -418,9 +427,12 @@ def associate(
     if quick is not None:
         pose = quick if front_end is None else refine_pose(pk, pj, quick, front_end)
         cov = floored(m.covariance, *sigma_floor)
+        along = False
         if not weak_prior:
-            pose, cov = along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, front_end)
-        return Step(pose, cov, MATCH, "accepted", float(m.score))
+            pose, cov, along = _along_corridor(
+                pk, pj, pose, cov, prior_a, prior_b, noise, front_end
+            )
+        return Step(pose, cov, MATCH, "accepted", float(m.score), along_prior=along)
     if weak_prior:
         # no odometry (the paper's setting): the match validates itself (§7: enough
         # features that fix the pose, no rival); the prediction only breaks a tie
@@ -433,9 +445,12 @@ def associate(
         cov = v.covariance if v.covariance is not None else m.covariance
         pose = v.pose if front_end is None else refine_pose(pk, pj, v.pose, front_end)
         cov = floored(cov, *sigma_floor)
+        along = False
         if not weak_prior:
-            pose, cov = along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, front_end)
-        return Step(pose, cov, MATCH, v.verdict, float(m.score))
+            pose, cov, along = _along_corridor(
+                pk, pj, pose, cov, prior_a, prior_b, noise, front_end
+            )
+        return Step(pose, cov, MATCH, v.verdict, float(m.score), along_prior=along)
     reason = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
     seed = m.pose if m.pose is not None else prior_a.inverse() @ prior_b
     return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)

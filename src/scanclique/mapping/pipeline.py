@@ -58,7 +58,6 @@ from .frontend import (
     associate_by_scans,
     constant_velocity,
     contest_by_odometry,
-    corridor_direction,
     icp_fallback,
     odometry_sees_reversing,
     prior_step,
@@ -921,7 +920,7 @@ class _Mapper:
                 # robot is still backing up, and the odometry as logged decides (a
                 # 3.5 m scanner: a slid match read as backing up, then every step of the
                 # corridor reversed, 0.27 m each)
-                if back.kind == MATCH and corridor_direction(pk, pj, back.pose, fe) is None:
+                if back.kind == MATCH and not back.along_prior:
                     self.reasons[j] = (
                         "the scans say the robot is backing up: matched against the "
                         "odometry reversed (it never reports backing up)"
