@@ -125,9 +125,9 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
         return sum("odometry reversed" in r for r in res.reasons.values()), worst
 
     reversed_now, worst_now = run()
-    along = frontend._along_corridor
+    along = frontend.along_corridor
     # as before: the position along the corridor still the prior's, but not said so
-    monkeypatch.setattr(frontend, "_along_corridor", lambda *a: (*along(*a)[:2], False))
+    monkeypatch.setattr(frontend, "along_corridor", lambda *a: (*along(*a)[:2], False))
     reversed_before, worst_before = run()
     assert reversed_now <= 1 < 4 <= reversed_before
     assert worst_now < 0.3 < worst_before

@@ -373,8 +373,9 @@ def test_along_corridor_takes_the_odometry_along_a_corridor_only():
     cov = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
     # a feature match slid 0.6 m along the corridor; the odometry says 0.5 m (the truth)
     slid = Pose2(1.1, 0.01, 0.0)
-    pose, c = along_corridor(pa, pb, slid, cov, Pose2(20.0, 1.0, 0.0), Pose2(20.5, 1.0, 0.0),
-                             noise, fe)  # fmt: skip
+    pose, c, taken = along_corridor(pa, pb, slid, cov, Pose2(20.0, 1.0, 0.0),
+                                    Pose2(20.5, 1.0, 0.0), noise, fe)  # fmt: skip
+    assert taken
     assert abs(pose.x - 0.5) < 1e-3 and pose.y == pytest.approx(0.01, abs=2e-3)
     assert c[0, 0] > cov[0, 0] and c[1, 1] == pytest.approx(cov[1, 1], rel=0.05)
     # in a room the raw scans fix the pose: unchanged
@@ -383,8 +384,9 @@ def test_along_corridor_takes_the_odometry_along_a_corridor_only():
     ra = prepare_scan(simulate_scan(room, Pose2(3.0, 2.5, 0.3), rng=rng))
     rb = prepare_scan(simulate_scan(room, Pose2(3.3, 2.5, 0.3), rng=rng))
     near = Pose2(0.3, 0.0, 0.0)
-    pose, c = along_corridor(ra, rb, near, cov, Pose2(0, 0, 0), Pose2(0.5, 0.2, 0.0), noise, fe)
-    assert pose is near and c is cov
+    pose, c, taken = along_corridor(ra, rb, near, cov, Pose2(0, 0, 0), Pose2(0.5, 0.2, 0.0),
+                                    noise, fe)  # fmt: skip
+    assert pose is near and c is cov and not taken
 
 
 def test_contest_by_odometry_lets_the_raw_scans_decide():

@@ -303,19 +303,15 @@ def along_corridor(
     prior_b: Pose2,
     noise: OdometryNoise,
     fe,
-) -> tuple[Pose2, np.ndarray]:
+) -> tuple[Pose2, np.ndarray, bool]:
     """A consecutive match in a corridor: when the raw scans do not fix ``pose`` (maps B
     into A) along one direction ``e`` (:func:`corridor_direction`), only the features
     place it along ``e``, and doors and pillars repeat along corridors; the component along
     ``e`` is then the wheel odometry's (``prior_a^-1 prior_b``), with the odometry's
     variance along ``e`` added to ``cov``, as the ICP fallback does (:func:`icp_fallback`).
-    ``(pose, cov)`` unchanged otherwise, or without a front-end config."""
-    return _along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, fe)[:2]
-
-
-def _along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise, fe):
-    """:func:`along_corridor`, and whether it took the prior's component: ``(pose, cov,
-    taken)``."""
+    Returns ``(pose, cov, taken)``, ``taken`` whether the prior's component was taken (the
+    pose then cannot confirm the prior along ``e``); ``(pose, cov, False)`` unchanged
+    otherwise, or without a front-end config."""
     e = corridor_direction(pk, pj, pose, fe)
     if e is None:
         return pose, cov, False
@@ -424,15 +420,17 @@ def associate(
     """
     m = match_prepared(pk, pj, config)
     quick = None if weak_prior else _quick_accept(m, prior_a, prior_b, noise, path)
-    if quick is not None:
-        pose = quick if front_end is None else refine_pose(pk, pj, quick, front_end)
-        cov = floored(m.covariance, *sigma_floor)
-        along = False
+
+    def accepted(pose: Pose2, cov: np.ndarray, verdict: str) -> Step:
+        pose = pose if front_end is None else refine_pose(pk, pj, pose, front_end)
+        cov, along = floored(cov, *sigma_floor), False
         if not weak_prior:
-            pose, cov, along = _along_corridor(
-                pk, pj, pose, cov, prior_a, prior_b, noise, front_end
-            )
-        return Step(pose, cov, MATCH, "accepted", float(m.score), along_prior=along)
+            pose, cov, along = along_corridor(pk, pj, pose, cov, prior_a, prior_b, noise,
+                                              front_end)  # fmt: skip
+        return Step(pose, cov, MATCH, verdict, float(m.score), along_prior=along)
+
+    if quick is not None:
+        return accepted(quick, m.covariance, "accepted")
     if weak_prior:
         # no odometry (the paper's setting): the match validates itself (§7: enough
         # features that fix the pose, no rival); the prediction only breaks a tie
@@ -442,15 +440,8 @@ def associate(
     else:
         v = validate_match(m, prior_a, prior_b, noise, path=path)
     if v.accepted and v.pose is not None:
-        cov = v.covariance if v.covariance is not None else m.covariance
-        pose = v.pose if front_end is None else refine_pose(pk, pj, v.pose, front_end)
-        cov = floored(cov, *sigma_floor)
-        along = False
-        if not weak_prior:
-            pose, cov, along = _along_corridor(
-                pk, pj, pose, cov, prior_a, prior_b, noise, front_end
-            )
-        return Step(pose, cov, MATCH, v.verdict, float(m.score), along_prior=along)
+        return accepted(v.pose, v.covariance if v.covariance is not None else m.covariance,
+                        v.verdict)  # fmt: skip
     reason = "; ".join(v.reasons) if v.reasons else (m.reason or v.verdict)
     seed = m.pose if m.pose is not None else prior_a.inverse() @ prior_b
     return Step(seed, np.eye(3), "rejected", v.verdict, float(m.score), reason)
