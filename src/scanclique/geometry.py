@@ -294,5 +294,29 @@ class Pose2:
             abs(_wrap_scalar(other.theta - self.theta)),
         )
 
+    def twist_to(self, other: Pose2, seconds: float) -> tuple[float, float, float]:
+        """The constant velocity ``(vx, vy, omega)`` in this pose's own (body) frame
+        (m/s, m/s, rad/s) that carries it to ``other`` in ``seconds``: the logarithm of
+        ``self.inverse() @ other`` (a ride along an arc; the turn the shorter way) over
+        ``seconds`` (positive).
+
+        >>> [round(v, 4) for v in Pose2(0, 0, 0).twist_to(Pose2(1, 1, math.pi / 2), 2.0)]
+        [0.7854, 0.0, 0.7854]
+        """
+        if not (seconds > 0 and math.isfinite(seconds)):
+            raise ScanError(f"twist_to needs a positive finite time, got {seconds!r}")
+        u = self.inverse() @ other
+        th = u.theta
+        if abs(th) < 1e-6:
+            a, b = 1.0 - th * th / 6.0, 0.5 * th
+        else:
+            a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th
+        d = a * a + b * b
+        return (
+            (a * u.x + b * u.y) / d / seconds,
+            (a * u.y - b * u.x) / d / seconds,
+            th / seconds,
+        )
+
     def __repr__(self) -> str:
         return f"Pose2(x={self.x:.4f}, y={self.y:.4f}, theta={self.theta:.4f})"

@@ -17,7 +17,10 @@ from ._records import readonly as _readonly
 from .errors import ScanError
 from .geometry import Pose2
 
-__all__ = ["Scan", "beam_angles", "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE"]
+__all__ = [
+    "Scan", "beam_angles", "deskew", "sweep_velocity", "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE",
+    "MAX_SWEEP",
+]  # fmt: skip
 
 #: a scan's odometry or reference pose farther than this from its frame's origin (metres,
 #: in x or y) is refused: 10^9 m is beyond any robot's frame (UTM coordinates are below
@@ -34,6 +37,11 @@ def beam_angles(n: int, angle_min: float, angle_increment: float) -> np.ndarray:
 #: the largest span of a scan's beam angles (rad): two turns, so that a scan that overlaps
 #: itself is kept, and a field of view in degrees (180, 270, 360) is refused
 MAX_ANGLE_SPAN = 4.0 * math.pi
+
+#: the longest time between a scan's ``timestamp`` and any of its beams (seconds): a 2D
+#: scanner sweeps in well under a second (a 5 Hz lidar in 0.2 s); more is a time in other
+#: units (milliseconds for seconds) or a corrupt field
+MAX_SWEEP = 1.0
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -59,6 +67,12 @@ class Scan:
         Both poses within :data:`MAX_POSE_COORDINATE` of their frame's origin.
     source : str
         Where the scan came from, e.g. ``"intel-odometry.log.gz:17"``, for messages.
+    beam_times : ndarray, shape (N,), or None
+        Seconds after ``timestamp`` at which each beam was measured (a rotating scanner
+        sweeps: ROS's ``time_increment``), each within :data:`MAX_SWEEP`; None when the
+        beams are taken as measured at once (CARMEN logs, and a scanner fast against the
+        motion). A moving robot's rotating scanner sees its sweep skewed by the motion;
+        :func:`deskew` takes the skew out.
     """
 
     ranges: np.ndarray
@@ -69,6 +83,7 @@ class Scan:
     odometry: Pose2 | None = None
     reference: Pose2 | None = None
     source: str = ""
+    beam_times: np.ndarray | None = None
     valid: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -108,6 +123,22 @@ class Scan:
             if not math.isfinite(t):
                 raise ScanError(f"{where}timestamp must be finite, got {self.timestamp}")
             object.__setattr__(self, "timestamp", t)
+        if self.beam_times is not None:
+            try:
+                bt = np.array(self.beam_times, dtype=np.float64, copy=True)
+            except (TypeError, ValueError) as exc:
+                raise ScanError(f"{where}beam_times must be a numeric array ({exc})") from None
+            if bt.shape != r.shape:
+                raise ScanError(f"{where}{r.size} ranges but beam_times of shape {bt.shape}")
+            if not np.all(np.isfinite(bt)):
+                raise ScanError(f"{where}beam_times must be finite")
+            if bt.size and float(np.max(np.abs(bt))) > MAX_SWEEP:
+                raise ScanError(
+                    f"{where}a beam measured {float(np.max(np.abs(bt))):g} s from the scan's "
+                    f"timestamp, more than {MAX_SWEEP:g} s: beam_times are seconds (a 2D "
+                    "scanner sweeps in well under one)"
+                )
+            object.__setattr__(self, "beam_times", _readonly(bt))
         with np.errstate(invalid="ignore"):
             valid = np.isfinite(r) & (r > rmin) & (r < rmax)
         object.__setattr__(self, "ranges", _readonly(r))
@@ -169,3 +200,93 @@ class Scan:
             f"Scan({self.source or 'unnamed'}, beams={self.n_beams}, valid={self.n_valid}, "
             f"t={self.timestamp}, odometry={self.odometry}, reference={self.reference})"
         )
+
+
+def sweep_velocity(
+    a: Pose2 | None, b: Pose2 | None, t_a: float | None, t_b: float | None
+) -> tuple[float, float, float] | None:
+    """The velocity :func:`deskew` takes for a scan, from two poses of its sensor (wheel
+    odometry, or the mapper's estimate) at times ``t_a < t_b`` (s): the constant velocity
+    carrying ``a`` to ``b`` (:meth:`Pose2.twist_to`). None when a pose or a time is
+    missing, or the times are not increasing or are more than :data:`MAX_SWEEP` apart (a
+    gap in the log says nothing of the motion during the sweep).
+
+    >>> sweep_velocity(Pose2(0, 0, 0), Pose2(0.1, 0, 0), 0.0, 0.2)
+    (0.5, 0.0, 0.0)
+    >>> sweep_velocity(Pose2(0, 0, 0), Pose2(0.1, 0, 0), 0.0, 3.0) is None
+    True
+    """
+    if a is None or b is None or t_a is None or t_b is None:
+        return None
+    dt = t_b - t_a
+    if not 0.0 < dt <= MAX_SWEEP:
+        return None
+    return a.twist_to(b, dt)
+
+
+def _sweep_poses(times: np.ndarray, velocity) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(theta, x, y)`` arrays: the sensor's pose at each of ``times`` (s) in its frame at
+    time 0, moving at the constant body ``velocity`` ``(vx, vy, omega)`` (m/s, m/s,
+    rad/s): the exponential of the twist, exact on the arc."""
+    vx, vy, w = (float(v) for v in velocity)
+    th = w * times
+    small = np.abs(th) < 1e-6
+    safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th * th / 6.0, np.sin(safe) / safe)  # sin(th) / th
+    b = np.where(small, 0.5 * th, (1.0 - np.cos(safe)) / safe)  # (1 - cos(th)) / th
+    return th, times * (vx * a - vy * b), times * (vx * b + vy * a)
+
+
+def deskew(scan: Scan, velocity) -> Scan:
+    """The scan as its sensor would have seen it at ``scan.timestamp``, had it stood still
+    for its sweep: each beam measured ``beam_times[i]`` seconds after the timestamp, from
+    where the sensor had moved by then, is expressed in the sensor's frame at the
+    timestamp (beyond the paper, which takes a scan as one instant).
+
+    ``velocity`` is the sensor's ``(vx, vy, omega)`` in its own frame (m/s, m/s, rad/s),
+    taken as constant over the sweep (the twist between two poses ``dt`` apart,
+    :func:`scanclique.geometry.Pose2.twist_to`, say). A valid return becomes the range and
+    angle of its point in the frame at the timestamp; an invalid one (NaN, inf, out of
+    limits) keeps its range, its angle turned with the sensor; a valid return the move
+    would take out of ``(range_min, range_max)`` keeps its range too (its validity is the
+    sensor's). The beams are sorted by their new angles (strictly increasing); a full
+    circle whose last beams turned beyond its first (turning counter-clockwise) has them
+    wrapped back among the first, so that no direction is seen twice. Everything else
+    is kept; ``beam_times`` becomes None. A scan without ``beam_times``, or standing
+    still, is returned as it is.
+
+    >>> s = Scan([2.0, 2.0], [0.0, 0.1], beam_times=[0.0, 0.1])
+    >>> d = deskew(s, (0.0, 0.0, 1.0))   # turning at 1 rad/s: the second beam at 0.2 rad
+    >>> d.angles.round(6).tolist(), d.ranges.tolist(), d.beam_times
+    ([0.0, 0.2], [2.0, 2.0], None)
+    >>> deskew(s, (1.0, 0.0, 0.0)).ranges.round(4).tolist()   # 1 m/s ahead: 0.1 m on
+    [2.0, 2.0995]
+    """
+    v = np.asarray(velocity, dtype=float).reshape(-1)
+    if v.size != 3 or not np.all(np.isfinite(v)):
+        raise ScanError(f"{scan.source or 'deskew'}: velocity must be three finite numbers")
+    if scan.beam_times is None or not np.any(v):
+        return scan
+    th, tx, ty = _sweep_poses(scan.beam_times, v)
+    a = scan.angles + th
+    r = scan.ranges.copy()
+    ok = scan.valid
+    px = r[ok] * np.cos(a[ok]) + tx[ok]
+    py = r[ok] * np.sin(a[ok]) + ty[ok]
+    moved = np.hypot(px, py)
+    keep = (moved > scan.range_min) & (moved < scan.range_max)
+    turn = np.arctan2(py, px) - a[ok]
+    turn = (turn + np.pi) % (2.0 * np.pi) - np.pi
+    idx = np.flatnonzero(ok)[keep]
+    r[idx] = moved[keep]
+    a[idx] += turn[keep]
+    if a.max() - a.min() >= 2.0 * np.pi:  # a full circle turned onto itself: one turn
+        a = a.min() + np.mod(a - a.min(), 2.0 * np.pi)
+    order = np.argsort(a, kind="stable")
+    r, a = r[order], a[order]
+    for k in np.flatnonzero(np.diff(a) <= 0) + 1:  # ties (measure zero): kept in order
+        a[k] = max(a[k], np.nextafter(a[k - 1], np.inf))
+    return Scan(
+        r, a, scan.range_min, scan.range_max, scan.timestamp, scan.odometry,
+        scan.reference, scan.source,
+    )  # fmt: skip

@@ -833,8 +833,9 @@ def cast_rays(world: World, origin, angles, *, max_range: float = np.inf, people
     ----------
     world : World
         The building.
-    origin : array_like, shape (2,)
-        Ray origin in the world frame, metres.
+    origin : array_like, shape (2,) or (N, 2)
+        Ray origin in the world frame, metres: one for all rays, or one per ray (a
+        sensor moving during its sweep).
     angles : array_like, shape (N,)
         Ray directions in the world frame, radians, counter-clockwise from the x axis.
     max_range : float
@@ -854,20 +855,21 @@ def cast_rays(world: World, origin, angles, *, max_range: float = np.inf, people
     >>> cast_rays(world, (1.0, 2.0), np.array([0.0, np.pi / 2, np.pi]))
     array([3., 2., 1.])
     """
-    o = np.asarray(origin, dtype=float).reshape(2)
     ang = np.asarray(angles, dtype=float).reshape(-1)
+    o = np.asarray(origin, dtype=float)
+    o = o.reshape(1, 2) if o.size == 2 else o.reshape(ang.shape[0], 2)  # (1 or N, 2)
     d = np.column_stack((np.cos(ang), np.sin(ang)))  # (N, 2) unit directions
     best = np.full(ang.shape[0], np.inf)
     if world.n_walls:
         # o + t d = p + s e  =>  t = (w x e) / (d x e),  s = (w x d) / (d x e),  w = p - o
         p = world.walls[:, 0]
         e = world.walls[:, 1] - p
-        w = p - o
+        w = p[None, :, :] - o[:, None, :]  # (1 or N, K, 2)
         denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (N, K)
-        t_num = w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]  # (K,)
-        s_num = w[None, :, 0] * d[:, None, 1] - w[None, :, 1] * d[:, None, 0]  # (N, K)
+        t_num = w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]  # (1 or N, K)
+        s_num = w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]  # (N, K)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = t_num[None, :] / denom
+            t = t_num / denom
             s = s_num / denom
         hit = (np.abs(denom) > _EPS) & (t > _EPS) & (s >= -_EPS) & (s <= 1.0 + _EPS)
         best = np.minimum(best, np.where(hit, t, np.inf).min(axis=1))
@@ -876,10 +878,15 @@ def cast_rays(world: World, origin, angles, *, max_range: float = np.inf, people
     radii = np.concatenate((world.circle_radii, pr))
     if radii.size:
         # |o + t d - c|^2 = r^2  =>  t^2 + 2 b t + cc = 0,  b = d.(o - c),  cc = |o - c|^2 - r^2
-        oc = o[None, :] - centres  # (P, 2)
-        bb = d @ oc.T  # (N, P)
-        cc = np.einsum("pd,pd->p", oc, oc) - radii**2  # (P,)
-        disc = bb**2 - cc[None, :]
+        if len(o) == 1:
+            oc = o[0][None, :] - centres  # (P, 2)
+            bb = d @ oc.T  # (N, P)
+            cc = (np.einsum("pd,pd->p", oc, oc) - radii**2)[None, :]  # (1, P)
+        else:
+            oc = o[:, None, :] - centres[None, :, :]  # (N, P, 2)
+            bb = np.einsum("nd,npd->np", d, oc)  # (N, P)
+            cc = np.einsum("npd,npd->np", oc, oc) - radii[None, :] ** 2  # (N, P)
+        disc = bb**2 - cc
         sq = np.sqrt(np.maximum(disc, 0.0))
         t1, t2 = -bb - sq, -bb + sq
         t = np.where(t1 > _EPS, t1, np.where(t2 > _EPS, t2, np.inf))
@@ -908,6 +915,8 @@ def simulate_scan(
     odometry: Pose2 | None = None,
     people=None,
     source: str = "sim",
+    sweep_poses: np.ndarray | None = None,
+    beam_times: np.ndarray | None = None,
 ) -> Scan:
     """Simulate one laser scan taken at ``pose_world_sensor``.
 
@@ -948,6 +957,11 @@ def simulate_scan(
         Circles in the world frame that exist only in this scan, such as moving people.
     source : str
         Label for messages.
+    sweep_poses : array_like, shape (n_beams, 3), optional
+        ``x y theta`` of the sensor in the world when it measured each beam (a rotating
+        scanner on a moving robot); by default every beam from ``pose_world_sensor``.
+    beam_times : array_like, shape (n_beams,), optional
+        Copied to the scan (:attr:`Scan.beam_times`).
 
     Returns
     -------
@@ -982,13 +996,14 @@ def simulate_scan(
             "(a numpy.random.Generator)"
         )
     angles = _beam_angles(n_beams, fov, angle_min)
-    true = cast_rays(
-        world,
-        pose_world_sensor.translation,
-        angles + pose_world_sensor.theta,
-        max_range=max_range,
-        people=people,
-    )
+    if sweep_poses is None:
+        origin, heading = pose_world_sensor.translation, pose_world_sensor.theta
+    else:
+        sp = np.asarray(sweep_poses, dtype=float)
+        if sp.shape != (n_beams, 3) or not np.all(np.isfinite(sp)):
+            raise ConfigError(f"{where}: sweep_poses must be finite, of shape ({n_beams}, 3)")
+        origin, heading = sp[:, :2], sp[:, 2]
+    true = cast_rays(world, origin, angles + heading, max_range=max_range, people=people)
     hit = np.isfinite(true)
     ranges = np.where(hit, true, max_range)
     if range_sigma > 0 or range_sigma_per_m > 0:
@@ -1006,6 +1021,7 @@ def simulate_scan(
         odometry=odometry,
         reference=pose_world_sensor,
         source=source,
+        beam_times=beam_times,
     )
 
 
@@ -1453,6 +1469,7 @@ def simulate_sensor_drive(
     range_sigma: float = 0.01,
     range_sigma_per_m: float = 0.0,
     dropout: float = 0.0,
+    sweep: float = 0.0,
     **scan_kw,
 ) -> list[Scan]:
     """The drive of :func:`simulate_trajectory` as a scanner running at ``scan_rate`` Hz
@@ -1465,12 +1482,21 @@ def simulate_sensor_drive(
     2.25 degrees at 90 degrees per second. Odometry is interpolated the same way between
     the drive's odometry poses (its noise is the drive's, whatever the rate).
 
+    With ``sweep`` > 0 the scanner takes ``sweep`` seconds to measure its beams, one
+    after the other in the order of their angles, beam ``i`` at ``i * sweep / n_beams``
+    seconds after the scan's timestamp, from where the robot is by then (a rotating lidar
+    sweeps once per scan: ``sweep = 1 / scan_rate``); the scans carry those
+    :attr:`~scanclique.scan.Scan.beam_times`, and their ``reference`` is the pose at the
+    timestamp (the first beam's, as ROS stamps a scan).
+
     Parameters
     ----------
     rng, world, n_steps, step
         As ``rng``, ``world``, ``n_scans`` and ``step`` of :func:`simulate_trajectory`.
     scan_rate, speed, turn_rate : float
         Hz, m/s, rad/s.
+    sweep : float
+        Seconds a scan's beams take, at most one scan period (0: all at once).
     n_beams, range_sigma, range_sigma_per_m, dropout, **scan_kw
         As in :func:`simulate_scan` (``fov``, ``angle_min``, ``max_range``).
 
@@ -1488,6 +1514,9 @@ def simulate_sensor_drive(
     """
     where = "simulate_sensor_drive"
     _check_positive(where, scan_rate=scan_rate, speed=speed, turn_rate=turn_rate)
+    _check_nonneg(where, sweep=sweep)
+    if sweep > 1.0 / scan_rate + 1e-12:
+        raise ConfigError(f"{where}: sweep {sweep} s is longer than a scan period")
     view = {k: scan_kw[k] for k in ("fov", "angle_min", "max_range") if k in scan_kw}
     coarse = simulate_trajectory(
         rng, world, n_steps, step, n_beams=n_beams, range_sigma=0.0, **view
@@ -1495,15 +1524,41 @@ def simulate_sensor_drive(
     dt = 1.0 / scan_rate
     refs: list[Pose2] = [coarse[0].reference]
     odom: list[Pose2] = [coarse[0].odometry]
+    # scan i is ride[i][0] @ _ride(ride[i][1], ride[i][3] / ride[i][2]), and the ride
+    # ride[i + 1] carries it to scan i + 1 (for the sweep)
+    ride: list[tuple[Pose2, Pose2, int, int]] = []
     for a, b in zip(coarse[:-1], coarse[1:], strict=True):
         u = a.reference.inverse() @ b.reference
         v = a.odometry.inverse() @ b.odometry
         seconds = max(math.hypot(u.x, u.y) / speed, abs(u.theta) / turn_rate)
         n = max(1, math.ceil(seconds / dt - 1e-9))
+        if not ride:
+            ride.append((a.reference, u, n, 0))
         for k in range(1, n + 1):
             f = k / n
             refs.append(a.reference @ _ride(u, f))
             odom.append(a.odometry @ _ride(v, f))
+            ride.append((a.reference, u, n, k))
+    ride = ride or [(refs[0], Pose2.identity(), 1, 0)]  # one pose: standing still
+    times = np.arange(n_beams) * (sweep / n_beams) if sweep > 0 else None
+
+    def swept(i: int):
+        """The sensor's world poses while scan ``i``'s beams are measured: along the ride
+        to scan ``i + 1`` (the last scan's on along its own)."""
+        if times is None:
+            return None
+        if i + 1 < len(ride):
+            start, u, n, k = ride[i + 1]
+            f = (k - 1 + times / dt) / n
+        else:
+            start, u, n, k = ride[i]
+            f = (k + times / dt) / n
+        c, s_ = math.cos(start.theta), math.sin(start.theta)
+        x, y = f * u.x, f * u.y
+        return np.column_stack(
+            (start.x + c * x - s_ * y, start.y + s_ * x + c * y, start.theta + f * u.theta)
+        )
+
     return [
         simulate_scan(
             world,
@@ -1516,6 +1571,8 @@ def simulate_sensor_drive(
             timestamp=round(i * dt, 9),
             odometry=od,
             source=f"sim:{i}",
+            sweep_poses=swept(i),
+            beam_times=times,
             **scan_kw,
         )
         for i, (ref, od) in enumerate(zip(refs, odom, strict=True))

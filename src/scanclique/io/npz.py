@@ -19,13 +19,17 @@ Layout (``S`` scans)
     ``(S, 3)`` rows ``x, y, theta``; a row of NaN is None (all None when absent).
 ``source``
     ``(S,)`` unicode strings (``"<file name>[i]"`` when absent).
+``beam_times``
+    Seconds after each scan's timestamp at which its beams were measured
+    (:attr:`Scan.beam_times`), laid out like ``ranges``; a scan's all-NaN row is None
+    (written only when some scan has them; all None when absent).
 ``format_version``
     Scalar integer, 1.
 
 Only ``ranges`` and ``angles`` are required. Files are always loaded with
 ``allow_pickle=False``: an archive holding object arrays is refused, never unpickled.
 :func:`write_scans_npz` followed by :func:`read_scans_npz` gives back the same ranges,
-angles, limits, timestamps, poses and sources, bit for bit.
+angles, limits, timestamps, poses, sources and beam times, bit for bit.
 
 Examples
 --------
@@ -69,6 +73,7 @@ _KNOWN = {
     "odometry",
     "reference",
     "source",
+    "beam_times",
     "format_version",
 }
 
@@ -106,6 +111,10 @@ def write_scans_npz(path: str | os.PathLike, scans: Iterable[Scan]) -> None:
         arrays["ranges"] = np.concatenate([s.ranges for s in scans])
         arrays["angles"] = np.concatenate([s.angles for s in scans])
         arrays["offsets"] = np.concatenate(([0], np.cumsum(lengths))).astype(np.int64)
+    if any(s.beam_times is not None for s in scans):
+        rows = [np.full(s.n_beams, np.nan) if s.beam_times is None else s.beam_times for s in scans]
+        bt = np.concatenate(rows) if "offsets" in arrays else np.array(rows, dtype=np.float64)
+        arrays["beam_times"] = bt.reshape(arrays["ranges"].shape)
     arrays["range_min"] = np.array([s.range_min for s in scans], dtype=np.float64)
     arrays["range_max"] = np.array([s.range_max for s in scans], dtype=np.float64)
     arrays["timestamp"] = np.array(
@@ -117,6 +126,35 @@ def write_scans_npz(path: str | os.PathLike, scans: Iterable[Scan]) -> None:
     arrays["format_version"] = np.array(NPZ_FORMAT_VERSION)
     with open(path, "wb") as fh:
         np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
+
+
+def _beam_times(arrays, spath: str, rows_r: list, bounds: list | None) -> list:
+    """Each scan's beam times (None for an all-NaN row), laid out like ``ranges``."""
+    S = len(rows_r)
+    if "beam_times" not in arrays:
+        return [None] * S
+    bt = arrays["beam_times"]
+    shape = (
+        (sum(len(r) for r in rows_r),) if bounds is not None else (S, len(rows_r[0]) if S else 0)
+    )
+    if bt.dtype.kind != "f" or bt.shape != shape:
+        raise ParseError(
+            spath, None, f"expected {shape} floats like ranges, found {bt.dtype} {bt.shape}",
+            field="beam_times",
+        )  # fmt: skip
+    rows = [bt[bounds[i] : bounds[i + 1]] for i in range(S)] if bounds is not None else list(bt)
+    out = []
+    for i, row in enumerate(rows):
+        nan = np.isnan(row)
+        if nan.all():  # (a scan of no beams too)
+            out.append(None)
+        elif nan.any():
+            raise ParseError(
+                spath, None, f"scan {i}: some beam times NaN, not all", field="beam_times"
+            )
+        else:
+            out.append(row)
+    return out
 
 
 MAX_NPZ_ARRAY_BYTES = 2 * 2**30
@@ -432,6 +470,7 @@ def read_scans_npz(
     else:
         sources = [f"{name}[{i}]" for i in range(S)]
 
+    times = _beam_times(arrays, spath, rows_r, bounds if "offsets" in arrays else None)
     scans = []
     for i in range(S):
         try:
@@ -445,6 +484,7 @@ def read_scans_npz(
                     odometry[i],
                     reference[i],
                     sources[i],
+                    times[i],
                 )
             )
         except ScanError as exc:

@@ -65,7 +65,7 @@ import numpy as np
 
 from ..errors import ParseError, ScanCliqueError
 from ..geometry import Pose2, pose_at
-from ..scan import Scan
+from ..scan import MAX_SWEEP, Scan
 
 log = logging.getLogger(__name__)
 
@@ -94,26 +94,46 @@ def _stamp(msg, t_ns: int) -> float:
     return 1e-9 * t_ns
 
 
-def _wrap_beams(r: np.ndarray, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _wrap_beams(r: np.ndarray, ang: np.ndarray, times: np.ndarray | None = None):
     """Ranges and increasing beam angles ``ang`` with the angles in [-pi, pi): shifted by
     whole turns when that brings them all in; a full circle (``n`` beams spanning ``n``
     increments of about 2 pi) rolled so that it starts at -pi. A field of view that
     crosses pi but is no full circle is returned as given (rolling it would make its two
-    ends neighbours)."""
+    ends neighbours). ``(r, ang, times)``: the beams' times (or None) follow them."""
     if ang.size == 0 or (ang[0] >= -math.pi and ang[-1] < math.pi):
-        return r, ang
+        return r, ang, times
     two_pi = 2.0 * math.pi
     shifted = ang - two_pi * math.floor((ang[0] + math.pi) / two_pi)
     if shifted[-1] < math.pi:
-        return r, shifted
+        return r, shifted, times
     inc = (ang[-1] - ang[0]) / (ang.size - 1) if ang.size > 1 else 0.0
     if abs(ang[-1] - ang[0] + inc - two_pi) > 0.5 * inc:
-        return r, ang
+        return r, ang, times
     wrapped = np.mod(shifted + math.pi, two_pi) - math.pi
     order = np.argsort(wrapped, kind="stable")
     if not np.all(np.diff(wrapped[order]) > 0):
-        return r, ang
-    return r[order], wrapped[order]
+        return r, ang, times
+    return r[order], wrapped[order], None if times is None else times[order]
+
+
+def _beam_times(msg, n: int, name: str, topic: str, warned: set) -> np.ndarray | None:
+    """Each beam's time after the message's stamp, in its order: ``time_increment`` apart
+    (REP 117: the stamp is the first beam's). None when the increment is 0 or not
+    finite, or the sweep would last more than :data:`scanclique.scan.MAX_SWEEP` (warned
+    once per topic: a driver's placeholder, not the scanner's timing)."""
+    t_inc = float(getattr(msg, "time_increment", 0.0) or 0.0)
+    if not math.isfinite(t_inc) or t_inc == 0.0 or n == 0:
+        return None
+    if abs(t_inc) * (n - 1) > MAX_SWEEP:
+        if topic not in warned:
+            warned.add(topic)
+            log.warning(
+                "%s: %s: time_increment %g s over %d beams would be a sweep of %g s, more "
+                "than %g s: beam times ignored (the scans are taken as instantaneous)",
+                name, topic, t_inc, n, abs(t_inc) * (n - 1), MAX_SWEEP,
+            )  # fmt: skip
+        return None
+    return t_inc * np.arange(n, dtype=float)
 
 
 def _first_echoes(echoes) -> list[float]:
@@ -422,6 +442,7 @@ def read_bag(
         out: list[Scan] = []
         mount: Pose2 | None = None
         mirrored = False  # the laser is upside down (its beams mirrored, mounting())
+        warned: set = set()  # topics whose time_increment was refused
         # a MultiEchoLaserScan from its bytes (ROS 2's CDR or ROS 1's); rosbags else
         is2 = getattr(reader, "is2", None)
         bytewise = is2 if isinstance(is2, bool) else None
@@ -449,8 +470,10 @@ def read_bag(
                     "do not define beams",
                 )  # fmt: skip
             ang = a0 + inc * np.arange(r.size)
+            times = _beam_times(msg, r.size, name, c.topic, warned)
             if inc < 0:
                 r, ang = r[::-1].copy(), ang[::-1].copy()
+                times = None if times is None else times[::-1].copy()
             span = float(msg.angle_max) - a0
             expect = int(round(span / inc)) + 1 if math.isfinite(span) else r.size
             if r.size == 0 or abs(expect - r.size) > 1:
@@ -479,7 +502,8 @@ def read_bag(
                     log.info("%s: the laser is mounted at %s on the robot", name, mount)
             if mirrored:
                 r, ang = r[::-1].copy(), -ang[::-1]
-            r, ang = _wrap_beams(r, ang)
+                times = None if times is None else times[::-1].copy()
+            r, ang, times = _wrap_beams(r, ang, times)
             t = _stamp(msg, t_ns)
             odo = pose_at(o_times, o_rows, t, tol=1e-9) if o_poses else None
             try:
@@ -491,6 +515,7 @@ def read_bag(
                         timestamp=t,
                         odometry=odo if odo is None or mount is None else odo @ mount,
                         source=where,
+                        beam_times=times,
                     )
                 )  # fmt: skip
             except ScanCliqueError as exc:  # named below by bag, topic and message

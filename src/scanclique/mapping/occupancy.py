@@ -28,7 +28,7 @@ import numpy as np
 from ..config import require_config
 from ..errors import ArgumentError, ConfigError
 from ..geometry import Pose2
-from ..scan import Scan
+from ..scan import Scan, deskew, sweep_velocity
 from .config import OccupancyConfig
 
 __all__ = ["MAX_GRID_CELLS", "OccupancyGrid", "occupancy_grid", "probabilities"]
@@ -118,12 +118,31 @@ def probabilities(log_odds: np.ndarray) -> np.ndarray:
     return 1.0 - 1.0 / (1.0 + np.exp(log_odds.astype(float)))
 
 
+def _deskewed(scans: Sequence[Scan], poses: Sequence[Pose2 | None], k: int) -> Scan:
+    """Scan ``k`` with its sweep's skew taken out (:func:`scanclique.scan.deskew`) at the
+    velocity of the mapped poses to the next scan (from the one before for the last, or
+    next to a scan not placed); as it is without beam times or a velocity."""
+    s = scans[k]
+    if s.beam_times is None:
+        return s
+    v = None
+    if k + 1 < len(scans):
+        v = sweep_velocity(poses[k], poses[k + 1], s.timestamp, scans[k + 1].timestamp)
+    if v is None and k > 0:
+        v = sweep_velocity(poses[k - 1], poses[k], scans[k - 1].timestamp, s.timestamp)
+    return s if v is None else deskew(s, v)
+
+
 def occupancy_grid(
     scans: Sequence[Scan],
     poses: Sequence[Pose2 | None],
     config: OccupancyConfig | None = None,
 ) -> OccupancyGrid:
     """Cast every ``config.scan_stride``-th placed scan into a log-odds grid.
+
+    A scan whose beams carry their times (:attr:`~scanclique.scan.Scan.beam_times`, a
+    rotating lidar) is cast de-skewed along ``poses`` (the velocity to the next placed
+    scan), as the mapper matched it.
 
     Parameters
     ----------
@@ -159,7 +178,7 @@ def occupancy_grid(
     # beam end points in the map frame, first to size the grid
     starts, ends, hits = [], [], []
     for k in idx:
-        s, p = scans[k], poses[k]
+        s, p = _deskewed(scans, poses, k), poses[k]
         keep = s.valid | s.no_return if cfg.free_on_no_return else s.valid
         rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
         hit = s.valid[keep] & (rng <= cfg.max_range)

@@ -35,7 +35,7 @@ from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
-from ..scan import Scan
+from ..scan import Scan, deskew, sweep_velocity
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
 from . import loops as _loops
@@ -339,6 +339,7 @@ class _Mapper:
         # the newest scan when it is not a keyframe: (prepared, pose and covariance
         # relative to its keyframe), for close_log to make it one
         self.newest: tuple | None = None
+        self.ahead: Sequence[Scan] | None = None  # the whole log, when given at once (run)
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
         self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
@@ -377,10 +378,48 @@ class _Mapper:
 
     # -- helpers ----------------------------------------------------------------------
     def prepare(self, j: int):
+        """Scan ``j`` prepared for matching, its sweep's skew taken out
+        (``FrontEndConfig.deskew``) at the velocity of :meth:`sweep_velocity`; none known
+        (the log's start, a gap): as it is."""
         t = time.perf_counter()
-        p = prepare_scan(self.scans[j], self.cfg.match)
+        scan = self.scans[j]
+        if scan.beam_times is not None and self.fe.deskew:
+            v = self.sweep_velocity(j)
+            if v is not None:
+                scan = deskew(scan, v)
+        p = prepare_scan(scan, self.cfg.match)
         self.seconds["prepare"] += time.perf_counter() - t
         return p
+
+    def sweep_velocity(self, j: int) -> tuple[float, float, float] | None:
+        """The velocity :meth:`prepare` de-skews scan ``j`` at (:func:`sweep_velocity`): the
+        odometry's to the next scan when the whole log is given (:meth:`run`: the sweep's
+        own motion), else from the scan before; without odometry the chain's over the
+        last ``FrontEndConfig.deskew_window`` seconds before scan ``j - 1``."""
+        scans, s = self.scans, self.scans[j]
+        if self.odo and s.odometry is not None:
+            nxt = self.ahead[j + 1] if self.ahead is not None and j + 1 < len(self.ahead) else None
+            if nxt is not None and nxt.odometry is not None:
+                return sweep_velocity(s.odometry, nxt.odometry, s.timestamp, nxt.timestamp)
+            if j > 0 and scans[j - 1].odometry is not None:
+                prev = scans[j - 1]
+                return sweep_velocity(prev.odometry, s.odometry, prev.timestamp, s.timestamp)
+            return None
+        if j < 2 or scans[j - 1].timestamp is None:
+            return None
+        prev = scans[j - 1]
+        # the chain's own steps are the matches': over one step their errors come back
+        # through the de-skew (one step long, the next short, and so on)
+        i = j - 2
+        while (
+            i >= 0
+            and _ts(scans, i) is not None
+            and prev.timestamp - scans[i].timestamp < (self.fe.deskew_window)
+        ):
+            i -= 1
+        if i < 0 or self.chain[i] is None:
+            return None
+        return sweep_velocity(self.chain[i], self.chain[j - 1], scans[i].timestamp, prev.timestamp)
 
     def add_edge(self, a: int, b: int, Z: Pose2, P: np.ndarray, kind: str) -> None:
         """Edge ``a - b`` (``"chain"``, ``"local"`` or ``"loop"``) of the keyframe graph, as
@@ -853,6 +892,7 @@ class _Mapper:
     def run(self, scans: Sequence[Scan], progress: Progress | None = None) -> None:
         """Map the whole of ``scans``: :meth:`add_scan` for each, then :meth:`close_log`."""
         n = len(scans)
+        self.ahead = scans
         for j, scan in enumerate(scans):
             self.add_scan(scan)
             if progress is not None and j > 0 and (j % 50 == 0 or j == n - 1):

@@ -167,8 +167,8 @@ def decode_array(dtype: str, shape: str, crc: int, data: bytes, where: str = "")
 class PlaceRecord:
     """One stored place: its id and name, the scan it was made from, and its arrays.
 
-    ``arrays`` maps names to read-only arrays: ``"ranges"`` and ``"angles"`` of the scan,
-    and ``"features.<field>"`` for each array field of
+    ``arrays`` maps names to read-only arrays: ``"ranges"`` and ``"angles"`` of the scan
+    (and its ``"beam_times"`` when it has them), and ``"features.<field>"`` for each array field of
     :class:`scanclique.features.Features`.
     """
 
@@ -370,6 +370,8 @@ class PlaceStore:
             ``name`` is already used by another place.
         """
         blobs = [("ranges", *encode_array(scan.ranges)), ("angles", *encode_array(scan.angles))]
+        if scan.beam_times is not None:
+            blobs.append(("beam_times", *encode_array(scan.beam_times)))
         blobs += [(k, *encode_array(v)) for k, v in arrays.items()]
         sig = encode_array(np.asarray(signature))
         with self._errors("add"), self._write() as c:
@@ -546,7 +548,7 @@ class PlaceStore:
             ).fetchone()
             if row is None:
                 raise PlaceDatabaseError(f"{self._where}: no place with id {pid}")
-            sel = "" if arrays else " AND name IN ('ranges', 'angles')"
+            sel = "" if arrays else " AND name IN ('ranges', 'angles', 'beam_times')"
             blobs = self._conn.execute(
                 f"SELECT name, dtype, shape, crc32, data FROM arrays WHERE place_id = ?{sel}",
                 (pid,),
@@ -568,6 +570,7 @@ class PlaceStore:
                 odometry=_pose(ox, oy, ot),
                 reference=_pose(rx, ry, rt),
                 source=source,
+                beam_times=arr.get("beam_times"),
             )
         except Exception as exc:  # a ScanError from a record that is not a scan
             raise PlaceDatabaseError(

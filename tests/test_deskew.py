@@ -1,0 +1,241 @@
+"""A rotating scanner's sweep: ``Scan.beam_times``, ``deskew``, ``Pose2.twist_to``, the
+simulator's swept scans, the readers and stores that carry the times, and the mapper
+that takes the skew out before matching."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from scanclique.errors import ConfigError, ParseError, ScanError
+from scanclique.geometry import Pose2
+from scanclique.io.npz import read_scans_npz, write_scans_npz
+from scanclique.scan import Scan, _sweep_poses, deskew, sweep_velocity
+from scanclique.sim import office_world, room_world, simulate_scan, simulate_sensor_drive
+
+#: the simulated TurtleBot3 LDS-01 of benchmarks/mapping_sensors.py (its `lds` profile)
+LDS = dict(
+    n_beams=360, fov=2 * math.pi * 359 / 360, angle_min=0.0, max_range=3.5, range_sigma=0.0,
+    range_sigma_per_m=0.015, dropout=0.05, scan_rate=5.0, speed=0.2,
+)  # fmt: skip
+
+
+# -- the record ----------------------------------------------------------------------------
+def test_beam_times_are_checked_and_kept_read_only():
+    s = Scan([1.0, 2.0], [0.0, 0.1], beam_times=[0.0, 0.01])
+    assert s.beam_times.tolist() == [0.0, 0.01] and not s.beam_times.flags.writeable
+    assert Scan([1.0], [0.0]).beam_times is None
+    with pytest.raises(ScanError, match="beam_times of shape"):
+        Scan([1.0, 2.0], [0.0, 0.1], beam_times=[0.0])
+    with pytest.raises(ScanError, match="finite"):
+        Scan([1.0, 2.0], [0.0, 0.1], beam_times=[0.0, np.nan])
+    with pytest.raises(ScanError, match="more than 1 s"):  # milliseconds given for seconds
+        Scan([1.0, 2.0], [0.0, 0.1], beam_times=[0.0, 100.0])
+    with pytest.raises(ScanError, match="numeric"):
+        Scan([1.0, 2.0], [0.0, 0.1], beam_times=["a", "b"])
+
+
+# -- the motion ----------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", range(6))
+def test_twist_to_is_the_logarithm_of_the_sweep_motion(seed):
+    rng = np.random.default_rng(seed)
+    a = Pose2(*rng.uniform(-5, 5, 2), rng.uniform(-3, 3))
+    u = Pose2(*rng.uniform(-0.5, 0.5, 2), rng.uniform(-1.5, 1.5) * (seed % 2))  # 0 turn too
+    dt = rng.uniform(0.05, 0.5)
+    v = a.twist_to(a @ u, dt)
+    th, x, y = _sweep_poses(np.array([dt]), v)
+    got = Pose2(float(x[0]), float(y[0]), float(th[0]))
+    t_err, r_err = got.distance_to(u)
+    assert t_err < 1e-9 and r_err < 1e-9
+    with pytest.raises(ScanError, match="positive"):
+        a.twist_to(a @ u, 0.0)
+
+
+def test_sweep_velocity_needs_both_poses_and_a_short_gap():
+    a, b = Pose2(0, 0, 0), Pose2(0.1, 0, 0.05)
+    assert sweep_velocity(a, b, 0.0, 0.1) == pytest.approx(a.twist_to(b, 0.1))
+    for args in ((None, b, 0.0, 0.1), (a, b, None, 0.1), (a, b, 0.1, 0.1), (a, b, 0.0, 2.0)):
+        assert sweep_velocity(*args) is None
+
+
+# -- deskew --------------------------------------------------------------------------------
+def _room():
+    return room_world(6.0, 4.0, rng=np.random.default_rng(3), doorways=1, pillars=2, clutter=2)
+
+
+def _swept_scan(velocity, n=720, sweep=0.2, fov=2 * math.pi * 719 / 720, angle_min=-math.pi):
+    """A noise-free full circle swept in ``sweep`` s from (2, 2, 0.3) at a constant
+    ``velocity``, and the scan taken at once there (eight times the beams: the surfaces
+    between the swept beams too)."""
+    world, start = _room(), Pose2(2.0, 2.0, 0.3)
+    times = np.arange(n) * (sweep / n)
+    th, x, y = _sweep_poses(times, velocity)
+    poses = np.array(
+        [(start @ Pose2(a, b, c)).as_array() for a, b, c in zip(x, y, th, strict=True)]
+    )
+    poses[:, 2] = start.theta + th  # unwrapped
+    kw = dict(fov=fov, angle_min=angle_min, max_range=8.0, range_sigma=0.0)
+    swept = simulate_scan(world, start, n_beams=n, sweep_poses=poses, beam_times=times, **kw)
+    return swept, simulate_scan(world, start, n_beams=8 * n, **kw)
+
+
+@pytest.mark.parametrize("velocity", [(0.0, 0.0, 1.5), (0.0, 0.0, -1.5), (0.5, 0.1, 0.8)])
+def test_deskew_gives_the_scan_taken_at_once(velocity):
+    swept, still = _swept_scan(velocity)
+    tree = cKDTree(still.points())
+    skewed = np.percentile(tree.query(swept.points())[0], 90)
+    d = deskew(swept, velocity)
+    fixed = np.percentile(tree.query(d.points())[0], 90)
+    assert skewed > 0.05 and fixed < 0.01, (skewed, fixed)
+    assert np.all(np.diff(d.angles) > 0) and d.angles[-1] - d.angles[0] < 2 * math.pi
+    assert d.beam_times is None and d.n_valid == swept.n_valid
+    assert (d.timestamp, d.odometry, d.reference) == (
+        swept.timestamp,
+        swept.odometry,
+        swept.reference,
+    )
+
+
+def test_deskew_keeps_invalid_beams_and_validity():
+    s = Scan(
+        [np.inf, 3.0, np.nan, 0.01, 9.99], np.linspace(0.0, 0.4, 5), range_min=0.02,
+        range_max=10.0, beam_times=np.linspace(0.0, 0.04, 5),
+    )  # fmt: skip
+    d = deskew(s, (1.0, 0.0, 0.5))  # the last return would move beyond range_max: kept
+    assert d.valid.tolist() == [False, True, False, False, True]
+    assert np.isinf(d.ranges[0]) and np.isnan(d.ranges[2]) and d.ranges[3] == 0.01
+    assert d.ranges[4] == 9.99 and d.ranges[1] != 3.0
+    turned = s.angles + 0.5 * s.beam_times  # invalid beams turn with the sensor
+    assert d.angles[[0, 2, 3]] == pytest.approx(turned[[0, 2, 3]])
+
+
+def test_deskew_of_a_scan_without_times_or_motion_is_the_scan():
+    s = Scan([1.0, 2.0], [0.0, 0.1], beam_times=[0.0, 0.1])
+    assert deskew(s, (0.0, 0.0, 0.0)) is s
+    plain = Scan([1.0, 2.0], [0.0, 0.1])
+    assert deskew(plain, (1.0, 0.0, 1.0)) is plain
+    with pytest.raises(ScanError, match="three finite"):
+        deskew(s, (np.nan, 0.0, 0.0))
+
+
+# -- the simulator -------------------------------------------------------------------------
+def test_swept_drive_carries_beam_times_and_the_stamp_pose():
+    rng = np.random.default_rng(0)
+    world = office_world(rng)
+    scans = simulate_sensor_drive(rng, world, 4, 0.25, sweep=0.2, **LDS)
+    assert all(s.beam_times is not None and s.beam_times[-1] < 0.2 for s in scans)
+    rng = np.random.default_rng(0)
+    still = simulate_sensor_drive(rng, office_world(rng), 4, 0.25, **LDS)
+    assert still[3].beam_times is None
+    assert still[3].reference.distance_to(scans[3].reference) == (0.0, 0.0)
+    with pytest.raises(ConfigError, match="longer than a scan period"):
+        simulate_sensor_drive(rng, world, 4, 0.25, sweep=0.3, **LDS)
+    with pytest.raises(ConfigError, match="sweep_poses"):
+        simulate_scan(
+            world, Pose2(1, 1, 0), n_beams=3, range_sigma=0.0, sweep_poses=np.zeros((2, 3))
+        )
+
+
+# -- readers and stores --------------------------------------------------------------------
+def test_npz_keeps_beam_times(tmp_path):
+    a = Scan([1.0, 2.0], [0.0, 0.1], beam_times=[0.0, 0.05])
+    b = Scan([3.0, 4.0], [0.0, 0.1])
+    c = Scan([5.0], [0.0], beam_times=[0.01])
+    for scans in ([a, b], [a, b, c]):  # (S, N) and ragged
+        write_scans_npz(tmp_path / "s.npz", scans)
+        back = read_scans_npz(tmp_path / "s.npz")
+        assert [None if s.beam_times is None else s.beam_times.tolist() for s in back] == [
+            None if s.beam_times is None else s.beam_times.tolist() for s in scans
+        ]
+    np.savez(tmp_path / "bad.npz", ranges=np.ones((1, 2)), angles=np.array([[0.0, 0.1]]),
+             beam_times=np.array([[0.0, np.nan]]))  # fmt: skip
+    with pytest.raises(ParseError, match="not all"):
+        read_scans_npz(tmp_path / "bad.npz")
+
+
+def test_a_place_keeps_its_beam_times(tmp_path):
+    from scanclique.places import PlaceDB
+
+    swept, _ = _swept_scan((0.2, 0.0, 0.5), n=181, fov=math.pi, angle_min=-math.pi / 2)
+    with PlaceDB(tmp_path / "p.db") as db:
+        pid = db.add(swept)
+    with PlaceDB(tmp_path / "p.db") as db:
+        assert np.array_equal(db.get(pid).scan.beam_times, swept.beam_times)
+
+
+def test_a_bag_gives_each_beam_its_time(tmp_path, caplog):
+    pytest.importorskip("rosbags")
+    from test_rosbag import _ros2_msgs, _write_bag2
+
+    from scanclique.io.rosbag import read_bag
+
+    laser, _, _ = _ros2_msgs()
+    inc = 2 * math.pi / 360
+    full = Scan(np.linspace(1.0, 2.0, 360), np.arange(360) * inc, range_max=8.0, timestamp=1.0)
+    fine = dataclasses.replace(laser(full, 0), time_increment=1e-4)
+    bogus = dataclasses.replace(laser(full, 1), time_increment=0.01)  # a 3.6 s sweep
+    _write_bag2(tmp_path / "b", [("/scan", 1_000_000_000, fine), ("/scan", 1_100_000_000, bogus)])
+    with caplog.at_level(logging.WARNING):
+        got = read_bag(tmp_path / "b", topic="/scan")
+    # a full circle from 0 is rolled to start at -pi: each beam keeps its own time
+    idx = np.rint(np.mod(got[0].angles, 2 * math.pi) / inc).astype(int) % 360
+    np.testing.assert_allclose(got[0].beam_times, 1e-4 * idx, atol=1e-9)
+    np.testing.assert_allclose(got[0].ranges, np.float32(full.ranges)[idx])
+    assert got[1].beam_times is None and "time_increment" in caplog.text
+
+
+# -- the mapper ----------------------------------------------------------------------------
+def _swept_drive(seed: int, steps: int = 30):
+    rng = np.random.default_rng(seed)
+    return simulate_sensor_drive(rng, office_world(rng), steps, 0.25, sweep=0.2, **LDS)
+
+
+def _mapped(scans, use_odometry: bool, **front_end):
+    from scanclique.mapping import MapConfig, map_scans
+
+    cfg = MapConfig()
+    cfg = dataclasses.replace(cfg, front_end=dataclasses.replace(cfg.front_end, **front_end))
+    return map_scans(scans, use_odometry=use_odometry, config=cfg)
+
+
+def _worst_turn_between_scans(result, scans) -> float:
+    """Degrees: the largest heading error of a step between consecutive scans."""
+    return max(
+        math.degrees((a.inverse() @ b).distance_to(sa.reference.inverse() @ sb.reference)[1])
+        for a, b, sa, sb in zip(result.poses, result.poses[1:], scans, scans[1:], strict=False)
+    )
+
+
+def test_mapping_a_swept_lidar_with_odometry_takes_the_skew_out():
+    scans = _swept_drive(3)  # the LDS-01 at 5 Hz turns up to 18 degrees in a sweep
+    before = _worst_turn_between_scans(_mapped(scans, True, deskew=False), scans)
+    after = _worst_turn_between_scans(_mapped(scans, True), scans)
+    assert before > 4.0 and after < 1.5, (before, after)
+
+
+def test_without_odometry_the_deskew_velocity_is_the_estimates_over_a_window(monkeypatch):
+    import scanclique.mapping.pipeline as pipeline
+
+    scans = _swept_drive(0)
+    seen = []
+
+    def spy(scan, velocity):
+        seen.append((int(scan.source.split(":")[1]), np.asarray(velocity)))
+        return deskew(scan, velocity)
+
+    monkeypatch.setattr(pipeline, "deskew", spy)
+
+    def speed_errors(**front_end):
+        seen.clear()
+        _mapped(scans, False, **front_end)
+        assert seen and min(j for j, _ in seen) >= 2  # the first scans: no velocity yet
+        true = [scans[j].reference.twist_to(scans[j + 1].reference, 0.2) for j, _ in seen[:-1]]
+        return np.median([abs(v[0] - t[0]) for (_, v), t in zip(seen, true, strict=False)])
+
+    # over a single step the matches' errors come back through the de-skew
+    assert speed_errors() < 0.02 and speed_errors(deskew_window=0.01) > 0.1
