@@ -20,7 +20,13 @@ steps, resampled at the scanner's rate by ``simulate_sensor_drive``: the robot r
   0.5 m/s;
 * ``lds`` (TurtleBot3's LDS-01, session 36): 360 degrees (360 beams from 0), 3.5 m, sigma
   1.5 % of the range, 5 % of the beams without a return, 5 Hz at 0.2 m/s: a short reach,
-  so that walls recede out of it.
+  so that walls recede out of it;
+* ``rplidar-swept``, ``lds-swept`` (session 38): the two rotating lidars as they really
+  measure, one beam after the other over the whole scan period (``sweep``, 1/7 and 1/5 s:
+  turning at 90 degrees per second the LDS-01's last beam is 18 degrees behind its first),
+  each scan with its ``beam_times``. ``map_scans`` takes the skew out
+  (``FrontEndConfig.deskew``); ``--deskew both`` (the default) also maps them without
+  (rows ``..., raw``).
 
 Each with and without odometry (``use_odometry``), for a few seeds (one world and drive
 per seed, the same for every profile). Columns: ATE (position error after expressing the
@@ -97,6 +103,9 @@ PROFILES = {
         range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.05, scan_rate=5.0, speed=0.2,
     ),
 }  # fmt: skip
+# the rotating lidars sweep once per scan (module docstring)
+for _name in ("rplidar", "lds"):
+    PROFILES[f"{_name}-swept"] = {**PROFILES[_name], "sweep": 1.0 / PROFILES[_name]["scan_rate"]}
 
 
 def drive(profile: str, seed: int, n_steps: int):
@@ -129,12 +138,16 @@ def errors(result, scans) -> dict:
     }
 
 
-def run_one(profile: str, seed: int, odometry: bool, n_steps: int) -> dict:
-    from scanclique.mapping import map_scans  # noqa: PLC0415
+def run_one(profile: str, seed: int, odometry: bool, n_steps: int, deskew: bool = True) -> dict:
+    import dataclasses  # noqa: PLC0415
+
+    from scanclique.mapping import MapConfig, map_scans  # noqa: PLC0415
 
     scans = drive(profile, seed, n_steps)
+    cfg = MapConfig()
+    cfg = dataclasses.replace(cfg, front_end=dataclasses.replace(cfg.front_end, deskew=deskew))
     t0 = time.perf_counter()
-    res = map_scans(scans, use_odometry=odometry)
+    res = map_scans(scans, use_odometry=odometry, config=cfg)
     wall = time.perf_counter() - t0
     c = res.counts()
     data_seconds = scans[-1].timestamp - scans[0].timestamp
@@ -142,6 +155,7 @@ def run_one(profile: str, seed: int, odometry: bool, n_steps: int) -> dict:
         "profile": profile,
         "seed": seed,
         "odometry": odometry,
+        "deskew": deskew,
         "scans": len(scans),
         "data_seconds": data_seconds,
         "keyframes": c["keyframes"],
@@ -173,17 +187,21 @@ def table(records: list[dict]) -> list[str]:
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     keys = sorted(
-        {(r["profile"], r["odometry"]) for r in records},
-        key=lambda k: (list(PROFILES).index(k[0]), not k[1]),
+        {(r["profile"], r.get("deskew", True), r["odometry"]) for r in records},
+        key=lambda k: (list(PROFILES).index(k[0]), not k[1], not k[2]),
     )
-    for prof, odo in keys:
-        rs = [r for r in records if r["profile"] == prof and r["odometry"] == odo]
+    for prof, ds, odo in keys:
+        rs = [
+            r
+            for r in records
+            if (r["profile"], r.get("deskew", True), r["odometry"]) == (prof, ds, odo)
+        ]
         scans = sum(r["scans"] for r in rs)
         wall = sum(r["wall"] for r in rs)
         front = sum(r["stages"]["prepare"] + r["stages"]["front_end"] for r in rs)
         back = sum(r["stages"][k] for r in rs for k in ("loops", "pcm", "isam", "optimize"))
         lines.append(
-            f"| {prof} | {'yes' if odo else 'no'} | {scans} "
+            f"| {prof}{'' if ds else ', raw'} | {'yes' if odo else 'no'} | {scans} "
             f"| {np.mean([r['ate_mean'] for r in rs]):.3f} "
             f"| {np.mean([r['ate_max'] for r in rs]):.3f} / {max(r['ate_max'] for r in rs):.3f} "
             f"| {max(r['rel_max_m'] for r in rs):.3f} / {max(r['rel_max_deg'] for r in rs):.2f} "
@@ -303,6 +321,17 @@ def write_results(out_arg, stem: str, result: dict, title: str, about: str, line
     print(f"wrote {out.with_suffix('.json')} and .md in {time.perf_counter() - t0:.0f} s")
 
 
+def _progress(label: str, odo: bool, seed: int, rec: dict) -> None:
+    print(
+        f"{label:8s} odo={'yes' if odo else 'no ':3s} seed {seed}: {rec['scans']} scans"
+        f" ATE mean {rec['ate_mean']:.3f} max {rec['ate_max']:.3f} m, rel max"
+        f" {rec['rel_max_m']:.3f} m {rec['rel_max_deg']:.2f} deg,"
+        f" {rec['placed_by']}, {rec['closures']} closures, {rec['wall']:.1f} s"
+        f" ({rec['scans_per_s']:.0f} scans/s, {rec['realtime']:.2f} s/s)",
+        flush=True,
+    )
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--profiles", default=",".join(PROFILES))
@@ -312,6 +341,12 @@ def main(argv=None) -> None:
     ap.add_argument("--out", default=None, help="path stem (default: benchmarks/results/...)")
     ap.add_argument("--real", default="", help="real logs to degrade instead (fr079-raw,...)")
     ap.add_argument("--variants", default=",".join(VARIANTS), help="with --real")
+    ap.add_argument(
+        "--deskew",
+        choices=("both", "yes", "no"),
+        default="both",
+        help="the swept profiles mapped with the skew taken out, without, or both",
+    )
     a = ap.parse_args(argv)
     odos = {"both": [True, False], "yes": [True], "no": [False]}[a.odometry]
     if a.real:
@@ -327,19 +362,14 @@ def main(argv=None) -> None:
     run_one("carmen", 100, True, 12)  # warm-up: numba kernels
     print(f"warm-up {time.perf_counter() - t0:.1f} s", flush=True)
     records = []
+    deskews = {"both": [True, False], "yes": [True], "no": [False]}[a.deskew]
     for prof in profiles:
-        for odo in odos:
-            for seed in seeds:
-                rec = run_one(prof, seed, odo, a.steps)
-                records.append(rec)
-                print(
-                    f"{prof:8s} odo={'yes' if odo else 'no ':3s} seed {seed}: {rec['scans']} scans"
-                    f" ATE mean {rec['ate_mean']:.3f} max {rec['ate_max']:.3f} m, rel max"
-                    f" {rec['rel_max_m']:.3f} m {rec['rel_max_deg']:.2f} deg,"
-                    f" {rec['placed_by']}, {rec['closures']} closures, {rec['wall']:.1f} s"
-                    f" ({rec['scans_per_s']:.0f} scans/s, {rec['realtime']:.2f} s/s)",
-                    flush=True,
-                )
+        for ds in deskews if "sweep" in PROFILES[prof] else [True]:
+            for odo in odos:
+                for seed in seeds:
+                    rec = run_one(prof, seed, odo, a.steps, ds)
+                    records.append(rec)
+                    _progress(prof + ("" if ds else ", raw"), odo, seed, rec)
     lines = table(records)
     result = {
         "tag": TODAY,
@@ -350,7 +380,8 @@ def main(argv=None) -> None:
     }
     about = (
         f"Simulated office drives ({a.steps} poses 0.25 m apart, seeds {a.seeds}), "
-        "`map_scans` with and without odometry. git "
+        "`map_scans` with and without odometry (the swept profiles also without de-skew: "
+        "`, raw`). git "
         f"{(result['git']['commit'] or '?')[:7]}, {result['seconds']:.0f} s in all."
     )
     print("\n".join(lines))
