@@ -218,10 +218,20 @@ def test_mapping_a_swept_lidar_with_odometry_takes_the_skew_out():
     assert before > 4.0 and after < 1.5, (before, after)
 
 
-def test_without_odometry_the_deskew_velocity_is_the_estimates_over_a_window(monkeypatch):
+def _true_sweep_velocities(scans):
+    return np.array(
+        [a.reference.twist_to(b.reference, 0.2) for a, b in zip(scans, scans[1:], strict=False)]
+    )
+
+
+def test_online_without_odometry_the_deskew_velocity_is_the_estimates_over_a_window(
+    monkeypatch,
+):
     import scanclique.mapping.pipeline as pipeline
+    from scanclique.mapping import MapConfig, OnlineMapper
 
     scans = _swept_drive(0)
+    true = _true_sweep_velocities(scans)
     seen = []
 
     def spy(scan, velocity):
@@ -230,12 +240,28 @@ def test_without_odometry_the_deskew_velocity_is_the_estimates_over_a_window(mon
 
     monkeypatch.setattr(pipeline, "deskew", spy)
 
-    def speed_errors(**front_end):
+    def speed_error(window):
         seen.clear()
-        _mapped(scans, False, **front_end)
+        cfg = MapConfig.online()
+        fe = dataclasses.replace(cfg.front_end, deskew_window=window)
+        with OnlineMapper(use_odometry=False, config=dataclasses.replace(cfg, front_end=fe)) as m:
+            for s in scans:
+                m.add(s)
         assert seen and min(j for j, _ in seen) >= 2  # the first scans: no velocity yet
-        true = [scans[j].reference.twist_to(scans[j + 1].reference, 0.2) for j, _ in seen[:-1]]
-        return np.median([abs(v[0] - t[0]) for (_, v), t in zip(seen, true, strict=False)])
+        return np.median([abs(v[0] - true[j][0]) for j, v in seen if j < len(true)])
 
     # over a single step the matches' errors come back through the de-skew
-    assert speed_errors() < 0.02 and speed_errors(deskew_window=0.01) > 0.1
+    assert speed_error(0.5) < 0.02 and speed_error(0.01) > 0.1
+
+
+def test_without_odometry_map_scans_takes_the_sweeps_velocities_from_a_first_pass():
+    from scanclique.mapping import MapConfig
+    from scanclique.mapping.pipeline import sweep_velocities
+
+    scans = _swept_drive(1)
+    got = sweep_velocities(scans, MapConfig())
+    assert len(got) == len(scans) and all(v is not None for v in got)
+    err = np.abs(np.array(got[:-1]) - _true_sweep_velocities(scans))
+    assert np.median(err[:, 0]) < 0.04 and np.median(err[:, 2]) < 0.05, np.median(err, axis=0)
+    assert "sweeps" in _mapped(scans, False).seconds
+    assert "sweeps" not in _mapped(scans, True).seconds  # with odometry: the odometry's

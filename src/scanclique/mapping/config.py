@@ -168,10 +168,12 @@ class FrontEndConfig:
     deskew :
         Take the motion's skew out of a scan whose beams carry their times
         (:attr:`~scanclique.scan.Scan.beam_times`: a rotating lidar read from a bag)
-        before it is matched (:func:`~scanclique.scan.deskew`), at the velocity of the
-        step before it: the odometry's when it is used, else the estimate's (constant
-        velocity). The first scan is taken as standing still. Scans without beam times
-        (CARMEN logs) are matched as they are whatever this says.
+        before it is matched (:func:`~scanclique.scan.deskew`), at the velocity of its
+        sweep: ``map_scans`` takes the odometry's to the next scan, or without odometry
+        a first pass's (:func:`~scanclique.mapping.pipeline.sweep_velocities`, about 70 %
+        more time); the online mapper the odometry's from the scan before, or the
+        estimate's over ``deskew_window``. Scans without beam times (CARMEN logs) are
+        matched as they are whatever this says.
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most
