@@ -59,7 +59,9 @@ def test_twist_to_is_the_logarithm_of_the_sweep_motion(seed):
 def test_sweep_velocity_needs_both_poses_and_a_short_gap():
     a, b = Pose2(0, 0, 0), Pose2(0.1, 0, 0.05)
     assert sweep_velocity(a, b, 0.0, 0.1) == pytest.approx(a.twist_to(b, 0.1))
-    for args in ((None, b, 0.0, 0.1), (a, b, None, 0.1), (a, b, 0.1, 0.1), (a, b, 0.0, 2.0)):
+    jumps = ((a, Pose2(9.0, 0, 0), 0.0, 0.1), (a, Pose2(0, 0, 3.0), 0.0, 0.1))  # 90 m/s, 30 rad/s
+    gaps = ((None, b, 0.0, 0.1), (a, b, None, 0.1), (a, b, 0.1, 0.1), (a, b, 0.0, 2.0))
+    for args in gaps + jumps:
         assert sweep_velocity(*args) is None
 
 

@@ -19,7 +19,7 @@ from .geometry import Pose2
 
 __all__ = [
     "Scan", "beam_angles", "deskew", "sweep_velocity", "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE",
-    "MAX_SWEEP",
+    "MAX_SWEEP", "MAX_SWEEP_SPEED", "MAX_SWEEP_TURN",
 ]  # fmt: skip
 
 #: a scan's odometry or reference pose farther than this from its frame's origin (metres,
@@ -42,6 +42,12 @@ MAX_ANGLE_SPAN = 4.0 * math.pi
 #: scanner sweeps in well under a second (a 5 Hz lidar in 0.2 s); more is a time in other
 #: units (milliseconds for seconds) or a corrupt field
 MAX_SWEEP = 1.0
+
+#: the fastest motion :func:`sweep_velocity` takes for a sweep (m/s, rad/s): a car at
+#: 180 km/h, two turns a second; beyond is an odometry jump (a reset, a glitch), and
+#: de-skewing by it would bend the scan by metres
+MAX_SWEEP_SPEED = 50.0
+MAX_SWEEP_TURN = 4.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -208,12 +214,15 @@ def sweep_velocity(
     """The velocity :func:`deskew` takes for a scan, from two poses of its sensor (wheel
     odometry, or the mapper's estimate) at times ``t_a < t_b`` (s): the constant velocity
     carrying ``a`` to ``b`` (:meth:`Pose2.twist_to`). None when a pose or a time is
-    missing, or the times are not increasing or are more than :data:`MAX_SWEEP` apart (a
-    gap in the log says nothing of the motion during the sweep).
+    missing, the times are not increasing or are more than :data:`MAX_SWEEP` apart (a gap
+    in the log says nothing of the motion during the sweep), or the velocity is beyond
+    :data:`MAX_SWEEP_SPEED` or :data:`MAX_SWEEP_TURN` (an odometry jump, not a motion).
 
     >>> sweep_velocity(Pose2(0, 0, 0), Pose2(0.1, 0, 0), 0.0, 0.2)
     (0.5, 0.0, 0.0)
     >>> sweep_velocity(Pose2(0, 0, 0), Pose2(0.1, 0, 0), 0.0, 3.0) is None
+    True
+    >>> sweep_velocity(Pose2(0, 0, 0), Pose2(20.0, 0, 0), 0.0, 0.2) is None   # 100 m/s
     True
     """
     if a is None or b is None or t_a is None or t_b is None:
@@ -221,7 +230,10 @@ def sweep_velocity(
     dt = t_b - t_a
     if not 0.0 < dt <= MAX_SWEEP:
         return None
-    return a.twist_to(b, dt)
+    v = a.twist_to(b, dt)
+    if math.hypot(v[0], v[1]) > MAX_SWEEP_SPEED or abs(v[2]) > MAX_SWEEP_TURN:
+        return None
+    return v
 
 
 def _sweep_poses(times: np.ndarray, velocity) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1237,6 +1237,7 @@ def map_scans(
         log.info("the odometry never moves backwards: a match it rejects is tried reversed")
     velocities, t = None, time.perf_counter()
     if not use_odometry and cfg.front_end.deskew and any(s.beam_times is not None for s in scans):
+        log.info("the sweeps' velocities: a first pass of the front end (no odometry)")
         velocities = sweep_velocities(scans, cfg)  # (before the mapper: one at a time)
     m = _Mapper(bool(use_odometry), blind, cfg, workers)
     if velocities is not None:
