@@ -267,3 +267,28 @@ def test_without_odometry_map_scans_takes_the_sweeps_velocities_from_a_first_pas
     assert np.median(err[:, 0]) < 0.04 and np.median(err[:, 2]) < 0.05, np.median(err, axis=0)
     assert "sweeps" in _mapped(scans, False).seconds
     assert "sweeps" not in _mapped(scans, True).seconds  # with odometry: the odometry's
+
+
+def test_a_swept_lidars_bag_is_mapped_deskewed(tmp_path):
+    """End to end as a user runs it: a ROS 2 bag of a 5 Hz 360-degree lidar with its
+    time_increment and odometry on tf, read and mapped."""
+    pytest.importorskip("rosbags")
+    from test_rosbag import _ros2_msgs, _write_bag2
+
+    from scanclique.io.rosbag import read_bag
+
+    scans = [dataclasses.replace(s, timestamp=s.timestamp + 100.0) for s in _swept_drive(3)]
+    laser, _, tf = _ros2_msgs()
+    rows = []
+    for k, s in enumerate(scans):
+        t_ns = int(round(s.timestamp * 1e9))
+        msg = dataclasses.replace(laser(s, k), time_increment=0.2 / 360)
+        rows += [("/tf", t_ns, tf(s.timestamp, s.odometry, k)), ("/scan", t_ns + 1, msg)]
+    _write_bag2(tmp_path / "swept", rows)
+    got = read_bag(tmp_path / "swept", topic="/scan")
+    assert len(got) == len(scans) and all(g.beam_times is not None for g in got)
+    # a bag has no truth: the simulator's, to score
+    got = [dataclasses.replace(g, reference=s.reference) for g, s in zip(got, scans, strict=True)]
+    before = _worst_turn_between_scans(_mapped(got, True, deskew=False), got)
+    after = _worst_turn_between_scans(_mapped(got, True), got)
+    assert before > 4.0 and after < 1.5, (before, after)
