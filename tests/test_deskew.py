@@ -215,9 +215,11 @@ def _worst_turn_between_scans(result, scans) -> float:
 
 def test_mapping_a_swept_lidar_with_odometry_takes_the_skew_out():
     scans = _swept_drive(3)  # the LDS-01 at 5 Hz turns up to 18 degrees in a sweep
-    before = _worst_turn_between_scans(_mapped(scans, True, deskew=False), scans)
-    after = _worst_turn_between_scans(_mapped(scans, True), scans)
+    raw, fixed = _mapped(scans, True, deskew=False), _mapped(scans, True)
+    before = _worst_turn_between_scans(raw, scans)
+    after = _worst_turn_between_scans(fixed, scans)
     assert before > 4.0 and after < 1.5, (before, after)
+    assert fixed.counts()["deskewed"] == len(scans) and raw.deskewed == 0
 
 
 def _true_sweep_velocities(scans):

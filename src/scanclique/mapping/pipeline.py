@@ -189,6 +189,9 @@ class MapResult:
         mapper warns when :attr:`OdometryScale.scaled`); when :func:`map_scans` set the
         scans' odometry aside before mapping (``used_odometry`` False), the sample that
         made it do so; None otherwise.
+    deskewed : int
+        Scans matched with their sweep's skew taken out (``FrontEndConfig.deskew``: scans
+        with beam times whose velocity was known); 0 for a log without beam times.
     """
 
     poses: tuple
@@ -204,6 +207,7 @@ class MapResult:
     covariances: tuple | None = field(repr=False, default=None)
     odometry_check: OdometryCheck | None = field(repr=False, default=None)
     odometry_scale: OdometryScale | None = field(repr=False, default=None)
+    deskewed: int = 0
 
     @property
     def accepted_closures(self) -> tuple:
@@ -226,6 +230,7 @@ class MapResult:
             "local_matches": sum(1 for c in self.loop_closures if c.local),
             "local_accepted": sum(1 for c in self.loop_closures if c.local and c.accepted),
             "edges": len(self.edges),
+            "deskewed": self.deskewed,
         }
 
 
@@ -343,6 +348,7 @@ class _Mapper:
         self.ahead: Sequence[Scan] | None = None  # the whole log, when given at once (run)
         # without odometry, each scan's sweep velocity from a first pass (map_scans)
         self.velocities: list | None = None
+        self.deskewed = 0  # scans prepared de-skewed
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
         self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
@@ -390,6 +396,7 @@ class _Mapper:
             v = self.sweep_velocity(j)
             if v is not None:
                 scan = deskew(scan, v)
+                self.deskewed += 1
         p = prepare_scan(scan, self.cfg.match)
         self.seconds["prepare"] += time.perf_counter() - t
         return p
@@ -1136,6 +1143,7 @@ class _Mapper:
             seconds=seconds,
             config=self.cfg,
             covariances=None if covs is None else tuple(_ro(c) for c in covs),
+            deskewed=self.deskewed,
         )
 
 

@@ -155,6 +155,8 @@ class MapRun:
             ("loop closures accepted", str(c["loop_closures_accepted"]), ""),
             ("odometry used", "yes" if self.result.used_odometry else "no", ""),
         ]
+        if c["deskewed"]:
+            rows.append(("de-skewed (a rotating lidar's sweep)", str(c["deskewed"]), "scans"))
         if self.odometry_check and self.odometry_check["steps"]:
             rows.append(
                 ("odometry's turn from the scans (median)",
