@@ -160,6 +160,26 @@ def test_npz_keeps_beam_times(tmp_path):
         read_scans_npz(tmp_path / "bad.npz")
 
 
+def test_the_scan_text_format_keeps_beam_times(tmp_path):
+    from scanclique.io.text import read_scans_text, write_scans_text
+
+    a = Scan([1.0, 2.0], [0.0, 0.1], timestamp=1.0, beam_times=[0.0, 0.05])
+    b = Scan([3.0, 4.0], [0.0, 0.1], timestamp=2.0)
+    write_scans_text(tmp_path / "s.scan", [a, b])
+    back = read_scans_text(tmp_path / "s.scan")
+    assert back[0].beam_times.tolist() == [0.0, 0.05] and back[1].beam_times is None
+    head = "# scanclique scans v1\nSCAN 1.0 0.0 0.1 0.0 80.0 2 1.0 2.0 "
+    for tail, msg in (
+        ("TIMES 0.0 0.1 TIMES 0.0 0.1", "TIMES given twice"),
+        ("TIMES 0.0", "TIMES expects 2 values"),
+        ("TIMES 0.0 5.0", "more than 1 s"),
+        ("TIMES 0.0 x", "time"),
+    ):
+        (tmp_path / "bad.scan").write_text(head + tail + "\n")
+        with pytest.raises(ParseError, match=msg):
+            read_scans_text(tmp_path / "bad.scan")
+
+
 def test_a_place_keeps_its_beam_times(tmp_path):
     from scanclique.places import PlaceDB
 

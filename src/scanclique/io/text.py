@@ -38,12 +38,15 @@ Optional sections follow the ranges, each at most once, in any order:
     Explicit beam angles, for scans whose angles are not evenly spaced; when present they
     replace ``angle_min + i * angle_increment``. :func:`write_scans_text` writes this
     section only when the evenly spaced form would not reproduce the angles exactly.
+``TIMES s_1 ... s_n``
+    Seconds after ``t`` at which each beam was measured (a rotating lidar's sweep:
+    :attr:`Scan.beam_times <scanclique.scan.Scan.beam_times>`).
 
 :func:`write_scans_text` writes floats with ``repr`` (shortest round-tripping form), so
-reading back what it wrote gives the same ranges, angles, limits, timestamps and poses bit
-for bit (NaN payloads and the sign of a NaN excepted). The ``source`` of a scan read back is
-``"<file name>:<line>"``, not the original one. A path ending in ``.gz`` is written gzip
-compressed.
+reading back what it wrote gives the same ranges, angles, limits, timestamps, poses and
+beam times bit for bit (NaN payloads and the sign of a NaN excepted). The ``source`` of a
+scan read back is ``"<file name>:<line>"``, not the original one. A path ending in ``.gz``
+is written gzip compressed.
 
 Examples
 --------
@@ -655,7 +658,7 @@ def parse_count(token: str, field: str, limit: int, err) -> int:
 # ---------------------------------------------------------------------------------------
 # The scan text format
 # ---------------------------------------------------------------------------------------
-_SECTIONS = ("ODOM", "REF", "ANGLES")
+_SECTIONS = ("ODOM", "REF", "ANGLES", "TIMES")
 _HEADER = (
     "# scanclique scans v1\n"
     "# SCAN t angle_min angle_increment range_min range_max n r_1 .. r_n"
@@ -705,6 +708,9 @@ def format_scan_line(scan: Scan) -> str:
     if not exact:
         parts.append("ANGLES")
         parts.extend(map(repr, scan.angles.tolist()))
+    if scan.beam_times is not None:
+        parts.append("TIMES")
+        parts.extend(map(repr, scan.beam_times.tolist()))
     return " ".join(parts)
 
 
@@ -751,12 +757,12 @@ def _parse_scan_line(tokens: list[str], max_beams: int, err, source: str) -> Sca
     if len(tokens) < 7 + n:
         raise err(None, f"SCAN expects {n} ranges, found {len(tokens) - 7}")
     ranges = parse_float_fields(tokens, 7, 7 + n, lambda k: f"range[{k - 7}]", err)
-    odometry = reference = angles = None
+    odometry = reference = angles = times = None
     i = 7 + n
     while i < len(tokens):
         key = tokens[i]
         if key not in _SECTIONS:
-            raise err(None, f"expected ODOM, REF or ANGLES after the ranges, found {key!r}")
+            raise err(None, f"expected ODOM, REF, ANGLES or TIMES after the ranges, found {key!r}")
         if (key == "ODOM" and odometry is not None) or (key == "REF" and reference is not None):
             raise err(key, f"{key} given twice")
         if key == "ODOM":
@@ -764,20 +770,25 @@ def _parse_scan_line(tokens: list[str], max_beams: int, err, source: str) -> Sca
         elif key == "REF":
             reference, i = _pose_section(tokens, i, "REF", err)
         else:
-            if angles is not None:
-                raise err(key, "ANGLES given twice")
+            if (angles if key == "ANGLES" else times) is not None:
+                raise err(key, f"{key} given twice")
             if i + 1 + n > len(tokens):
-                raise err("ANGLES", f"ANGLES expects {n} values, found {len(tokens) - i - 1}")
-            angles = parse_float_fields(
-                tokens, i + 1, i + 1 + n, lambda k, i=i: f"angle[{k - i - 1}]", err
+                raise err(key, f"{key} expects {n} values, found {len(tokens) - i - 1}")
+            one = "angle" if key == "ANGLES" else "time"
+            values = parse_float_fields(
+                tokens, i + 1, i + 1 + n, lambda k, i=i, one=one: f"{one}[{k - i - 1}]", err
             )
+            if key == "ANGLES":
+                angles = values
+            else:
+                times = values
             i += 1 + n
     if angles is None:
         if not (math.isfinite(a0) and math.isfinite(inc)):
             raise err("angle_min", f"SCAN expects finite angles, found {a0}, {inc}")
         angles = beam_angles(n, a0, inc)
     try:
-        return Scan(ranges, angles, rmin, rmax, t, odometry, reference, source)
+        return Scan(ranges, angles, rmin, rmax, t, odometry, reference, source, times)
     except ScanError as exc:  # the error names file and line: not the scan's source again
         raise err(None, str(exc).removeprefix(f"{source}: ")) from None
 
