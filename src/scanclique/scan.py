@@ -18,8 +18,8 @@ from .errors import ScanError
 from .geometry import Pose2
 
 __all__ = [
-    "Scan", "beam_angles", "deskew", "sweep_velocity", "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE",
-    "MAX_SWEEP", "MAX_SWEEP_SPEED", "MAX_SWEEP_TURN",
+    "Scan", "beam_angles", "deskew", "sweep_velocity", "sweep_velocity_of", "MAX_ANGLE_SPAN",
+    "MAX_POSE_COORDINATE", "MAX_SWEEP", "MAX_SWEEP_SPEED", "MAX_SWEEP_TURN",
 ]  # fmt: skip
 
 #: a scan's odometry or reference pose farther than this from its frame's origin (metres,
@@ -233,6 +233,20 @@ def sweep_velocity(
     v = a.twist_to(b, dt)
     if math.hypot(v[0], v[1]) > MAX_SWEEP_SPEED or abs(v[2]) > MAX_SWEEP_TURN:
         return None
+    return v
+
+
+def sweep_velocity_of(scans, k: int, pose) -> tuple[float, float, float] | None:
+    """The velocity of scan ``k``'s sweep along a trajectory of its scans: from
+    ``pose(k)`` to ``pose(k + 1)`` (the sweep's own motion), else from ``pose(k - 1)``
+    (the last scan, or one beside a scan without a pose); ``pose(i)`` gives scan ``i``'s
+    sensor pose (odometry, map) or None. :func:`sweep_velocity` of the two, at the scans'
+    timestamps."""
+    v = None
+    if k + 1 < len(scans):
+        v = sweep_velocity(pose(k), pose(k + 1), scans[k].timestamp, scans[k + 1].timestamp)
+    if v is None and k > 0:
+        v = sweep_velocity(pose(k - 1), pose(k), scans[k - 1].timestamp, scans[k].timestamp)
     return v
 
 

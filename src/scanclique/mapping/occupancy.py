@@ -28,7 +28,7 @@ import numpy as np
 from ..config import require_config
 from ..errors import ArgumentError, ConfigError
 from ..geometry import Pose2
-from ..scan import Scan, deskew, sweep_velocity
+from ..scan import Scan, deskew, sweep_velocity_of
 from .config import OccupancyConfig
 
 __all__ = ["MAX_GRID_CELLS", "OccupancyGrid", "occupancy_grid", "probabilities"]
@@ -125,11 +125,7 @@ def _deskewed(scans: Sequence[Scan], poses: Sequence[Pose2 | None], k: int) -> S
     s = scans[k]
     if s.beam_times is None:
         return s
-    v = None
-    if k + 1 < len(scans):
-        v = sweep_velocity(poses[k], poses[k + 1], s.timestamp, scans[k + 1].timestamp)
-    if v is None and k > 0:
-        v = sweep_velocity(poses[k - 1], poses[k], scans[k - 1].timestamp, s.timestamp)
+    v = sweep_velocity_of(scans, k, poses.__getitem__)
     return s if v is None else deskew(s, v)
 
 

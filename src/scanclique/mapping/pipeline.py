@@ -35,7 +35,7 @@ from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
-from ..scan import Scan, deskew, sweep_velocity
+from ..scan import Scan, deskew, sweep_velocity, sweep_velocity_of
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
 from . import loops as _loops
@@ -411,13 +411,8 @@ class _Mapper:
         if self.velocities is not None and not self.odo:
             return self.velocities[j]
         if self.odo and s.odometry is not None:
-            nxt = self.ahead[j + 1] if self.ahead is not None and j + 1 < len(self.ahead) else None
-            if nxt is not None and nxt.odometry is not None:
-                return sweep_velocity(s.odometry, nxt.odometry, s.timestamp, nxt.timestamp)
-            if j > 0 and scans[j - 1].odometry is not None:
-                prev = scans[j - 1]
-                return sweep_velocity(prev.odometry, s.odometry, prev.timestamp, s.timestamp)
-            return None
+            log_ = self.ahead if self.ahead is not None else scans  # online: none ahead
+            return sweep_velocity_of(log_, j, lambda i: log_[i].odometry)
         if j < 2 or scans[j - 1].timestamp is None:
             return None
         prev = scans[j - 1]
@@ -1279,15 +1274,7 @@ def sweep_velocities(scans: Sequence[Scan], config: MapConfig) -> list:
             m.add_scan(s)
     finally:
         m.verifier.close()
-    out = []
-    for j, s in enumerate(scans):
-        v = None
-        if j + 1 < len(scans):
-            v = sweep_velocity(m.chain[j], m.chain[j + 1], s.timestamp, scans[j + 1].timestamp)
-        if v is None and j > 0:
-            v = sweep_velocity(m.chain[j - 1], m.chain[j], scans[j - 1].timestamp, s.timestamp)
-        out.append(v)
-    return out
+    return [sweep_velocity_of(scans, j, m.chain.__getitem__) for j in range(len(scans))]
 
 
 #: :func:`map_scans` warns when more than this fraction of a log's scans (10 or more) were
