@@ -121,6 +121,8 @@ def test_deskew_of_a_scan_without_times_or_motion_is_the_scan():
     assert deskew(s, (0.0, 0.0, 0.0)) is s
     plain = Scan([1.0, 2.0], [0.0, 0.1])
     assert deskew(plain, (1.0, 0.0, 1.0)) is plain
+    empty = Scan([], [], beam_times=[])
+    assert deskew(empty, (1.0, 0.0, 1.0)) is empty
     with pytest.raises(ScanError, match="three finite"):
         deskew(s, (np.nan, 0.0, 0.0))
 

@@ -291,7 +291,7 @@ def deskew(scan: Scan, velocity) -> Scan:
     v = np.asarray(velocity, dtype=float).reshape(-1)
     if v.size != 3 or not np.all(np.isfinite(v)):
         raise ScanError(f"{scan.source or 'deskew'}: velocity must be three finite numbers")
-    if scan.beam_times is None or not np.any(v):
+    if scan.beam_times is None or not np.any(v) or scan.n_beams == 0:
         return scan
     th, tx, ty = _sweep_poses(scan.beam_times, v)
     a = scan.angles + th
