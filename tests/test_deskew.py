@@ -160,6 +160,10 @@ def test_npz_keeps_beam_times(tmp_path):
              beam_times=np.array([[0.0, np.nan]]))  # fmt: skip
     with pytest.raises(ParseError, match="not all"):
         read_scans_npz(tmp_path / "bad.npz")
+    np.savez(tmp_path / "int.npz", ranges=np.ones((1, 2)), angles=np.array([[0.0, 0.1]]),
+             beam_times=np.array([[0, 1]]))  # fmt: skip
+    with pytest.raises(ParseError, match="floats like ranges"):
+        read_scans_npz(tmp_path / "int.npz")
 
 
 def test_the_scan_text_format_keeps_beam_times(tmp_path):
@@ -203,7 +207,9 @@ def test_a_bag_gives_each_beam_its_time(tmp_path, caplog):
     full = Scan(np.linspace(1.0, 2.0, 360), np.arange(360) * inc, range_max=8.0, timestamp=1.0)
     fine = dataclasses.replace(laser(full, 0), time_increment=1e-4)
     bogus = dataclasses.replace(laser(full, 1), time_increment=0.01)  # a 3.6 s sweep
-    _write_bag2(tmp_path / "b", [("/scan", 1_000_000_000, fine), ("/scan", 1_100_000_000, bogus)])
+    nan = dataclasses.replace(laser(full, 2), time_increment=float("nan"))
+    rows = [("/scan", 1_000_000_000, fine), ("/scan", 1_100_000_000, bogus)]
+    _write_bag2(tmp_path / "b", [*rows, ("/scan", 1_200_000_000, nan)])
     with caplog.at_level(logging.WARNING):
         got = read_bag(tmp_path / "b", topic="/scan")
     # a full circle from 0 is rolled to start at -pi: each beam keeps its own time
@@ -211,6 +217,7 @@ def test_a_bag_gives_each_beam_its_time(tmp_path, caplog):
     np.testing.assert_allclose(got[0].beam_times, 1e-4 * idx, atol=1e-9)
     np.testing.assert_allclose(got[0].ranges, np.float32(full.ranges)[idx])
     assert got[1].beam_times is None and "time_increment" in caplog.text
+    assert got[2].beam_times is None and caplog.text.count("time_increment") == 1
 
 
 # -- the mapper ----------------------------------------------------------------------------
