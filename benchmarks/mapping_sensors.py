@@ -26,7 +26,9 @@ steps, resampled at the scanner's rate by ``simulate_sensor_drive``: the robot r
   turning at 90 degrees per second the LDS-01's last beam is 18 degrees behind its first),
   each scan with its ``beam_times``. ``map_scans`` takes the skew out
   (``FrontEndConfig.deskew``); ``--deskew both`` (the default) also maps them without
-  (rows ``..., raw``).
+  (rows ``..., raw``). ``--times negated`` (``reversed``, ``shifted``) publishes their
+  beam times as drivers that store or stamp the sweep otherwise do, which the mapper must
+  read back (``scanclique.mapping.sweep``; rows ``(published ..., read ...)``).
 
 Each with and without odometry (``use_odometry``), for a few seeds (one world and drive
 per seed, the same for every profile). Columns: ATE (position error after expressing the
@@ -108,14 +110,31 @@ for _name in ("rplidar", "lds"):
     PROFILES[f"{_name}-swept"] = {**PROFILES[_name], "sweep": 1.0 / PROFILES[_name]["scan_rate"]}
 
 
-def drive(profile: str, seed: int, n_steps: int):
-    """The scans of drive ``seed`` (``n_steps`` poses 0.25 m apart) seen by ``profile``."""
+#: how the swept profiles' beam times may be published (``--times``): as measured (REP
+#: 117), or as drivers that store or stamp a sweep otherwise give them, which
+#: ``scanclique.mapping.sweep.sweep_timing`` must read back (``scan.TIMINGS``)
+PUBLISHED = {
+    "given": lambda t: t,
+    "negated": lambda t: -t,  # stored against the order measured, stamped at the end
+    "reversed": lambda t: t.max() - t,  # stored against the order measured
+    "shifted": lambda t: t + t.max(),  # stamped at the end
+}
+
+
+def drive(profile: str, seed: int, n_steps: int, times: str = "given"):
+    """The scans of drive ``seed`` (``n_steps`` poses 0.25 m apart) seen by ``profile``,
+    a swept profile's beam times published as ``times`` says (:data:`PUBLISHED`)."""
+    import dataclasses  # noqa: PLC0415
+
     from scanclique.sim import office_world, simulate_sensor_drive  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
     world = office_world(rng)
     kw = dict(PROFILES[profile])
-    return simulate_sensor_drive(rng, world, n_steps, 0.25, **kw)
+    scans = simulate_sensor_drive(rng, world, n_steps, 0.25, **kw)
+    if times == "given" or "sweep" not in kw:
+        return scans
+    return [dataclasses.replace(s, beam_times=PUBLISHED[times](s.beam_times)) for s in scans]
 
 
 def errors(result, scans) -> dict:
@@ -138,12 +157,14 @@ def errors(result, scans) -> dict:
     }
 
 
-def run_one(profile: str, seed: int, odometry: bool, n_steps: int, deskew: bool = True) -> dict:
+def run_one(
+    profile: str, seed: int, odometry: bool, n_steps: int, deskew: bool = True, times="given"
+) -> dict:
     import dataclasses  # noqa: PLC0415
 
     from scanclique.mapping import MapConfig, map_scans  # noqa: PLC0415
 
-    scans = drive(profile, seed, n_steps)
+    scans = drive(profile, seed, n_steps, times)
     cfg = MapConfig()
     cfg = dataclasses.replace(cfg, front_end=dataclasses.replace(cfg.front_end, deskew=deskew))
     t0 = time.perf_counter()
@@ -156,6 +177,8 @@ def run_one(profile: str, seed: int, odometry: bool, n_steps: int, deskew: bool 
         "seed": seed,
         "odometry": odometry,
         "deskew": deskew,
+        "times": times,
+        "sweep_timing": res.sweep_timing,
         "scans": len(scans),
         "data_seconds": data_seconds,
         "keyframes": c["keyframes"],
@@ -201,7 +224,8 @@ def table(records: list[dict]) -> list[str]:
         front = sum(r["stages"]["prepare"] + r["stages"]["front_end"] for r in rs)
         back = sum(r["stages"][k] for r in rs for k in ("loops", "pcm", "isam", "optimize"))
         lines.append(
-            f"| {prof}{'' if ds else ', raw'} | {'yes' if odo else 'no'} | {scans} "
+            f"| {prof}{'' if ds else ', raw'}{_published(rs)} | {'yes' if odo else 'no'} "
+            f"| {scans} "
             f"| {np.mean([r['ate_mean'] for r in rs]):.3f} "
             f"| {np.mean([r['ate_max'] for r in rs]):.3f} / {max(r['ate_max'] for r in rs):.3f} "
             f"| {max(r['rel_max_m'] for r in rs):.3f} / {max(r['rel_max_deg'] for r in rs):.2f} "
@@ -210,6 +234,16 @@ def table(records: list[dict]) -> list[str]:
             f"| {1000 * front / scans:.1f} | {1000 * back / sum(r['keyframes'] for r in rs):.1f} |"
         )
     return lines
+
+
+def _published(recs) -> str:
+    """``" (published negated, read negated)"``: how the drives' beam times were given
+    and read, when not as measured."""
+    times = recs[0].get("times", "given")
+    if times == "given":
+        return ""
+    read = "/".join(sorted({r.get("sweep_timing") or "-" for r in recs}))
+    return f" (published {times}, read {read})"
 
 
 #: degradations of a real log's scans (module docstring)
@@ -327,7 +361,8 @@ def _progress(label: str, odo: bool, seed: int, rec: dict) -> None:
         f" ATE mean {rec['ate_mean']:.3f} max {rec['ate_max']:.3f} m, rel max"
         f" {rec['rel_max_m']:.3f} m {rec['rel_max_deg']:.2f} deg,"
         f" {rec['placed_by']}, {rec['closures']} closures, {rec['wall']:.1f} s"
-        f" ({rec['scans_per_s']:.0f} scans/s, {rec['realtime']:.2f} s/s)",
+        f" ({rec['scans_per_s']:.0f} scans/s, {rec['realtime']:.2f} s/s)"
+        + (f", beam times read {rec['sweep_timing']!r}" if rec.get("sweep_timing") else ""),
         flush=True,
     )
 
@@ -346,6 +381,12 @@ def main(argv=None) -> None:
         choices=("both", "yes", "no"),
         default="both",
         help="the swept profiles mapped with the skew taken out, without, or both",
+    )
+    ap.add_argument(
+        "--times",
+        choices=tuple(PUBLISHED),
+        default="given",
+        help="the swept profiles' beam times published as measured or as other drivers do",
     )
     a = ap.parse_args(argv)
     odos = {"both": [True, False], "yes": [True], "no": [False]}[a.odometry]
@@ -367,7 +408,7 @@ def main(argv=None) -> None:
         for ds in deskews if "sweep" in PROFILES[prof] else [True]:
             for odo in odos:
                 for seed in seeds:
-                    rec = run_one(prof, seed, odo, a.steps, ds)
+                    rec = run_one(prof, seed, odo, a.steps, ds, a.times)
                     records.append(rec)
                     _progress(prof + ("" if ds else ", raw"), odo, seed, rec)
     lines = table(records)

@@ -297,7 +297,32 @@ def test_without_odometry_map_scans_takes_the_sweeps_velocities_from_a_first_pas
     err = np.abs(np.array(got[:-1]) - _true_sweep_velocities(scans))
     assert np.median(err[:, 0]) < 0.04 and np.median(err[:, 2]) < 0.05, np.median(err, axis=0)
     assert "sweeps" in _mapped(scans, False).seconds
-    assert "sweeps" not in _mapped(scans, True).seconds  # with odometry: the odometry's
+    assert _mapped(scans, False).sweep_timing == "given"
+
+
+@pytest.mark.parametrize(
+    ("timing", "published"),
+    [
+        ("given", lambda t: t),
+        ("negated", lambda t: -t),  # stored against their order, stamped at the end
+        ("reversed", lambda t: t.max() - t),  # stored against their order
+        ("shifted", lambda t: t + t.max()),  # stamped at the end
+        ("none", lambda t: 0.25 * np.sin(40 * t)),  # nonsense
+    ],
+)
+def test_a_drivers_beam_times_are_read_as_the_log_agrees(timing, published):
+    from scanclique.mapping.sweep import sweep_timing
+
+    scans = _swept_drive(3)
+    given = [dataclasses.replace(s, beam_times=published(s.beam_times)) for s in scans]
+    found, scores, pairs = sweep_timing(given, lambda i: given[i].odometry)
+    assert found == timing and pairs >= 20, scores
+    if timing in ("negated", "none"):  # mapped as if given right, or not de-skewed
+        result = _mapped(given, True)
+        assert result.sweep_timing == timing
+        assert (result.deskewed == 0) == (timing == "none")
+        if timing == "negated":
+            assert _worst_turn_between_scans(result, given) < 1.5
 
 
 def test_a_swept_lidars_bag_is_mapped_deskewed(tmp_path):
@@ -323,3 +348,10 @@ def test_a_swept_lidars_bag_is_mapped_deskewed(tmp_path):
     before = _worst_turn_between_scans(_mapped(got, True, deskew=False), got)
     after = _worst_turn_between_scans(_mapped(got, True), got)
     assert before > 4.0 and after < 1.5, (before, after)
+    # the command's run: its table says so, and the map is written
+    from scanclique.mapping.run import run_map
+
+    run = run_map(tmp_path / "swept", tmp_path / "out", topic="/scan", plot=False)
+    rows = {m: v for m, v, _u in run.rows()}
+    assert rows["de-skewed (a rotating lidar's sweep)"] == str(len(scans))
+    assert rows["beam times read"] == "given" and (tmp_path / "out" / "map.pgm").is_file()

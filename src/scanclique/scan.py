@@ -9,7 +9,7 @@ altered, and never become features.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -18,8 +18,9 @@ from .errors import ScanError
 from .geometry import Pose2
 
 __all__ = [
-    "Scan", "beam_angles", "deskew", "sweep_velocity", "sweep_velocity_of", "MAX_ANGLE_SPAN",
-    "MAX_POSE_COORDINATE", "MAX_SWEEP", "MAX_SWEEP_SPEED", "MAX_SWEEP_TURN",
+    "Scan", "beam_angles", "deskew", "retime", "sweep_velocity", "sweep_velocity_of",
+    "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE", "MAX_SWEEP", "MAX_SWEEP_SPEED", "MAX_SWEEP_TURN",
+    "TIMINGS",
 ]  # fmt: skip
 
 #: a scan's odometry or reference pose farther than this from its frame's origin (metres,
@@ -248,6 +249,37 @@ def sweep_velocity_of(scans, k: int, pose) -> tuple[float, float, float] | None:
     if v is None and k > 0:
         v = sweep_velocity(pose(k - 1), pose(k), scans[k - 1].timestamp, scans[k].timestamp)
     return v
+
+
+#: how a driver may have given its beams' times (:func:`retime`): ``"given"`` as REP 117
+#: says (the stamp is the first beam's, ``time_increment`` in the order of the ranges);
+#: ``"negated"`` the other way round from the stamp (the beams stored against the order
+#: they were measured in and the scan stamped at its end, as some 360 degree lidar
+#: drivers do); ``"reversed"`` stored against their order, stamped at the start;
+#: ``"shifted"`` in order, stamped at the end; ``"none"``: not to be trusted
+TIMINGS = ("given", "negated", "reversed", "shifted", "none")
+
+
+def retime(scan: Scan, timing: str) -> Scan:
+    """The scan with its beam times read as ``timing`` (:data:`TIMINGS`) says the driver
+    gave them: ``t`` (given), ``-t`` (negated), ``T - t`` (reversed) or ``t - T``
+    (shifted), ``T`` the sweep's span; ``"none"`` drops them. A scan without beam times is
+    returned as it is.
+
+    >>> s = Scan([1.0, 1.0, 1.0], [0.0, 0.1, 0.2], beam_times=[0.0, 0.05, 0.1])
+    >>> [retime(s, t).beam_times.tolist() for t in ("negated", "reversed", "shifted")]
+    [[-0.0, -0.05, -0.1], [0.1, 0.05, 0.0], [-0.1, -0.05, 0.0]]
+    """
+    if timing not in TIMINGS:
+        raise ScanError(f"retime: timing must be one of {', '.join(TIMINGS)}, got {timing!r}")
+    t = scan.beam_times
+    if t is None or timing == "given":
+        return scan
+    if timing == "none":
+        return replace(scan, beam_times=None)
+    span = float(t.max() - t.min()) if t.size else 0.0
+    new = {"negated": -t, "reversed": span - t, "shifted": t - span}[timing]
+    return replace(scan, beam_times=new)
 
 
 def _sweep_poses(times: np.ndarray, velocity) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -172,8 +172,11 @@ class FrontEndConfig:
         sweep: ``map_scans`` takes the odometry's to the next scan, or without odometry
         a first pass's (:func:`~scanclique.mapping.pipeline.sweep_velocities`, about 70 %
         more time); the online mapper the odometry's from the scan before, or the
-        estimate's over ``deskew_window``. Scans without beam times (CARMEN logs) are
-        matched as they are whatever this says.
+        estimate's over ``deskew_window``. ``map_scans`` first checks how the driver gave
+        the times (:func:`~scanclique.mapping.sweep.sweep_timing`: in the order of the
+        ranges or against it, stamped at the sweep's start or end, or not to be trusted);
+        the online mapper takes them as REP 117 says. Scans without beam times (CARMEN
+        logs) are matched as they are whatever this says.
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most

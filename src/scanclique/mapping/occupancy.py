@@ -28,7 +28,7 @@ import numpy as np
 from ..config import require_config
 from ..errors import ArgumentError, ConfigError
 from ..geometry import Pose2
-from ..scan import Scan, deskew, sweep_velocity_of
+from ..scan import Scan, deskew, retime, sweep_velocity_of
 from .config import OccupancyConfig
 
 __all__ = ["MAX_GRID_CELLS", "OccupancyGrid", "occupancy_grid", "probabilities"]
@@ -118,13 +118,17 @@ def probabilities(log_odds: np.ndarray) -> np.ndarray:
     return 1.0 - 1.0 / (1.0 + np.exp(log_odds.astype(float)))
 
 
-def _deskewed(scans: Sequence[Scan], poses: Sequence[Pose2 | None], k: int) -> Scan:
-    """Scan ``k`` with its sweep's skew taken out (:func:`scanclique.scan.deskew`) at the
-    velocity of the mapped poses to the next scan (from the one before for the last, or
-    next to a scan not placed); as it is without beam times or a velocity."""
+def _deskewed(
+    scans: Sequence[Scan], poses: Sequence[Pose2 | None], k: int, timing: str | None
+) -> Scan:
+    """Scan ``k`` with its sweep's skew taken out (:func:`scanclique.scan.deskew`), its
+    beam times read as ``timing`` (None: not at all), at the velocity of the mapped poses
+    to the next scan (from the one before for the last, or next to a scan not placed); as
+    it is without beam times or a velocity."""
     s = scans[k]
-    if s.beam_times is None:
+    if s.beam_times is None or timing is None:
         return s
+    s = retime(s, timing)
     v = sweep_velocity_of(scans, k, poses.__getitem__)
     return s if v is None else deskew(s, v)
 
@@ -133,12 +137,15 @@ def occupancy_grid(
     scans: Sequence[Scan],
     poses: Sequence[Pose2 | None],
     config: OccupancyConfig | None = None,
+    *,
+    timing: str | None = "given",
 ) -> OccupancyGrid:
     """Cast every ``config.scan_stride``-th placed scan into a log-odds grid.
 
     A scan whose beams carry their times (:attr:`~scanclique.scan.Scan.beam_times`, a
     rotating lidar) is cast de-skewed along ``poses`` (the velocity to the next placed
-    scan), as the mapper matched it.
+    scan), its times read as ``timing`` says (:func:`scanclique.scan.retime`; the map's
+    ``MapResult.sweep_timing``), as the mapper matched it; ``timing=None``: as it is.
 
     Parameters
     ----------
@@ -174,7 +181,7 @@ def occupancy_grid(
     # beam end points in the map frame, first to size the grid
     starts, ends, hits = [], [], []
     for k in idx:
-        s, p = _deskewed(scans, poses, k), poses[k]
+        s, p = _deskewed(scans, poses, k, timing), poses[k]
         keep = s.valid | s.no_return if cfg.free_on_no_return else s.valid
         rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
         hit = s.valid[keep] & (rng <= cfg.max_range)

@@ -35,7 +35,7 @@ from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
-from ..scan import Scan, deskew, sweep_velocity, sweep_velocity_of
+from ..scan import Scan, deskew, retime, sweep_velocity, sweep_velocity_of
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
 from . import loops as _loops
@@ -169,8 +169,9 @@ class MapResult:
     used_odometry : bool
     seconds : dict
         Wall time per stage (``prepare``, ``front_end``, ``loops``, ``pcm``, ``isam``,
-        ``optimize``, ``covariances`` when asked, ``sweeps`` when a first pass gave the
-        sweeps' velocities (:func:`sweep_velocities`), ``total``).
+        ``optimize``, ``covariances`` when asked, ``sweeps`` for the scans' beam times
+        when they have any (their timing checked, and without odometry a first pass for
+        the sweeps' velocities, :func:`sweep_velocities`), ``total``).
     config : MapConfig
     covariances : tuple of (3, 3) ndarray, or None
         When asked (:attr:`BackEndConfig.covariances
@@ -192,6 +193,10 @@ class MapResult:
     deskewed : int
         Scans matched with their sweep's skew taken out (``FrontEndConfig.deskew``: scans
         with beam times whose velocity was known); 0 for a log without beam times.
+    sweep_timing : str
+        How the beam times were read (:data:`scanclique.scan.TIMINGS`, as
+        :func:`~scanclique.mapping.sweep.sweep_timing` found the log to agree best; not
+        ``"given"`` is warned); ``""`` when no scan has beam times or ``deskew`` is off.
     """
 
     poses: tuple
@@ -208,6 +213,7 @@ class MapResult:
     odometry_check: OdometryCheck | None = field(repr=False, default=None)
     odometry_scale: OdometryScale | None = field(repr=False, default=None)
     deskewed: int = 0
+    sweep_timing: str = ""
 
     @property
     def accepted_closures(self) -> tuple:
@@ -231,6 +237,7 @@ class MapResult:
             "local_accepted": sum(1 for c in self.loop_closures if c.local and c.accepted),
             "edges": len(self.edges),
             "deskewed": self.deskewed,
+            "sweep_timing": self.sweep_timing,
         }
 
 
@@ -349,6 +356,8 @@ class _Mapper:
         # without odometry, each scan's sweep velocity from a first pass (map_scans)
         self.velocities: list | None = None
         self.deskewed = 0  # scans prepared de-skewed
+        self.timing = "given"  # how the beam times are read (scan.TIMINGS)
+        self.swept = False  # some scan had beam times to read
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
         self.pending: list[tuple[int, int, Pose2, np.ndarray, str, float, str]] = []
@@ -392,6 +401,8 @@ class _Mapper:
         (the log's start, a gap): as it is."""
         t = time.perf_counter()
         scan = self.scans[j]
+        if scan.beam_times is not None and self.fe.deskew:
+            scan, self.swept = retime(scan, self.timing), True
         if scan.beam_times is not None and self.fe.deskew:
             v = self.sweep_velocity(j)
             if v is not None:
@@ -1139,6 +1150,7 @@ class _Mapper:
             config=self.cfg,
             covariances=None if covs is None else tuple(_ro(c) for c in covs),
             deskewed=self.deskewed,
+            sweep_timing=self.timing if self.swept else "",
         )
 
 
@@ -1238,14 +1250,15 @@ def map_scans(
     blind = bool(use_odometry) and not odometry_sees_reversing(scans)
     if blind:
         log.info("the odometry never moves backwards: a match it rejects is tried reversed")
-    velocities, t = None, time.perf_counter()
-    if not use_odometry and cfg.front_end.deskew and any(s.beam_times is not None for s in scans):
-        log.info("the sweeps' velocities: a first pass of the front end (no odometry)")
-        velocities = sweep_velocities(scans, cfg)  # (before the mapper: one at a time)
+    timing, velocities, t = "given", None, time.perf_counter()
+    swept = cfg.front_end.deskew and any(s.beam_times is not None for s in scans)
+    if swept:  # (before the mapper: one at a time)
+        timing, velocities = _sweeps(scans, cfg, bool(use_odometry))
+    t = time.perf_counter() - t
     m = _Mapper(bool(use_odometry), blind, cfg, workers)
-    if velocities is not None:
-        m.velocities = velocities
-        m.seconds["sweeps"] = time.perf_counter() - t
+    m.timing, m.velocities = timing, velocities
+    if swept:
+        m.seconds["sweeps"] = t
     try:
         m.run(scans, progress)
     finally:
@@ -1258,7 +1271,52 @@ def map_scans(
     return check_odometry(scans, result) if use_odometry else result
 
 
-def sweep_velocities(scans: Sequence[Scan], config: MapConfig) -> list:
+def _sweeps(scans: Sequence[Scan], cfg: MapConfig, use_odometry: bool):
+    """The timing of the scans' beam times (:func:`~.sweep.sweep_timing`, on the
+    odometry or a first pass of the front end) and, without odometry, each sweep's
+    velocity (:func:`sweep_velocities`, again under that timing when it is not
+    ``"given"``): ``(timing, velocities or None)``."""
+    from .sweep import sweep_timing
+
+    if use_odometry:
+        timing, scores, pairs = sweep_timing(scans, lambda i: scans[i].odometry, cfg.match)
+        velocities = None
+    else:
+        log.info("the sweeps' velocities: a first pass of the front end (no odometry)")
+        chain = _first_pass(scans, cfg, "given")
+        timing, scores, pairs = sweep_timing(scans, chain.__getitem__, cfg.match)
+        if timing not in ("given", "none"):
+            chain = _first_pass(scans, cfg, timing)
+        velocities = [sweep_velocity_of(scans, j, chain.__getitem__) for j in range(len(scans))]
+    about = ", ".join(f"{k} {v:.3f} / {d:.2f} deg" for k, (v, d) in scores.items())
+    if timing != "given":
+        log.warning(
+            "the scans' beam times agree with the motion best read %r, not as REP 117 gives "
+            "them (over %d turning scans, mean raw-scan score / turn from the motion: %s): "
+            "the driver stored or stamped its sweep otherwise; read so",
+            timing, pairs, about,
+        )  # fmt: skip
+    else:
+        log.info("the scans' beam times read as given (%d turning scans: %s)", pairs, about)
+    return timing, velocities
+
+
+def _first_pass(scans: Sequence[Scan], config: MapConfig, timing: str) -> list:
+    """The chain poses of a first pass of the front end alone (loops off), the beam times
+    read as ``timing`` and de-skewed at the estimate's velocity over
+    ``FrontEndConfig.deskew_window``."""
+    first = replace(config, loops=replace(config.loops, enabled=False))
+    m = _Mapper(False, False, first, 1)
+    m.timing = timing
+    try:
+        for s in scans:
+            m.add_scan(s)
+    finally:
+        m.verifier.close()
+    return list(m.chain)
+
+
+def sweep_velocities(scans: Sequence[Scan], config: MapConfig, timing: str = "given") -> list:
     """Without odometry, the velocity of each scan's sweep (:func:`~scanclique.scan.deskew`)
     from a first pass of the front end alone (loops off, the skew taken out at the
     estimate's velocity over ``FrontEndConfig.deskew_window``): its chain's step to the
@@ -1266,15 +1324,10 @@ def sweep_velocities(scans: Sequence[Scan], config: MapConfig) -> list:
     neither is known). The second pass, :func:`map_scans` itself, de-skews with these: on
     the simulated 360 degree lidars without odometry (``benchmarks/mapping_sensors.py``,
     ``rplidar-swept`` and ``lds-swept``, seeds 0-3) the window's lagging velocity gave
-    0.327 and 0.724 m, the true velocities 0.025 and 0.284 m."""
-    first = replace(config, loops=replace(config.loops, enabled=False))
-    m = _Mapper(False, False, first, 1)
-    try:
-        for s in scans:
-            m.add_scan(s)
-    finally:
-        m.verifier.close()
-    return [sweep_velocity_of(scans, j, m.chain.__getitem__) for j in range(len(scans))]
+    0.327 and 0.724 m, the true velocities 0.025 and 0.284 m. ``timing``: how the beam
+    times are read (:func:`scanclique.scan.retime`)."""
+    chain = _first_pass(scans, config, timing)
+    return [sweep_velocity_of(scans, j, chain.__getitem__) for j in range(len(scans))]
 
 
 #: :func:`map_scans` warns when more than this fraction of a log's scans (10 or more) were

@@ -157,6 +157,7 @@ class MapRun:
         ]
         if c["deskewed"]:
             rows.append(("de-skewed (a rotating lidar's sweep)", str(c["deskewed"]), "scans"))
+            rows.append(("beam times read", c["sweep_timing"], ""))
         if self.odometry_check and self.odometry_check["steps"]:
             rows.append(
                 ("odometry's turn from the scans (median)",
@@ -306,7 +307,7 @@ def run_map(
     if result.covariances is not None:
         outputs.write_covariances(outdir / "covariances.csv", result.poses, result.covariances, ts)
         files["covariances"] = outdir / "covariances.csv"
-    grid = occupancy_grid(scans, result.poses, cfg.occupancy)
+    grid = occupancy_grid(scans, result.poses, cfg.occupancy, timing=result.sweep_timing or None)
     outputs.write_map(outdir / "map.pgm", outdir / "map.yaml", grid)
     files["map"] = outdir / "map.pgm"
     files["map_yaml"] = outdir / "map.yaml"
