@@ -127,6 +127,16 @@ def test_deskew_of_a_scan_without_times_or_motion_is_the_scan():
         deskew(s, (np.nan, 0.0, 0.0))
 
 
+def test_retime_reads_the_times_each_way():
+    from scanclique.scan import retime
+
+    s = Scan([1.0, 1.0], [0.0, 0.1], beam_times=[0.0, 0.1])
+    assert retime(s, "given") is s and retime(s, "none").beam_times is None
+    assert retime(Scan([1.0], [0.0]), "negated").beam_times is None
+    with pytest.raises(ScanError, match="timing must be one of"):
+        retime(s, "backwards")
+
+
 # -- the simulator -------------------------------------------------------------------------
 def test_swept_drive_carries_beam_times_and_the_stamp_pose():
     rng = np.random.default_rng(0)
