@@ -215,19 +215,32 @@ def test_a_bag_gives_each_beam_its_time(tmp_path, caplog):
     laser, _, _ = _ros2_msgs()
     inc = 2 * math.pi / 360
     full = Scan(np.linspace(1.0, 2.0, 360), np.arange(360) * inc, range_max=8.0, timestamp=1.0)
-    fine = dataclasses.replace(laser(full, 0), time_increment=1e-4)
-    bogus = dataclasses.replace(laser(full, 1), time_increment=0.01)  # a 3.6 s sweep
-    nan = dataclasses.replace(laser(full, 2), time_increment=float("nan"))
+    at = [dataclasses.replace(full, timestamp=1.0 + 0.1 * n) for n in range(3)]  # 0.1 s apart
+    fine = dataclasses.replace(laser(at[0], 0), time_increment=1e-4)  # a 36 ms sweep
+    bogus = dataclasses.replace(laser(at[1], 1), time_increment=0.01)  # a 3.6 s sweep
+    nan = dataclasses.replace(laser(at[2], 2), time_increment=float("nan"))
     rows = [("/scan", 1_000_000_000, fine), ("/scan", 1_100_000_000, bogus)]
-    _write_bag2(tmp_path / "b", [*rows, ("/scan", 1_200_000_000, nan)])
+    _write_bag2(tmp_path / "b", [*rows, ("/scan", 1_200_000_000, nan)])  # 0.1 s apart
     with caplog.at_level(logging.WARNING):
         got = read_bag(tmp_path / "b", topic="/scan")
-    # a full circle from 0 is rolled to start at -pi: each beam keeps its own time
+    # a full circle from 0 is rolled to start at -pi: each beam keeps its own time; a
+    # sweep of 36 ms for circles 0.1 s apart is not a rotating lidar's: its revolution's
     idx = np.rint(np.mod(got[0].angles, 2 * math.pi) / inc).astype(int) % 360
-    np.testing.assert_allclose(got[0].beam_times, 1e-4 * idx, atol=1e-9)
     np.testing.assert_allclose(got[0].ranges, np.float32(full.ranges)[idx])
-    assert got[1].beam_times is None and "time_increment" in caplog.text
-    assert got[2].beam_times is None and caplog.text.count("time_increment") == 1
+    assert "more than 1 s" in caplog.text and "sweeps in its period" in caplog.text
+    for g in got:  # the bogus and the NaN time_increment too
+        np.testing.assert_allclose(g.beam_times, (0.1 / 360) * idx, atol=1e-9)
+    caplog.clear()
+    rows = [
+        ("/scan", 1_000_000_000 + n * 100_000_000,
+         dataclasses.replace(laser(at[n], n), time_increment=0.1 / 360))
+        for n in range(3)
+    ]  # fmt: skip
+    _write_bag2(tmp_path / "c", rows)
+    with caplog.at_level(logging.WARNING):
+        got = read_bag(tmp_path / "c", topic="/scan")
+    np.testing.assert_allclose(got[0].beam_times, (0.1 / 360) * idx, atol=1e-9)
+    assert "time" not in caplog.text  # as published
 
 
 # -- the mapper ----------------------------------------------------------------------------
@@ -365,3 +378,38 @@ def test_a_swept_lidars_bag_is_mapped_deskewed(tmp_path):
     rows = {m: v for m, v, _u in run.rows()}
     assert rows["de-skewed (a rotating lidar's sweep)"] == str(len(scans))
     assert rows["beam times read"] == "given" and (tmp_path / "out" / "map.pgm").is_file()
+
+
+def test_a_bag_like_the_lds01_drivers_is_read_and_mapped_right(tmp_path, caplog):
+    """The TurtleBot3 LDS-01 driver's way: the beams stored against the order they were
+    measured in, the scan stamped when complete, and a time_increment far too short (a
+    sweep of about 11 ms for a 200 ms revolution). The reader takes the revolution's
+    times, the mapper finds them negated, and the map is as good as from a right bag."""
+    pytest.importorskip("rosbags")
+    from test_rosbag import _ros2_msgs, _write_bag2
+
+    from scanclique.io.rosbag import read_bag
+
+    scans = [dataclasses.replace(s, timestamp=s.timestamp + 100.0) for s in _swept_drive(3)]
+    laser, _, tf = _ros2_msgs()
+    rows = []
+    for k, s in enumerate(scans):
+        end = dataclasses.replace(s, timestamp=s.timestamp + 0.2 * 359 / 360)
+        msg = dataclasses.replace(
+            laser(end, k), angle_min=float(s.angles[-1]), angle_max=float(s.angles[0]),
+            angle_increment=-float(s.angles[1] - s.angles[0]), time_increment=3e-5,
+            ranges=np.asarray(s.ranges[::-1], dtype=np.float32),
+        )  # fmt: skip
+        t_ns = int(round(s.timestamp * 1e9))
+        rows += [("/tf", t_ns, tf(s.timestamp, s.odometry, k)), ("/scan", t_ns + 1, msg)]
+    _write_bag2(tmp_path / "lds", rows)
+    with caplog.at_level(logging.WARNING):
+        got = read_bag(tmp_path / "lds", topic="/scan")
+    assert "sweeps in its period" in caplog.text
+    result = _mapped(got, True)
+    assert result.sweep_timing == "negated" and "negated" in caplog.text
+    # the stamps are the sweeps' ends: where the robot is at the next scan's start
+    ends = [
+        dataclasses.replace(g, reference=s.reference) for g, s in zip(got, scans[1:], strict=False)
+    ]
+    assert _worst_turn_between_scans(result, ends) < 1.5

@@ -18,7 +18,8 @@ from .errors import ScanError
 from .geometry import Pose2
 
 __all__ = [
-    "Scan", "beam_angles", "deskew", "retime", "sweep_velocity", "sweep_velocity_of",
+    "Scan", "beam_angles", "deskew", "deskew_along", "retime", "sweep_velocity",
+    "sweep_velocity_of", "measured_before",
     "MAX_ANGLE_SPAN", "MAX_POSE_COORDINATE", "MAX_SWEEP", "MAX_SWEEP_SPEED", "MAX_SWEEP_TURN",
     "TIMINGS",
 ]  # fmt: skip
@@ -237,18 +238,25 @@ def sweep_velocity(
     return v
 
 
-def sweep_velocity_of(scans, k: int, pose) -> tuple[float, float, float] | None:
-    """The velocity of scan ``k``'s sweep along a trajectory of its scans: from
-    ``pose(k)`` to ``pose(k + 1)`` (the sweep's own motion), else from ``pose(k - 1)``
-    (the last scan, or one beside a scan without a pose); ``pose(i)`` gives scan ``i``'s
-    sensor pose (odometry, map) or None. :func:`sweep_velocity` of the two, at the scans'
+def sweep_velocity_of(
+    scans, k: int, pose, before: bool | None = None
+) -> tuple[float, float, float] | None:
+    """The velocity of scan ``k``'s sweep along a trajectory of its scans: the step its
+    sweep lies in, from ``pose(k)`` to ``pose(k + 1)`` when its beams follow its stamp
+    (REP 117), from ``pose(k - 1)`` when they precede it (``before``; None: when its beam
+    times are mostly negative, a scan stamped when complete), else the other step (the
+    last scan, or one beside a scan without a pose); ``pose(i)`` gives scan ``i``'s sensor
+    pose (odometry, map) or None. :func:`sweep_velocity` of the two, at the scans'
     timestamps."""
-    v = None
-    if k + 1 < len(scans):
-        v = sweep_velocity(pose(k), pose(k + 1), scans[k].timestamp, scans[k + 1].timestamp)
-    if v is None and k > 0:
-        v = sweep_velocity(pose(k - 1), pose(k), scans[k - 1].timestamp, scans[k].timestamp)
-    return v
+    if before is None:
+        before = measured_before(scans[k])
+    steps = (k - 1, k) if before else (k, k - 1)
+    for a in steps:
+        if 0 <= a and a + 1 < len(scans):
+            v = sweep_velocity(pose(a), pose(a + 1), scans[a].timestamp, scans[a + 1].timestamp)
+            if v is not None:
+                return v
+    return None
 
 
 #: how a driver may have given its beams' times (:func:`retime`): ``"given"`` as REP 117
@@ -280,6 +288,25 @@ def retime(scan: Scan, timing: str) -> Scan:
     span = float(t.max() - t.min()) if t.size else 0.0
     new = {"negated": -t, "reversed": span - t, "shifted": t - span}[timing]
     return replace(scan, beam_times=new)
+
+
+def measured_before(scan: Scan) -> bool:
+    """Whether the scan's beams were measured before its stamp (beam times mostly
+    negative: stamped when the sweep was complete)."""
+    t = scan.beam_times
+    return t is not None and t.size > 0 and float(t.mean()) < 0
+
+
+def deskew_along(scans, k: int, pose, timing: str = "given") -> Scan:
+    """Scan ``k`` of ``scans`` de-skewed (:func:`deskew`) along their trajectory
+    ``pose(i)`` (odometry, map; Pose2 or None), its beam times read as ``timing`` says
+    (:func:`retime`), at the velocity of the step its sweep lies in
+    (:func:`sweep_velocity_of`); as it is without beam times or a velocity."""
+    s = retime(scans[k], timing)
+    if s.beam_times is None:
+        return s
+    v = sweep_velocity_of(scans, k, pose, measured_before(s))
+    return s if v is None else deskew(s, v)
 
 
 def _sweep_poses(times: np.ndarray, velocity) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

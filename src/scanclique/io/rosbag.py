@@ -58,6 +58,7 @@ import logging
 import math
 import os
 import struct
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -116,11 +117,11 @@ def _wrap_beams(r: np.ndarray, ang: np.ndarray, times: np.ndarray | None = None)
     return r[order], wrapped[order], None if times is None else times[order]
 
 
-def _beam_times(msg, n: int, name: str, topic: str, warned: set) -> np.ndarray | None:
-    """Each beam's time after the message's stamp, in its order: ``time_increment`` apart
-    (REP 117: the stamp is the first beam's). None when the increment is 0 or not
-    finite, or the sweep would last more than :data:`scanclique.scan.MAX_SWEEP` (warned
-    once per topic: a driver's placeholder, not the scanner's timing)."""
+def _time_increment(msg, n: int, name: str, topic: str, warned: set) -> float | None:
+    """The message's ``time_increment`` (s between beams in its order; REP 117: the stamp
+    is the first beam's). None when it is 0 or not finite, or the sweep would last more
+    than :data:`scanclique.scan.MAX_SWEEP` (warned once per topic: a driver's
+    placeholder, not the scanner's timing)."""
     t_inc = float(getattr(msg, "time_increment", 0.0) or 0.0)
     if not math.isfinite(t_inc) or t_inc == 0.0 or n == 0:
         return None
@@ -129,11 +130,55 @@ def _beam_times(msg, n: int, name: str, topic: str, warned: set) -> np.ndarray |
             warned.add(topic)
             log.warning(
                 "%s: %s: time_increment %g s over %d beams would be a sweep of %g s, more "
-                "than %g s: beam times ignored (the scans are taken as instantaneous)",
+                "than %g s: not the beams' times",
                 name, topic, t_inc, n, abs(t_inc) * (n - 1), MAX_SWEEP,
             )  # fmt: skip
         return None
-    return t_inc * np.arange(n, dtype=float)
+    return t_inc
+
+
+#: a scan whose beams span at least this (rad) is a rotating lidar's full circle
+FULL_CIRCLE = math.radians(350.0)
+
+
+def _inferred_sweeps(scans: list[Scan], order: list, name: str, topic: str) -> list[Scan]:
+    """A topic of full circles (every scan's beams span :data:`FULL_CIRCLE`: a rotating
+    lidar, one revolution a scan) whose published sweep is shorter than half the period
+    between its scans, or absent (``time_increment`` 0), is given the times a revolution
+    takes: beam ``i`` of a message of ``n`` at ``i * period / n`` (the median period
+    between stamps), in the message's order (``order``: each beam's place in it), warned.
+    Drivers that do not know their timing publish 0, and some a wrong one (the LDS-01's
+    gives a sweep of about 11 ms for its 200 ms revolution). Which way round and where the
+    stamp lies is then for the mapper to check (:mod:`scanclique.mapping.sweep`)."""
+    if len(scans) < 3 or not all(_span(s) >= FULL_CIRCLE for s in scans):
+        return scans
+    stamps = np.array([s.timestamp for s in scans], dtype=float)
+    steps = np.diff(stamps)
+    steps = steps[steps > 0]
+    period = float(np.median(steps)) if steps.size else 0.0
+    if not 0.0 < period <= MAX_SWEEP:
+        return scans
+    published = float(np.median([np.ptp(s.beam_times) if s.beam_times is not None else 0.0
+                                 for s in scans]))  # fmt: skip
+    if published >= 0.5 * period:
+        return scans
+    log.warning(
+        "%s: %s: full circles every %.3g s whose beams are published %.3g s apart (a sweep "
+        "of %.3g s): a rotating lidar sweeps in its period; each beam's time taken as its "
+        "place in the revolution (which way round, and where the stamp lies, is checked "
+        "when mapping)",
+        name, topic, period, published / max(scans[0].n_beams - 1, 1), published,
+    )  # fmt: skip
+    return [
+        replace(s, beam_times=idx * (period / len(idx)))
+        for s, idx in zip(scans, order, strict=True)
+    ]
+
+
+def _span(scan: Scan) -> float:
+    """The angle a scan's beams cover (rad), one beam's width included."""
+    a = scan.angles
+    return float(a[-1] - a[0] + np.median(np.diff(a))) if a.size > 1 else 0.0
 
 
 def _first_echoes(echoes) -> list[float]:
@@ -443,6 +488,7 @@ def read_bag(
         mount: Pose2 | None = None
         mirrored = False  # the laser is upside down (its beams mirrored, mounting())
         warned: set = set()  # topics whose time_increment was refused
+        order: list = []  # per scan, each beam's place in its message
         # a MultiEchoLaserScan from its bytes (ROS 2's CDR or ROS 1's); rosbags else
         is2 = getattr(reader, "is2", None)
         bytewise = is2 if isinstance(is2, bool) else None
@@ -470,10 +516,10 @@ def read_bag(
                     "do not define beams",
                 )  # fmt: skip
             ang = a0 + inc * np.arange(r.size)
-            times = _beam_times(msg, r.size, name, c.topic, warned)
+            t_inc = _time_increment(msg, r.size, name, c.topic, warned)
+            idx = np.arange(r.size, dtype=float)  # each beam's place in the message's order
             if inc < 0:
-                r, ang = r[::-1].copy(), ang[::-1].copy()
-                times = None if times is None else times[::-1].copy()
+                r, ang, idx = r[::-1].copy(), ang[::-1].copy(), idx[::-1].copy()
             span = float(msg.angle_max) - a0
             expect = int(round(span / inc)) + 1 if math.isfinite(span) else r.size
             if r.size == 0 or abs(expect - r.size) > 1:
@@ -501,9 +547,9 @@ def read_bag(
                 elif o_poses and mount is not None:
                     log.info("%s: the laser is mounted at %s on the robot", name, mount)
             if mirrored:
-                r, ang = r[::-1].copy(), -ang[::-1]
-                times = None if times is None else times[::-1].copy()
-            r, ang, times = _wrap_beams(r, ang, times)
+                r, ang, idx = r[::-1].copy(), -ang[::-1], idx[::-1].copy()
+            r, ang, idx = _wrap_beams(r, ang, idx)
+            order.append(idx)
             t = _stamp(msg, t_ns)
             odo = pose_at(o_times, o_rows, t, tol=1e-9) if o_poses else None
             try:
@@ -515,12 +561,12 @@ def read_bag(
                         timestamp=t,
                         odometry=odo if odo is None or mount is None else odo @ mount,
                         source=where,
-                        beam_times=times,
+                        beam_times=None if t_inc is None else t_inc * idx,
                     )
                 )  # fmt: skip
             except ScanCliqueError as exc:  # named below by bag, topic and message
                 why = str(exc).removeprefix(f"{where}: ")
                 raise ParseError(name, None, f"{c.topic} message {k}: {why}") from None
-        return out
+        return _inferred_sweeps(out, order, name, topic)
     finally:
         reader.close()

@@ -28,7 +28,7 @@ import numpy as np
 from ..config import require_config
 from ..errors import ArgumentError, ConfigError
 from ..geometry import Pose2
-from ..scan import Scan, deskew, retime, sweep_velocity_of
+from ..scan import Scan, deskew_along
 from .config import OccupancyConfig
 
 __all__ = ["MAX_GRID_CELLS", "OccupancyGrid", "occupancy_grid", "probabilities"]
@@ -121,16 +121,12 @@ def probabilities(log_odds: np.ndarray) -> np.ndarray:
 def _deskewed(
     scans: Sequence[Scan], poses: Sequence[Pose2 | None], k: int, timing: str | None
 ) -> Scan:
-    """Scan ``k`` with its sweep's skew taken out (:func:`scanclique.scan.deskew`), its
-    beam times read as ``timing`` (None: not at all), at the velocity of the mapped poses
-    to the next scan (from the one before for the last, or next to a scan not placed); as
-    it is without beam times or a velocity."""
-    s = scans[k]
-    if s.beam_times is None or timing is None:
-        return s
-    s = retime(s, timing)
-    v = sweep_velocity_of(scans, k, poses.__getitem__)
-    return s if v is None else deskew(s, v)
+    """Scan ``k`` de-skewed along the mapped ``poses``
+    (:func:`scanclique.scan.deskew_along`), its beam times read as ``timing`` (None: not
+    de-skewed)."""
+    if scans[k].beam_times is None or timing is None:
+        return scans[k]
+    return deskew_along(scans, k, poses.__getitem__, timing)
 
 
 def occupancy_grid(

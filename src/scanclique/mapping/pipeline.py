@@ -35,7 +35,7 @@ from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
-from ..scan import Scan, deskew, retime, sweep_velocity, sweep_velocity_of
+from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_velocity_of
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
 from . import loops as _loops
@@ -404,7 +404,7 @@ class _Mapper:
         if scan.beam_times is not None and self.fe.deskew:
             scan, self.swept = retime(scan, self.timing), True
         if scan.beam_times is not None and self.fe.deskew:
-            v = self.sweep_velocity(j)
+            v = self.sweep_velocity(j, measured_before(scan))
             if v is not None:
                 scan = deskew(scan, v)
                 self.deskewed += 1
@@ -412,10 +412,11 @@ class _Mapper:
         self.seconds["prepare"] += time.perf_counter() - t
         return p
 
-    def sweep_velocity(self, j: int) -> tuple[float, float, float] | None:
+    def sweep_velocity(self, j: int, before: bool) -> tuple[float, float, float] | None:
         """The velocity :meth:`prepare` de-skews scan ``j`` at (:func:`sweep_velocity`): the
-        odometry's to the next scan when the whole log is given (:meth:`run`: the sweep's
-        own motion), else from the scan before; without odometry a first pass's
+        odometry's over the step its sweep lies in (to the next scan, or from the one
+        before for beams ``before`` the stamp) when the whole log is given (:meth:`run`),
+        else from the scan before; without odometry a first pass's
         (:func:`sweep_velocities`, ``map_scans``), else the chain's over the last
         ``FrontEndConfig.deskew_window`` seconds before scan ``j - 1``."""
         scans, s = self.scans, self.scans[j]
@@ -423,7 +424,7 @@ class _Mapper:
             return self.velocities[j]
         if self.odo and s.odometry is not None:
             log_ = self.ahead if self.ahead is not None else scans  # online: none ahead
-            return sweep_velocity_of(log_, j, lambda i: log_[i].odometry)
+            return sweep_velocity_of(log_, j, lambda i: log_[i].odometry, before)
         if j < 2 or scans[j - 1].timestamp is None:
             return None
         prev = scans[j - 1]
@@ -1287,7 +1288,7 @@ def _sweeps(scans: Sequence[Scan], cfg: MapConfig, use_odometry: bool):
         timing, scores, pairs = sweep_timing(scans, chain.__getitem__, cfg.match)
         if timing not in ("given", "none"):
             chain = _first_pass(scans, cfg, timing)
-        velocities = [sweep_velocity_of(scans, j, chain.__getitem__) for j in range(len(scans))]
+        velocities = _along(scans, chain, timing)
     about = ", ".join(f"{k} {v:.3f} / {d:.2f} deg" for k, (v, d) in scores.items())
     if timing != "given":
         log.warning(
@@ -1326,8 +1327,15 @@ def sweep_velocities(scans: Sequence[Scan], config: MapConfig, timing: str = "gi
     ``rplidar-swept`` and ``lds-swept``, seeds 0-3) the window's lagging velocity gave
     0.327 and 0.724 m, the true velocities 0.025 and 0.284 m. ``timing``: how the beam
     times are read (:func:`scanclique.scan.retime`)."""
-    chain = _first_pass(scans, config, timing)
-    return [sweep_velocity_of(scans, j, chain.__getitem__) for j in range(len(scans))]
+    return _along(scans, _first_pass(scans, config, timing), timing)
+
+
+def _along(scans: Sequence[Scan], chain: list, timing: str) -> list:
+    """Each scan's sweep velocity along ``chain`` (its beam times read as ``timing``)."""
+    return [
+        sweep_velocity_of(scans, j, chain.__getitem__, measured_before(retime(s, timing)))
+        for j, s in enumerate(scans)
+    ]
 
 
 #: :func:`map_scans` warns when more than this fraction of a log's scans (10 or more) were

@@ -12,12 +12,13 @@ the wrong way round, the times double the skew instead of removing it.
 turning scans: each de-skewed with it and aligned (point-to-line ICP from the motion's
 relative pose) with a scan some 0.4 s before it, de-skewed alike. The shape tells the
 direction of the times: under the wrong one the two scans agree less on the raw scans
-(:func:`scanclique.match.pose_score`). Where the stamp lies in the sweep (its start or
-its end) changes no shape, only the instant the de-skewed scan stands for; of the
-readings that agree about as well (within :data:`TIMING_TIE`), the one whose alignment
-turns least from the motion's relative pose (the odometry's, stamped at the scan's
-stamp) is the driver's. Turning scans are the ones that tell: a sweep that does not turn
-is skewed by its translation only.
+(:func:`scanclique.match.pose_score`): the direction (``given`` or ``shifted``, forward;
+``negated`` or ``reversed``, backward) whose better reading scores best, or ``none``
+when not de-skewing at all does. Where the stamp lies in the sweep (its start or its
+end) changes no shape, only the instant the de-skewed scan stands for: of the direction's
+two readings, the one whose alignments turn least from the motion's relative poses (the
+odometry's, stamped at the scans' stamps) is the driver's. Turning scans are the ones
+that tell: a sweep that does not turn is skewed by its translation only.
 """
 
 from __future__ import annotations
@@ -32,10 +33,10 @@ from ..config import MatchConfig
 from ..geometry import Pose2
 from ..match import pose_score, prepare_scan
 from ..refine import icp_point_to_line
-from ..scan import TIMINGS, Scan, deskew, retime, sweep_velocity_of
+from ..scan import TIMINGS, Scan, deskew_along, sweep_velocity_of
 
 __all__ = [
-    "TIMING_PAIRS", "TIMING_MIN_PAIRS", "TIMING_MIN_TURN", "TIMING_GAP", "TIMING_TIE",
+    "TIMING_PAIRS", "TIMING_MIN_PAIRS", "TIMING_MIN_TURN", "TIMING_GAP", "DIRECTIONS",
     "sweep_timing",
 ]  # fmt: skip
 
@@ -49,11 +50,11 @@ TIMING_MIN_PAIRS = 5
 TIMING_MIN_TURN = math.radians(3.0)
 #: seconds between a turning scan and the earlier scan it is aligned with
 TIMING_GAP = 0.4
-#: readings whose mean raw-scan scores lie within this of the best agree alike: the one
-#: whose alignments turn least from the motion is taken (the simulated LDS-01 drives: the
-#: right reading and its stamp at the other end of the sweep score within 0.003, and
-#: turn 0.46 against 1.89 degrees, 0.99 against 3.82 from the odometry)
-TIMING_TIE = 0.005
+#: the readings of one direction of the times, which differ by where the stamp lies only
+#: (the simulated LDS-01 drives: the right reading and the other of its direction score
+#: within 0.005, and turn 0.46 against 1.89 degrees, 0.99 against 3.82, 1.73 against 3.07
+#: from the odometry; the other direction scores 0.04 to 0.1 less)
+DIRECTIONS = (("given", "shifted"), ("negated", "reversed"))
 
 
 def sweep_timing(
@@ -86,7 +87,7 @@ def sweep_timing(
     """
     cfg = config or MatchConfig()
     n = len(scans)
-    vel = [
+    vel = [  # (the motion, to choose the turning scans: either step will do)
         sweep_velocity_of(scans, j, pose_of) if scans[j].beam_times is not None else None
         for j in range(n)
     ]
@@ -109,16 +110,18 @@ def sweep_timing(
     for k, j in pairs:
         prior = pose_of(k).inverse() @ pose_of(j)
         for timing in TIMINGS:
-            pa = prepare_scan(deskew(retime(scans[k], timing), vel[k]), cfg)
-            pb = prepare_scan(deskew(retime(scans[j], timing), vel[j]), cfg)
+            pa = prepare_scan(deskew_along(scans, k, pose_of, timing), cfg)
+            pb = prepare_scan(deskew_along(scans, j, pose_of, timing), cfg)
             icp = icp_point_to_line(
                 pa.cloud, pb.sample, prior, max_correspondence=0.3, min_correspondence=0.05
             )
             score[timing] += pose_score(pa, pb, icp.pose, cfg) / len(pairs)
             turned[timing] += math.degrees(icp.pose.distance_to(prior)[1]) / len(pairs)
-    top = max(score.values())
-    alike = [t for t in TIMINGS if score[t] >= top - TIMING_TIE]
-    best = min(alike, key=lambda t: (turned[t], t != "given"))
+    way = max(DIRECTIONS, key=lambda d: max(score[t] for t in d))  # forward first on a tie
+    if score["none"] > max(score[t] for t in way):
+        best = "none"
+    else:
+        best = min(way, key=lambda t: turned[t])  # (given or negated first on a tie)
     return best, {t: (score[t], turned[t]) for t in TIMINGS}, len(pairs)
 
 
