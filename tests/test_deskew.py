@@ -413,3 +413,21 @@ def test_a_bag_like_the_lds01_drivers_is_read_and_mapped_right(tmp_path, caplog)
         dataclasses.replace(g, reference=s.reference) for g, s in zip(got, scans[1:], strict=False)
     ]
     assert _worst_turn_between_scans(result, ends) < 1.5
+
+
+def test_times_given_to_scans_measured_at_once_are_found_wrong():
+    """A simulator's lidar (Gazebo's) measures every beam at once and publishes no
+    time_increment, so the reader gives its full circles a revolution's times: the
+    check finds that no reading agrees better than none, and the map is the plain one."""
+    from scanclique.mapping.sweep import sweep_timing
+
+    rng = np.random.default_rng(3)
+    at_once = simulate_sensor_drive(rng, office_world(rng), 30, 0.25, **LDS)
+    times = np.arange(360) * (0.2 / 360)
+    given = [dataclasses.replace(s, beam_times=times) for s in at_once]
+    assert sweep_timing(given, lambda i: given[i].odometry)[0] == "none"
+    plain, checked = _mapped(at_once, True), _mapped(given, True)
+    assert checked.sweep_timing == "none" and checked.deskewed == 0
+    assert [p.as_array().tolist() for p in checked.poses] == [
+        p.as_array().tolist() for p in plain.poses
+    ]
