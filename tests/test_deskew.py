@@ -284,7 +284,7 @@ def test_online_without_odometry_the_deskew_velocity_is_the_estimates_over_a_win
     monkeypatch,
 ):
     import scanclique.mapping.pipeline as pipeline
-    from scanclique.mapping import MapConfig, OnlineMapper
+    from scanclique.mapping import MapConfig
 
     scans = _swept_drive(0)
     true = _true_sweep_velocities(scans)
@@ -300,9 +300,15 @@ def test_online_without_odometry_the_deskew_velocity_is_the_estimates_over_a_win
         seen.clear()
         cfg = MapConfig.online()
         fe = dataclasses.replace(cfg.front_end, deskew_window=window)
-        with OnlineMapper(use_odometry=False, config=dataclasses.replace(cfg, front_end=fe)) as m:
+        # the online mapper's front end, its beam times' reading decided (as the online
+        # mapper does once the scans tell it, mapping.sweep)
+        m = pipeline._Mapper(False, False, dataclasses.replace(cfg, front_end=fe), 1)
+        m.timing = "given"
+        try:
             for s in scans:
-                m.add(s)
+                m.add_scan(s)
+        finally:
+            m.verifier.close()
         assert seen and min(j for j, _ in seen) >= 2  # the first scans: no velocity yet
         return np.median([abs(v[0] - true[j][0]) for j, v in seen if j < len(true)])
 
@@ -431,3 +437,15 @@ def test_times_given_to_scans_measured_at_once_are_found_wrong():
     assert [p.as_array().tolist() for p in checked.poses] == [
         p.as_array().tolist() for p in plain.poses
     ]
+
+
+def test_online_the_beam_times_are_read_once_the_scans_tell():
+    """Online the log's end is not known: the mapper tries the reading at the 25th, 50th,
+    100th, ... scan and de-skews from when one direction of the times clearly leads."""
+    from scanclique.mapping import map_online
+
+    scans = [dataclasses.replace(s, beam_times=-s.beam_times) for s in _swept_drive(3, 60)]
+    result = map_online(scans, use_odometry=True).result
+    assert result.sweep_timing == "negated" and 0 < result.deskewed < len(scans)
+    short = map_online(scans[:20], use_odometry=True).result  # too few to tell
+    assert short.sweep_timing == "none" and short.deskewed == 0

@@ -175,8 +175,8 @@ class FrontEndConfig:
         estimate's over ``deskew_window``. ``map_scans`` first checks how the driver gave
         the times (:func:`~scanclique.mapping.sweep.sweep_timing`: in the order of the
         ranges or against it, stamped at the sweep's start or end, or not to be trusted);
-        the online mapper takes them as REP 117 says. Scans without beam times (CARMEN
-        logs) are matched as they are whatever this says.
+        the online mapper de-skews only from when the scans so far tell. Scans without
+        beam times (CARMEN logs) are matched as they are whatever this says.
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most

@@ -30,10 +30,12 @@ What ``map_scans`` reads from the whole log, the online mapper reads from the sc
   0.146 m mean against the batch's 0.068 m; 0.185 m without de-skew); without, the
   estimate's over ``FrontEndConfig.deskew_window``, not a first pass's
   (:func:`~scanclique.mapping.pipeline.sweep_velocities`; the same drives 0.396 m online
-  against the batch's 0.236 m; 1.437 m without de-skew). The beam times are taken as
-  REP 117 gives them, not checked against the log (``map_scans``:
-  :func:`~scanclique.mapping.sweep.sweep_timing`). Such scans map differently online and
-  in batch.
+  against the batch's 0.236 m; 1.437 m without de-skew). How the driver gave the times
+  (:func:`~scanclique.mapping.sweep.sweep_timing`, which ``map_scans`` asks of the whole
+  log first) is tried on the scans so far at the 25th, 50th, 100th, ... scan, and the
+  scans are de-skewed only from when one direction of the times clearly leads (before,
+  as they are: times read the wrong way round would double the skew). Such scans map
+  differently online and in batch.
 """
 
 from __future__ import annotations

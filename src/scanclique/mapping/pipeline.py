@@ -356,7 +356,9 @@ class _Mapper:
         # without odometry, each scan's sweep velocity from a first pass (map_scans)
         self.velocities: list | None = None
         self.deskewed = 0  # scans prepared de-skewed
-        self.timing = "given"  # how the beam times are read (scan.TIMINGS)
+        # how the beam times are read (scan.TIMINGS); None: not yet known (online, where
+        # the scans are not de-skewed until decide_timing has seen enough turning ones)
+        self.timing: str | None = None
         self.swept = False  # some scan had beam times to read
         self.est_xy = np.zeros((0, 3))  # current estimate of keyframes (x, y, theta)
         self.kf_edges: list[tuple[int, int, Pose2, np.ndarray, str]] = []  # keyframe graph
@@ -402,7 +404,9 @@ class _Mapper:
         t = time.perf_counter()
         scan = self.scans[j]
         if scan.beam_times is not None and self.fe.deskew:
-            scan, self.swept = retime(scan, self.timing), True
+            if self.timing is None:
+                self.decide_timing(j)
+            scan, self.swept = retime(scan, self.timing or "none"), True
         if scan.beam_times is not None and self.fe.deskew:
             v = self.sweep_velocity(j, measured_before(scan))
             if v is not None:
@@ -411,6 +415,23 @@ class _Mapper:
         p = prepare_scan(scan, self.cfg.match)
         self.seconds["prepare"] += time.perf_counter() - t
         return p
+
+    def decide_timing(self, j: int) -> None:
+        """Online, how the beam times are read (:func:`~.sweep.sweep_timing` on the scans
+        placed so far, along the odometry or the chain), tried when scan ``j`` is the
+        25th, 50th, 100th, ... (doubling: the log's length is not known); until the scans
+        tell (enough of them turned, and one reading leads), they are not de-skewed."""
+        q, r = divmod(j, 25)
+        if r or q < 1 or q & (q - 1):  # j = 25 * 2^m only
+            return
+        from .sweep import sweep_timing
+
+        done = self.scans[:j]
+        pose = (lambda i: done[i].odometry) if self.odo else self.chain.__getitem__
+        timing, scores, pairs = sweep_timing(done, pose, self.cfg.match)
+        if timing is not None:
+            self.timing = timing
+            _log_timing(timing, scores, pairs)
 
     def sweep_velocity(self, j: int, before: bool) -> tuple[float, float, float] | None:
         """The velocity :meth:`prepare` de-skews scan ``j`` at (:func:`sweep_velocity`): the
@@ -1151,7 +1172,7 @@ class _Mapper:
             config=self.cfg,
             covariances=None if covs is None else tuple(_ro(c) for c in covs),
             deskewed=self.deskewed,
-            sweep_timing=self.timing if self.swept else "",
+            sweep_timing=(self.timing or "none") if self.swept else "",
         )
 
 
@@ -1276,21 +1297,34 @@ def _sweeps(scans: Sequence[Scan], cfg: MapConfig, use_odometry: bool):
     """The timing of the scans' beam times (:func:`~.sweep.sweep_timing`, on the
     odometry or a first pass of the front end) and, without odometry, each sweep's
     velocity (:func:`sweep_velocities`, again under that timing when it is not
-    ``"given"``): ``(timing, velocities or None)``."""
+    ``"given"``): ``(timing, velocities or None)``. A log that does not tell is read as
+    REP 117 gives its times."""
     from .sweep import sweep_timing
 
-    if use_odometry:
+    chain = None if use_odometry else _first_pass(scans, cfg, "given")
+    if chain is None:
         timing, scores, pairs = sweep_timing(scans, lambda i: scans[i].odometry, cfg.match)
-        velocities = None
     else:
         log.info("the sweeps' velocities: a first pass of the front end (no odometry)")
-        chain = _first_pass(scans, cfg, "given")
         timing, scores, pairs = sweep_timing(scans, chain.__getitem__, cfg.match)
-        if timing not in ("given", "none"):
-            chain = _first_pass(scans, cfg, timing)
-        velocities = _along(scans, chain, timing)
+    _log_timing(timing, scores, pairs)
+    timing = timing or "given"
+    if chain is None:
+        return timing, None
+    if timing not in ("given", "none"):
+        chain = _first_pass(scans, cfg, timing)
+    return timing, _along(scans, chain, timing)
+
+
+def _log_timing(timing: str | None, scores: dict, pairs: int) -> None:
+    """Say how the beam times are read: warned when not as REP 117 gives them."""
     about = ", ".join(f"{k} {v:.3f} / {d:.2f} deg" for k, (v, d) in scores.items())
-    if timing != "given":
+    if timing is None:
+        log.info(
+            "the scans do not tell how their beam times run (%d turning scans: %s): read as "
+            "REP 117 gives them", pairs, about,
+        )  # fmt: skip
+    elif timing != "given":
         log.warning(
             "the scans' beam times agree with the motion best read %r, not as REP 117 gives "
             "them (over %d turning scans, mean raw-scan score / turn from the motion: %s): "
@@ -1299,7 +1333,6 @@ def _sweeps(scans: Sequence[Scan], cfg: MapConfig, use_odometry: bool):
         )  # fmt: skip
     else:
         log.info("the scans' beam times read as given (%d turning scans: %s)", pairs, about)
-    return timing, velocities
 
 
 def _first_pass(scans: Sequence[Scan], config: MapConfig, timing: str) -> list:

@@ -37,6 +37,7 @@ from ..scan import TIMINGS, Scan, deskew_along, sweep_velocity_of
 
 __all__ = [
     "TIMING_PAIRS", "TIMING_MIN_PAIRS", "TIMING_MIN_TURN", "TIMING_GAP", "DIRECTIONS",
+    "TIMING_MARGIN",
     "sweep_timing",
 ]  # fmt: skip
 
@@ -55,6 +56,11 @@ TIMING_GAP = 0.4
 #: within 0.005, and turn 0.46 against 1.89 degrees, 0.99 against 3.82, 1.73 against 3.07
 #: from the odometry; the other direction scores 0.04 to 0.1 less)
 DIRECTIONS = (("given", "shifted"), ("negated", "reversed"))
+#: the least lead in mean raw-scan score that decides between the two directions, or for
+#: not de-skewing at all over both (the simulated drives' whole logs: 0.04 to 0.1 between
+#: the directions; an online mapper's first 25 scans, hardly turning: all readings within
+#: 0.003, and the best of them the wrong way)
+TIMING_MARGIN = 0.01
 
 
 def sweep_timing(
@@ -80,10 +86,12 @@ def sweep_timing(
     Returns
     -------
     (timing, scores, pairs)
-        The best reading; for each reading its mean raw-scan score over the pairs
-        compared and the mean angle (degrees) its alignments turn from ``pose_of``'s
-        relative poses; and how many pairs. ``("given", {}, n)`` with fewer than
-        :data:`TIMING_MIN_PAIRS` pairs (a log that hardly turns: its times hardly matter).
+        The reading; for each reading its mean raw-scan score over the pairs compared
+        and the mean angle (degrees) its alignments turn from ``pose_of``'s relative
+        poses; and how many pairs. ``"none"`` when not de-skewing agrees best; None when
+        the log does not tell: fewer than :data:`TIMING_MIN_PAIRS` pairs (it hardly
+        turns: its times hardly matter), or neither direction leads the other by
+        :data:`TIMING_MARGIN`.
     """
     cfg = config or MatchConfig()
     n = len(scans)
@@ -105,7 +113,7 @@ def sweep_timing(
         if k is not None and vel[k] is not None and pose_of(k) is not None:
             pairs.append((k, j))
     if len(pairs) < TIMING_MIN_PAIRS:
-        return "given", {}, len(pairs)
+        return None, {}, len(pairs)
     score, turned = dict.fromkeys(TIMINGS, 0.0), dict.fromkeys(TIMINGS, 0.0)
     for k, j in pairs:
         prior = pose_of(k).inverse() @ pose_of(j)
@@ -117,12 +125,17 @@ def sweep_timing(
             )
             score[timing] += pose_score(pa, pb, icp.pose, cfg) / len(pairs)
             turned[timing] += math.degrees(icp.pose.distance_to(prior)[1]) / len(pairs)
-    way = max(DIRECTIONS, key=lambda d: max(score[t] for t in d))  # forward first on a tie
-    if score["none"] > max(score[t] for t in way):
-        best = "none"
-    else:
-        best = min(way, key=lambda t: turned[t])  # (given or negated first on a tie)
-    return best, {t: (score[t], turned[t]) for t in TIMINGS}, len(pairs)
+    out = {t: (score[t], turned[t]) for t in TIMINGS}
+    forward, backward = (max(score[t] for t in d) for d in DIRECTIONS)
+    if score["none"] >= max(forward, backward) + TIMING_MARGIN:
+        return "none", out, len(pairs)
+    if abs(forward - backward) < TIMING_MARGIN:
+        return None, out, len(pairs)
+    way = DIRECTIONS[0] if forward > backward else DIRECTIONS[1]
+    if score["none"] > max(forward, backward):  # de-skewing either way helps nothing
+        return "none", out, len(pairs)
+    best = min(way, key=lambda t: turned[t])  # (given or negated first on a tie)
+    return best, out, len(pairs)
 
 
 def _earlier(scans: Sequence[Scan], j: int) -> int | None:
