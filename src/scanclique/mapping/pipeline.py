@@ -407,8 +407,7 @@ class _Mapper:
             if self.timing is None:
                 self.decide_timing(j)
             scan, self.swept = retime(scan, self.timing or "none"), True
-        if scan.beam_times is not None and self.fe.deskew:
-            v = self.sweep_velocity(j, measured_before(scan))
+            v = None if scan.beam_times is None else self.sweep_velocity(j, measured_before(scan))
             if v is not None:
                 scan = deskew(scan, v)
                 self.deskewed += 1
@@ -452,11 +451,9 @@ class _Mapper:
         # the chain's own steps are the matches': over one step their errors come back
         # through the de-skew (one step long, the next short, and so on)
         i = j - 2
-        while (
-            i >= 0
-            and _ts(scans, i) is not None
-            and prev.timestamp - scans[i].timestamp < (self.fe.deskew_window)
-        ):
+        while i >= 0 and _ts(scans, i) is not None:
+            if prev.timestamp - scans[i].timestamp >= self.fe.deskew_window:
+                break
             i -= 1
         if i < 0 or self.chain[i] is None:
             return None
