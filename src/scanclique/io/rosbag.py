@@ -142,12 +142,12 @@ def _time_increment(msg, n: int, name: str, topic: str, warned: set) -> float | 
 FULL_CIRCLE = math.radians(350.0)
 
 
-def _inferred_sweeps(scans: list[Scan], order: list, name: str, topic: str) -> list[Scan]:
+def _inferred_sweeps(scans: list[Scan], places: list, name: str, topic: str) -> list[Scan]:
     """A topic of full circles (every scan's beams span :data:`FULL_CIRCLE`: a rotating
     lidar, one revolution a scan) whose published sweep is shorter than half the period
     between its scans, or absent (``time_increment`` 0), is given the times a revolution
     takes: beam ``i`` of a message of ``n`` at ``i * period / n`` (the median period
-    between stamps), in the message's order (``order``: each beam's place in it), warned.
+    between stamps), in the message's order (``places``: each beam's place in it), warned.
     Drivers that do not know their timing publish 0, and some a wrong one (the LDS-01's
     gives a sweep of about 11 ms for its 200 ms revolution). Which way round and where the
     stamp lies is then for the mapper to check (:mod:`scanclique.mapping.sweep`)."""
@@ -172,7 +172,7 @@ def _inferred_sweeps(scans: list[Scan], order: list, name: str, topic: str) -> l
     )  # fmt: skip
     return [
         replace(s, beam_times=idx * (period / len(idx)))
-        for s, idx in zip(scans, order, strict=True)
+        for s, idx in zip(scans, places, strict=True)
     ]
 
 
@@ -489,7 +489,7 @@ def read_bag(
         mount: Pose2 | None = None
         mirrored = False  # the laser is upside down (its beams mirrored, mounting())
         warned: set = set()  # topics whose time_increment was refused
-        order: list = []  # per scan, each beam's place in its message
+        places: list = []  # per scan, each beam's place in its message
         # a MultiEchoLaserScan from its bytes (ROS 2's CDR or ROS 1's); rosbags else
         is2 = getattr(reader, "is2", None)
         bytewise = is2 if isinstance(is2, bool) else None
@@ -550,7 +550,7 @@ def read_bag(
             if mirrored:
                 r, ang, idx = r[::-1].copy(), -ang[::-1], idx[::-1].copy()
             r, ang, idx = _wrap_beams(r, ang, idx)
-            order.append(idx)
+            places.append(idx)
             t = _stamp(msg, t_ns)
             odo = pose_at(o_times, o_rows, t, tol=1e-9) if o_poses else None
             try:
@@ -568,6 +568,6 @@ def read_bag(
             except ScanCliqueError as exc:  # named below by bag, topic and message
                 why = str(exc).removeprefix(f"{where}: ")
                 raise ParseError(name, None, f"{c.topic} message {k}: {why}") from None
-        return _inferred_sweeps(out, order, name, topic)
+        return _inferred_sweeps(out, places, name, topic)
     finally:
         reader.close()
