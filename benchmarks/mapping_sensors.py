@@ -24,7 +24,8 @@ steps, resampled at the scanner's rate by ``simulate_sensor_drive``: the robot r
 * ``rplidar-swept``, ``lds-swept`` (session 38): the two rotating lidars as they really
   measure, one beam after the other over the whole scan period (``sweep``, 1/7 and 1/5 s:
   turning at 90 degrees per second the LDS-01's last beam is 18 degrees behind its first),
-  each scan with its ``beam_times``. ``map_scans`` takes the skew out
+  each scan with its ``beam_times``; ``hokuyo-swept``, ``tim571-swept``: the 270 degree
+  scanners likewise (three quarters of a 1/40 and a 1/15 s period). ``map_scans`` takes the skew out
   (``FrontEndConfig.deskew``); ``--deskew both`` (the default) also maps them without
   (rows ``..., raw``). ``--times negated`` (``reversed``, ``shifted``) publishes their
   beam times as drivers that store or stamp the sweep otherwise do, which the mapper must
@@ -105,9 +106,12 @@ PROFILES = {
         range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.05, scan_rate=5.0, speed=0.2,
     ),
 }  # fmt: skip
-# the rotating lidars sweep once per scan (module docstring)
-for _name in ("rplidar", "lds"):
-    PROFILES[f"{_name}-swept"] = {**PROFILES[_name], "sweep": 1.0 / PROFILES[_name]["scan_rate"]}
+# every scanner sweeps its beams at the pace of one turn a scan period (module
+# docstring): a full circle in the whole period, 270 degrees in three quarters of it
+for _name in ("hokuyo", "tim571", "rplidar", "lds"):
+    _p = PROFILES[_name]
+    _turn = _p["fov"] * _p["n_beams"] / (_p["n_beams"] - 1) / (2 * math.pi)  # one beam each
+    PROFILES[f"{_name}-swept"] = {**_p, "sweep": _turn / _p["scan_rate"]}
 
 
 #: how the swept profiles' beam times may be published (``--times``): as measured (REP
