@@ -527,3 +527,24 @@ def test_a_long_loop_is_not_closed_on_a_corner_a_quarter_turn_round():
     assert mean_error(map_scans(scans, config=off)) < 0.5
     off = dataclasses.replace(off, loops=dataclasses.replace(off.loops, corroborate_batches=0))
     assert mean_error(map_scans(scans, config=off)) > 5.0  # what the rules prevent
+
+
+def test_a_scan_outside_the_odometrys_time_span_does_not_set_the_odometry_aside(caplog):
+    """A bag's first laser message can come a few milliseconds before its first odometry
+    message: that scan carries no odometry, and the map still uses the others'. When
+    most scans have none, the map is made from the scans alone; both are warned."""
+    import dataclasses
+    import logging
+
+    rng = np.random.default_rng(5)
+    scans = simulate_trajectory(rng, office_world(rng), 60, n_beams=181)
+    first_without = [dataclasses.replace(scans[0], odometry=None), *scans[1:]]
+    with caplog.at_level(logging.WARNING):
+        result = map_scans(first_without)
+    assert result.used_odometry and result.placed_by[0] == "first"
+    assert "1 of 60 scans carry no odometry (the first: scan 0" in caplog.text
+    half = [dataclasses.replace(s, odometry=None) if k % 2 else s for k, s in enumerate(scans)]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        assert not map_scans(half).used_odometry
+    assert "30 of 60 scans carry no odometry" in caplog.text and "scans alone" in caplog.text

@@ -384,7 +384,7 @@ OdometryOpt = Annotated[
     typer.Option(
         "--odometry/--no-odometry",
         help="--no-odometry maps from the scans alone; --odometry uses the log's "
-        "odometry as it is. Default: use it when every scan has it and a sample of "
+        "odometry as it is. Default: use it when 95 % of the scans have it and a sample of "
         "matched pairs says it moves as the scans do (zeros, frozen or millimetres are "
         "set aside, with a warning).",
         show_default=False,

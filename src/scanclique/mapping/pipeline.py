@@ -1215,8 +1215,9 @@ def map_scans(
         One sensor's, in recording order (of a CARMEN log with a front and a rear laser,
         ``read_scans(path, laser="main")`` reads the front one's).
     use_odometry : bool, optional
-        None (default): use the odometry when every scan carries it. False: from the scans
-        alone (constant-velocity prior), the paper's point. True: use it where present.
+        None (default): use the odometry when at least 95 % of the scans carry it
+        (:func:`choose_odometry`). False: from the scans alone (constant-velocity prior),
+        the paper's point. True: use it where present.
     config : MapConfig, optional
     progress : callable (done, total, closures), optional
         Called every 50 scans.
@@ -1420,19 +1421,36 @@ ODOMETRY_CHECK_STEPS = 20
 ODOMETRY_SCALE_RANGE = (0.5, 2.0)
 
 
+#: ``use_odometry=None`` maps with the odometry when at least this share of the scans
+#: carry it: a bag's first or last scans can lie a few milliseconds outside its odometry's
+#: time span (they are placed as ``use_odometry=True`` places them, by the motion model)
+ODOMETRY_MIN_SHARE = 0.95
+
+
 def choose_odometry(
     scans: Sequence[Scan], use_odometry: bool | None, cfg: MapConfig
 ) -> tuple[bool, OdometryScale | None]:
     """Whether to map ``scans`` with their odometry, as :func:`map_scans` decides it:
     ``(use, aside)``. ``use_odometry`` True or False is kept (``aside`` None); None uses
-    the odometry when every scan carries it and a sample of matched consecutive pairs
-    says it moves as the scans do; else ``aside`` is that sample's
-    :class:`OdometryScale` (logged as a warning) and the map is made from the scans
-    alone."""
+    the odometry when at least :data:`ODOMETRY_MIN_SHARE` of the scans carry it (the
+    others warned) and a sample of matched consecutive pairs says it moves as the scans
+    do; else ``aside`` is that sample's :class:`OdometryScale` (logged as a warning) and
+    the map is made from the scans alone."""
     if use_odometry is not None:
         return bool(use_odometry), None
-    if not all(s.odometry is not None for s in scans):
-        return False, None
+    have = sum(s.odometry is not None for s in scans)
+    if have < len(scans):
+        first = next(k for k, s in enumerate(scans) if s.odometry is None)
+        enough = have >= ODOMETRY_MIN_SHARE * len(scans)
+        if have:
+            log.warning(
+                "%d of %d scans carry no odometry (the first: scan %d, %s): %s",
+                len(scans) - have, len(scans), first, scans[first].source or "unnamed",
+                "they are placed by the motion model" if enough else "mapping from the "
+                "scans alone (use_odometry=True uses it where there is any)",
+            )  # fmt: skip
+        if not enough:
+            return False, None
     aside = _odometry_aside(scans, cfg) if len(scans) > 1 else None
     return aside is None, aside
 
