@@ -229,3 +229,23 @@ def test_the_online_defaults_decide_closures_every_5_keyframes():
     given = MapConfig()
     with OnlineMapper(config=given) as m:
         assert m._cfg is given  # a given configuration is taken as it is
+
+
+def test_online_the_odometry_is_used_from_its_first_message():
+    """A bag's first laser message can come before its first odometry message: online,
+    the odometry is used from the first of the first scans that carries it."""
+    import dataclasses
+
+    from scanclique.mapping import map_online
+    from scanclique.mapping.online import ODOMETRY_FIRST_SCANS
+    from scanclique.sim import office_world, simulate_trajectory
+
+    rng = np.random.default_rng(5)
+    scans = simulate_trajectory(rng, office_world(rng), 40, n_beams=181)
+    late = [dataclasses.replace(s, odometry=None) if k < 2 else s for k, s in enumerate(scans)]
+    assert map_online(late).result.used_odometry
+    never = [
+        dataclasses.replace(s, odometry=None) if k < ODOMETRY_FIRST_SCANS else s
+        for k, s in enumerate(scans)
+    ]
+    assert not map_online(never).result.used_odometry

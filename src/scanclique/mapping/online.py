@@ -15,9 +15,11 @@ configuration is :meth:`MapConfig.online() <scanclique.mapping.MapConfig.online>
 
 What ``map_scans`` reads from the whole log, the online mapper reads from the scans so far:
 
-* ``use_odometry=None``: the odometry is used when the *first* scan carries it
-  (``map_scans``: when every scan does). A later scan without odometry is placed by the
-  constant-velocity prior, as in ``map_scans(..., use_odometry=True)``.
+* ``use_odometry=None``: the odometry is used from the first of the first
+  :data:`ODOMETRY_FIRST_SCANS` scans that carries it (a bag's first laser message can
+  come before its first odometry message; ``map_scans``: when 95 % of the scans do). A
+  later scan without odometry is placed by the constant-velocity prior, as in
+  ``map_scans(..., use_odometry=True)``.
 * ``odometry_reverses=None``: whether the wheel odometry reports backing up
   (:func:`~.frontend.odometry_sees_reversing`, which ``map_scans`` asks of the whole log)
   is told from the scans so far (:class:`~.frontend.ReversingWatch`): until 50 moving
@@ -66,7 +68,11 @@ from .pipeline import (
     warn_unmatched,
 )
 
-__all__ = ["OnlineMapper", "OnlineRun", "map_online"]
+__all__ = ["ODOMETRY_FIRST_SCANS", "OnlineMapper", "OnlineRun", "map_online"]
+
+#: ``use_odometry=None``: the odometry is used from the first scan that carries it among
+#: this many first scans (a bag's first laser messages can precede its odometry)
+ODOMETRY_FIRST_SCANS = 10
 
 
 class OnlineMapper:
@@ -159,6 +165,9 @@ class OnlineMapper:
             blind = self._reverses is False
             self._mapper = _Mapper(use, blind, self._cfg, self._workers)
         m = self._mapper
+        if self._use is None and not m.odo and scan.odometry is not None:
+            if len(m.scans) < ODOMETRY_FIRST_SCANS:  # the odometry came after the laser
+                m.odo = True
         if self._reverses is None:
             self._watch.see(scan.odometry)
             m.blind_to_reversing = m.odo and not self._watch.sees_reversing
