@@ -95,13 +95,13 @@ def _stamp(msg, t_ns: int) -> float:
     return 1e-9 * t_ns
 
 
-def _wrap_beams(r: np.ndarray, ang: np.ndarray, along: np.ndarray | None = None):
+def _wrap_beams(r: np.ndarray, ang: np.ndarray, along: np.ndarray):
     """Ranges and increasing beam angles ``ang`` with the angles in [-pi, pi): shifted by
     whole turns when that brings them all in; a full circle (``n`` beams spanning ``n``
     increments of about 2 pi) rolled so that it starts at -pi. A field of view that
     crosses pi but is no full circle is returned as given (rolling it would make its two
     ends neighbours). ``(r, ang, along)``: another per-beam array (each beam's place in
-    its message), or None, follows them."""
+    its message) follows them."""
     if ang.size == 0 or (ang[0] >= -math.pi and ang[-1] < math.pi):
         return r, ang, along
     two_pi = 2.0 * math.pi
@@ -115,7 +115,7 @@ def _wrap_beams(r: np.ndarray, ang: np.ndarray, along: np.ndarray | None = None)
     order = np.argsort(wrapped, kind="stable")
     if not np.all(np.diff(wrapped[order]) > 0):
         return r, ang, along
-    return r[order], wrapped[order], None if along is None else along[order]
+    return r[order], wrapped[order], along[order]
 
 
 def _time_increment(msg, n: int, name: str, topic: str, warned: set) -> float | None:

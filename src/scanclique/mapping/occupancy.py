@@ -118,17 +118,6 @@ def probabilities(log_odds: np.ndarray) -> np.ndarray:
     return 1.0 - 1.0 / (1.0 + np.exp(log_odds.astype(float)))
 
 
-def _deskewed(
-    scans: Sequence[Scan], poses: Sequence[Pose2 | None], k: int, timing: str | None
-) -> Scan:
-    """Scan ``k`` de-skewed along the mapped ``poses``
-    (:func:`scanclique.scan.deskew_along`), its beam times read as ``timing`` (None: not
-    de-skewed)."""
-    if scans[k].beam_times is None or timing is None:
-        return scans[k]
-    return deskew_along(scans, k, poses.__getitem__, timing)
-
-
 def occupancy_grid(
     scans: Sequence[Scan],
     poses: Sequence[Pose2 | None],
@@ -177,7 +166,8 @@ def occupancy_grid(
     # beam end points in the map frame, first to size the grid
     starts, ends, hits = [], [], []
     for k in idx:
-        s, p = _deskewed(scans, poses, k, timing), poses[k]
+        s = scans[k] if timing is None else deskew_along(scans, k, poses.__getitem__, timing)
+        p = poses[k]
         keep = s.valid | s.no_return if cfg.free_on_no_return else s.valid
         rng = np.where(s.valid, s.ranges, cfg.max_range)[keep]
         hit = s.valid[keep] & (rng <= cfg.max_range)

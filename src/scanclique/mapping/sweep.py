@@ -23,7 +23,6 @@ that tell: a sweep that does not turn is skewed by its translation only.
 
 from __future__ import annotations
 
-import logging
 import math
 from collections.abc import Callable, Sequence
 
@@ -41,11 +40,10 @@ __all__ = [
     "sweep_timing",
 ]  # fmt: skip
 
-log = logging.getLogger(__name__)
-
 #: the most turning scans :func:`sweep_timing` compares (those that turn most)
 TIMING_PAIRS = 24
-#: fewer turning scans than this: the times are taken as given (REP 117)
+#: fewer turning scans than this: the log does not tell (the batch reads the times as
+#: given, REP 117; the online mapper waits)
 TIMING_MIN_PAIRS = 5
 #: a sweep turning less than this (rad) over its span is not a turning scan
 TIMING_MIN_TURN = math.radians(3.0)
@@ -67,7 +65,7 @@ def sweep_timing(
     scans: Sequence[Scan],
     pose_of: Callable[[int], Pose2 | None],
     config: MatchConfig | None = None,
-) -> tuple[str, dict[str, float], int]:
+) -> tuple[str | None, dict[str, tuple[float, float]], int]:
     """Which reading of the scans' beam times (:data:`scanclique.scan.TIMINGS`) the log
     agrees with best (module docstring).
 
@@ -127,13 +125,12 @@ def sweep_timing(
             turned[timing] += math.degrees(icp.pose.distance_to(prior)[1]) / len(pairs)
     out = {t: (score[t], turned[t]) for t in TIMINGS}
     forward, backward = (max(score[t] for t in d) for d in DIRECTIONS)
-    if score["none"] >= max(forward, backward) + TIMING_MARGIN:
-        return "none", out, len(pairs)
-    if abs(forward - backward) < TIMING_MARGIN:
+    top = max(forward, backward)
+    if abs(forward - backward) < TIMING_MARGIN and score["none"] < top + TIMING_MARGIN:
         return None, out, len(pairs)
-    way = DIRECTIONS[0] if forward > backward else DIRECTIONS[1]
-    if score["none"] > max(forward, backward):  # de-skewing either way helps nothing
+    if score["none"] > top:  # de-skewing either way helps nothing
         return "none", out, len(pairs)
+    way = DIRECTIONS[0] if forward > backward else DIRECTIONS[1]
     best = min(way, key=lambda t: turned[t])  # (given or negated first on a tie)
     return best, out, len(pairs)
 
