@@ -40,12 +40,12 @@ def flaser(ranges, ref=(1.0, 2.0, 0.5), odom=(1.5, 2.5, 0.25), t=100.0, kind="FL
 
 
 def robotlaser(ranges, start=-1.0, fov=2.0, res=0.5, max_range=20.0, remissions=(7, 8),
-               laser=(1.0, 2.0, 0.3), robot=(0.9, 2.0, 0.3), t=5.0):  # fmt: skip
+               laser=(1.0, 2.0, 0.3), robot=(0.9, 2.0, 0.3), t=5.0, k=1):  # fmt: skip
     r = " ".join(str(x) for x in ranges)
     rem = " ".join(str(x) for x in remissions)
     tail = " ".join(str(v) for v in (*laser, *robot, 0.1, 0.2, 0.3, 0.4, 0.5))
     return (
-        f"ROBOTLASER1 0 {start} {fov} {res} {max_range} 0.01 0 {len(ranges)} {r} "
+        f"ROBOTLASER{k} 0 {start} {fov} {res} {max_range} 0.01 0 {len(ranges)} {r} "
         f"{len(remissions)} {rem} {tail} {t} host {t}"
     )
 
@@ -219,6 +219,65 @@ def test_rawlaser_odometry_interpolated_from_odom(tmp_path):
     assert log.scans[0].range_max == 30.0
     assert log.odom.shape == (2, 4)
     assert log.message_types == ("RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
+
+
+def test_robotlaser2_is_the_rear_laser_in_the_robotlaser_layout(tmp_path):
+    path = write(
+        tmp_path,
+        "a.log",
+        robotlaser([1.0, 2.0], t=5.0),
+        robotlaser([3.0, 4.0], t=5.1, k=2, laser=(0.7, 2.0, 3.44)),
+    )
+    log = read_carmen(path)
+    assert log.message_types == ("ROBOTLASER1", "ROBOTLASER2")
+    assert log.scans[1].odometry == Pose2(0.7, 2.0, 3.44)  # the rear laser's pose
+    np.testing.assert_allclose(log.scans[1].angles, [-1.0, -0.5])
+    assert [s.ranges[0] for s in read_scans(path, laser="main")] == [1.0]
+    assert [s.ranges[0] for s in read_scans(path, laser="ROBOTLASER2")] == [3.0]
+
+
+def test_laser3_and_laser4_as_carmen_writes_them_take_the_odom(tmp_path):
+    """CARMEN's logger writes LASER3/LASER4 without a pose (``n r.. t host t``)."""
+    path = write(
+        tmp_path,
+        "a.log",
+        odom(0.0, 0.0, 0.0, t=10.0),
+        "LASER3 4 1.0 2.0 81.9 3.0 11.0 host 11.0",
+        odom(2.0, 4.0, 0.5, t=12.0),
+        "LASER4 2 5.0 6.0 13.0 host 13.0",  # after the last ODOM
+    )
+    log = read_carmen(path)
+    assert log.message_types == ("LASER3", "LASER4")
+    a, b = log.scans
+    np.testing.assert_array_equal(a.angles, flaser_angles(4))
+    assert a.valid.tolist() == [True, True, False, True]  # 81.9 m: no return, as FLASER
+    assert (a.odometry.x, a.odometry.y, a.odometry.theta) == pytest.approx((1.0, 2.0, 0.25))
+    assert a.reference is None and a.timestamp == 11.0
+    assert b.odometry is None and b.ranges.tolist() == [5.0, 6.0]
+
+
+def test_laser3_in_the_flaser_layout_is_read_as_flaser(tmp_path):
+    """Some converters write LASER3/LASER4 with FLASER's six pose fields."""
+    line = flaser([1.0, 2.0, 3.0], kind="LASER3")
+    (scan,) = read_carmen(write(tmp_path, "a.log", line)).scans
+    (twin,) = read_carmen(write(tmp_path, "b.log", flaser([1.0, 2.0, 3.0]))).scans
+    same_scan(scan, twin, source=False)
+    assert scan.reference == Pose2(1.0, 2.0, 0.5)
+
+
+@pytest.mark.parametrize(
+    ("line", "match"),
+    [
+        ("LASER3", "a.log:1: num_readings: LASER3 expects a beam count"),
+        ("LASER4 3 1.0 2.0 9.0 host", "LASER4 with 3 ranges expects 8 fields .or 14 in the"),
+        ("LASER3 2 1.0 abc 9.0 host 9.0", "range.1.: LASER3 expects a number, found 'abc'"),
+        ("LASER3 2 1.0 2.0 nan host 9.0", "ipc_timestamp: LASER3 expects a finite timestamp"),
+        ("ROBOTLASER2 0 -1 2 0.5 20 0.01 0 2 1.0", "ROBOTLASER2 expects 2 ranges and a"),
+    ],
+)
+def test_errors_of_the_other_laser_messages_name_line_and_field(tmp_path, line, match):
+    with pytest.raises(ParseError, match=match):
+        read_carmen(write(tmp_path, "a.log", line))
 
 
 def test_interpolate_odometry_unsorted_and_duplicates():

@@ -64,8 +64,8 @@ def map_cmd(
         typer.Option(
             "--laser",
             help="Which laser of a CARMEN log that holds several (FLASER, RLASER, "
-            "ROBOTLASER1, RAWLASER1..4; default: the main one, FLASER first, said on stderr); "
-            "for a ROS bag, its LaserScan topic (as --topic).",
+            "ROBOTLASER1..2, RAWLASER1..4, LASER3..4; default: the main one, FLASER first, "
+            "said on stderr); for a ROS bag, its LaserScan topic (as --topic).",
         ),
     ] = None,
     plot: Annotated[

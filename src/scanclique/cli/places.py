@@ -56,8 +56,9 @@ LaserOpt = Annotated[
     str,
     typer.Option(
         "--laser",
-        help="Which laser of the log: a CARMEN message type (FLASER, RLASER, ROBOTLASER1, "
-        "RAWLASER1..4) or a ROS bag's LaserScan topic (/front/scan); default: the main one.",
+        help="Which laser of the log: a CARMEN message type (FLASER, RLASER, ROBOTLASER1..2, "
+        "RAWLASER1..4, LASER3..4) or a ROS bag's LaserScan topic (/front/scan); default: "
+        "the main one.",
     ),
 ]
 

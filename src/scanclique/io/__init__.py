@@ -188,13 +188,13 @@ def read_scans(
         Largest accepted beam count in one message or record (guards corrupt counts).
     max_range : float, optional
         CARMEN only: ``Scan.range_max`` (metres) for messages without a maximum range
-        (FLASER, RLASER); readings at or beyond it are no return. Default: 80 m (right for
-        the SICK logs of the shared data, which log no return as 81.83 or 81.91), or the
-        log's own no-return value when it marks no return below 80 m (found in its first
-        200 FLASER/RLASER messages by :func:`~scanclique.io.carmen.detect_no_return`,
-        logged at warning level, and then the ``range_max`` of those scans). Ignored by
-        the other formats, but checked for all: not a finite number > 0 is a
-        :class:`~scanclique.errors.ConfigError`.
+        (FLASER, RLASER, LASER3, LASER4); readings at or beyond it are no return.
+        Default: 80 m (right for the SICK logs of the shared data, which log no return as
+        81.83 or 81.91), or the log's own no-return value when it marks no return below
+        80 m (found in its first 200 such messages by
+        :func:`~scanclique.io.carmen.detect_no_return`, logged at warning level, and then
+        the ``range_max`` of those scans). Ignored by the other formats, but checked for
+        all: not a finite number > 0 is a :class:`~scanclique.errors.ConfigError`.
     laser : str, optional
         CARMEN only: None (default) keeps every laser message; a log that holds more than
         one laser (FLASER and RLASER, RAWLASER1 and RAWLASER2, ...) interleaves their views

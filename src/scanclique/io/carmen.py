@@ -4,9 +4,11 @@ Messages read (one per line, fields separated by white space)::
 
     FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp
     RLASER (same layout as FLASER)
+    LASER3, LASER4 n r_1 .. r_n ipc_timestamp hostname logger_timestamp (or the FLASER layout)
     ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode
         n r_1 .. r_n m rem_1 .. rem_m laser_x laser_y laser_theta robot_x robot_y robot_theta
         tv rv forward_safety side_safety turn_axis timestamp hostname logger_timestamp
+    ROBOTLASER2 (same layout as ROBOTLASER1)
     RAWLASER1 .. RAWLASER4 laser_type start_angle fov angular_res max_range accuracy
         remission_mode n r_1 .. r_n m rem_1 .. rem_m timestamp hostname logger_timestamp
     ODOM x y theta tv rv accel timestamp hostname logger_timestamp
@@ -25,19 +27,25 @@ Conventions
   frame with the same angles (no ``pi`` is added: the rear laser's mounting is for the
   caller to apply). ``x y theta`` becomes ``Scan.reference`` and ``odom_x odom_y odom_theta``
   ``Scan.odometry``; the timestamp is ``ipc_timestamp``.
-* **No-return readings.** FLASER/RLASER carry no maximum range, so ``Scan.range_max`` is
-  the reader's ``max_range`` (default :data:`FLASER_MAX_RANGE` = 80 m): readings at or
-  beyond it are masked as invalid (they are kept as logged). The shared logs mark no return
-  with 81.83 (Intel) and 81.91 (CSAIL, Freiburg 079), while their largest genuine readings
-  are about 25.4, 35.1 and 36.6 m, so 80 m separates the two in all three; a SICK LMS
-  cannot measure beyond about 80 m anyway. Logs that mark no return with a smaller value
-  (some use 50) are recognised: the value repeats exactly across many beams at the top of
-  the range distribution of the first 200 FLASER/RLASER messages
-  (:func:`detect_no_return`); it then becomes those scans' ``range_max`` (a reading
-  exactly equal to ``range_max`` is invalid), is recorded in :attr:`CarmenLog.no_return`
-  and logged. Passing ``max_range`` turns the detection off.
-* **ROBOTLASER1**: angles ``start_angle + i * angular_res``; ``Scan.range_max`` is the
-  message's ``max_range`` (the reader's ``max_range`` when that is not positive).
+* **No-return readings.** FLASER, RLASER, LASER3 and LASER4 carry no maximum range, so
+  ``Scan.range_max`` is the reader's ``max_range`` (default :data:`FLASER_MAX_RANGE`,
+  80 m): readings at or beyond it are masked as invalid (they are kept as logged). The shared
+  logs mark no return with 81.83 (Intel) and 81.91 (CSAIL, Freiburg 079), while their
+  largest genuine readings are about 25.4, 35.1 and 36.6 m, so 80 m separates the two in
+  all three; a SICK LMS cannot measure beyond about 80 m anyway. Logs that mark no return
+  with a smaller value (some use 50) are recognised: the value repeats exactly across many
+  beams at the top of the range distribution of the first 200 such messages
+  (:func:`detect_no_return`); it then becomes those scans' ``range_max`` (a reading exactly
+  equal to ``range_max`` is invalid), is recorded in :attr:`CarmenLog.no_return` and
+  logged. Passing ``max_range`` turns the detection off.
+* **LASER3 / LASER4** (CARMEN's old-format third and fourth lasers): the beams of FLASER.
+  CARMEN's logger writes them without a pose, so ``Scan.odometry`` is interpolated from
+  the ODOM messages as for RAWLASER and ``Scan.reference`` is None; a line in the FLASER
+  layout (six pose fields, as some converters write them) is read as FLASER is. The
+  field count tells the two apart.
+* **ROBOTLASER1 / ROBOTLASER2** (the front and the rear laser): angles
+  ``start_angle + i * angular_res``; ``Scan.range_max`` is the message's ``max_range``
+  (the reader's ``max_range`` when that is not positive).
   ``Scan.odometry`` is the *laser* pose ``laser_x laser_y laser_theta`` (the pose of the
   sensor, which is what a Scan's poses describe; the robot pose differs by the mounting
   offset) and ``Scan.reference`` is None: the message does not say whether its poses are
@@ -136,7 +144,18 @@ DEFAULT_MAX_BEAMS = 100_000
 """Largest accepted beam (or remission) count in one message."""
 
 LASER_MESSAGES = frozenset(
-    {"FLASER", "RLASER", "ROBOTLASER1", "RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4"}
+    {
+        "FLASER",
+        "RLASER",
+        "LASER3",
+        "LASER4",
+        "ROBOTLASER1",
+        "ROBOTLASER2",
+        "RAWLASER1",
+        "RAWLASER2",
+        "RAWLASER3",
+        "RAWLASER4",
+    }
 )
 """CARMEN message types that become scans."""
 
@@ -150,12 +169,16 @@ MAIN_LASER_ORDER = (
     "RAWLASER2",
     "RAWLASER3",
     "RAWLASER4",
+    "LASER3",
+    "LASER4",
     "RLASER",
+    "ROBOTLASER2",
 )
 """Which laser is a log's main one when it holds several (:func:`select_laser`): the front
 laser (FLASER, which carries the odometry and the reference pose, before ROBOTLASER1, which
-some logs write beside it for the same scans), then the lowest-numbered raw laser, the rear
-laser last."""
+some logs write beside it for the same scans), then the lowest-numbered raw laser, the
+old-format third and fourth, the rear laser last (RLASER before ROBOTLASER2, as at the
+front)."""
 
 
 def check_laser(laser) -> None:
@@ -230,10 +253,12 @@ def select_laser(log: CarmenLog, laser: str | None) -> tuple[list[Scan], str | N
     )
 
 
-_FLASER_KINDS = frozenset({"FLASER", "RLASER"})
+_FLASER_KINDS = frozenset({"FLASER", "RLASER", "LASER3", "LASER4"})
+"""Messages with FLASER's beams and no maximum range (the no-return probe looks at them)."""
 
 NO_RETURN_PROBE_SCANS = 200
-"""FLASER/RLASER messages at the head of a log looked at to find its no-return value."""
+"""FLASER-like messages (RLASER, LASER3, LASER4 too) at the head of a log looked at to
+find its no-return value."""
 
 NO_RETURN_MIN_COUNT = 10
 """Readings that must sit exactly at a value for it to be taken as the no-return mark."""
@@ -532,8 +557,32 @@ def _parse_flaser(tok: list[str], ctx: _Context) -> _Pending:
     )
 
 
+def _parse_old_laser(tok: list[str], ctx: _Context) -> _Pending:
+    """LASER3 / LASER4: ``n r_1 .. r_n ipc_timestamp hostname logger_timestamp`` as
+    CARMEN's logger writes them (no pose: the odometry comes from ODOM), or the FLASER
+    layout, told apart by the field count."""
+    if len(tok) < 2:
+        raise ctx.err("num_readings", "expects a beam count, found nothing (truncated line?)")
+    n = parse_count(tok[1], "num_readings", ctx.max_beams, ctx.err)
+    if len(tok) == n + 11:
+        return _parse_flaser(tok, ctx)
+    if len(tok) != n + 5:
+        raise ctx.err(
+            None,
+            f"with {n} ranges expects {n + 5} fields (or {n + 11} in the FLASER layout), "
+            f"found {len(tok)} (truncated line?)",
+        )
+    v = ctx.floats(
+        tok, 2, n + 3, lambda i: f"range[{i - 2}]" if i < n + 2 else "ipc_timestamp", ctx.err
+    )
+    t = _timestamp(float(v[n]), "ipc_timestamp", ctx)
+    return _Pending(
+        ctx.line_no, ctx.kind, v[:n], ctx.flaser_angles(n), ctx.max_range, t, None, None, True
+    )
+
+
 def _parse_laser_header(tok: list[str], ctx: _Context):
-    """Shared head of ROBOTLASER1/RAWLASERx: header, ranges, remissions; returns the pieces."""
+    """Shared head of ROBOTLASERx/RAWLASERx: header, ranges, remissions; returns the pieces."""
     if len(tok) < 9:
         raise ctx.err(
             None, f"expects at least 9 leading fields, found {len(tok)} (truncated line?)"
@@ -616,7 +665,10 @@ def _parse_param(tok: list[str], ctx: _Context) -> None:
 _PARSERS: dict[str, Callable[[list[str], _Context], _Pending | None]] = {
     "FLASER": _parse_flaser,
     "RLASER": _parse_flaser,
+    "LASER3": _parse_old_laser,
+    "LASER4": _parse_old_laser,
     "ROBOTLASER1": _parse_robotlaser,
+    "ROBOTLASER2": _parse_robotlaser,
     **{f"RAWLASER{k}": _parse_rawlaser for k in range(1, 5)},
     "ODOM": _parse_odom,
     "PARAM": _parse_param,
@@ -655,7 +707,7 @@ class _CarmenReader:
         self.skipped: dict[str, int] = {}
         self.n_scans: int | None = None
         self._n_warned = 0
-        #: message type -> the no-return value detected (FLASER/RLASER, below max_range)
+        #: message type -> the no-return value detected (FLASER-like, below max_range)
         self.no_return: dict[str, float] = {}
         self._probing = detect
         self._sample: dict[str, list[np.ndarray]] = {}
@@ -698,7 +750,7 @@ class _CarmenReader:
         return shift
 
     def _probe(self, record: _Pending) -> None:
-        """Add a FLASER/RLASER message to the no-return sample; decide when it is full."""
+        """Add a FLASER-like message to the no-return sample; decide when it is full."""
         self._sample.setdefault(record.kind, []).append(record.ranges)
         self._n_sampled += 1
         if self._n_sampled >= NO_RETURN_PROBE_SCANS:
@@ -732,7 +784,7 @@ class _CarmenReader:
     ) -> Iterator[tuple[int, str, Scan]]:
         """See the class docstring; ``last``: stop after the laser message of this index
         (strict mode, when no scan waits for later ODOM messages or for the no-return
-        probe of the first :data:`NO_RETURN_PROBE_SCANS` FLASER/RLASER messages)."""
+        probe of the first :data:`NO_RETURN_PROBE_SCANS` FLASER-like messages)."""
         ctx, skipped, strict = self.ctx, self.skipped, self.strict
         index = 0  # index of the next laser message
         waiting: list[tuple[int, _Pending]] = []  # deferred: need ODOM, or the probe
@@ -911,9 +963,9 @@ def read_carmen(
         Largest accepted beam or remission count in one message.
     max_range : float, optional
         ``Scan.range_max`` (metres) for messages that carry no maximum range (FLASER,
-        RLASER) or a non-positive one; readings at or beyond it are masked as no return.
-        Default 80 m, or for FLASER/RLASER the log's own no-return value when it marks no
-        return below 80 m (:func:`detect_no_return` on its first 200 such messages;
+        RLASER, LASER3, LASER4) or a non-positive one; readings at or beyond it are masked
+        as no return. Default 80 m, or for the first four the log's own no-return value
+        when it marks no return below 80 m (:func:`detect_no_return` on its first 200 such messages;
         recorded in :attr:`CarmenLog.no_return` and logged at warning level).
 
     Returns
