@@ -51,6 +51,7 @@ __all__ = [
     "load_log",
     "clear_cache",
     "relations_path",
+    "log_relations",
     "dimacs_dir",
 ]
 
@@ -373,6 +374,25 @@ def relations_path() -> Path:
         if p.is_file():
             return p
     raise _not_found("Intel relations file", _RELATIONS, _FREIBURG)
+
+
+def log_relations(path_or_name: str | os.PathLike) -> Path | None:
+    """The relations file (Kümmerle et al. 2009) of a registered log, given by name or by
+    the path of its file; None for a log without relations, one not registered, or when
+    the relations file is not in the data directory.
+
+    >>> log_relations("no-such-log.clf") is None
+    True
+    """
+    key = registered_name(path_or_name)
+    rel = None if key is None else DATASETS[key].relations
+    if rel is None:
+        return None
+    for base in data_dir_candidates():
+        p = base / rel
+        if p.is_file():
+            return p
+    return None
 
 
 def dimacs_dir() -> Path:

@@ -1,12 +1,15 @@
-"""The ``scanclique map`` command: map a whole log (issue 12).
+"""The ``scanclique map`` command: map a whole log (issue 12); and ``scanclique evaluate``,
+which scores a trajectory (this one's or another system's) by the benchmark's relations.
 
-The work is :func:`scanclique.mapping.run.run_map`; this module only parses arguments and
-prints. Heavy imports happen inside the command.
+The work is :func:`scanclique.mapping.run.run_map` and
+:func:`scanclique.mapping.evaluate.run_evaluate`; this module only parses arguments and
+prints. Heavy imports happen inside the commands.
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -99,6 +102,15 @@ def map_cmd(
             "marginals of the optimised graph (the same as back_end.covariances = true).",
         ),
     ] = False,
+    relations: Annotated[
+        Path | None,
+        typer.Option(
+            "--relations",
+            help="A relations file of the SLAM benchmark (Kuemmerle et al.) for this log: "
+            "the table adds its relation error (default: a registered log's own).",
+            dir_okay=False,
+        ),
+    ] = None,
     config: AppConfigOpt = None,
     save_config: SaveConfigOpt = None,
     json_out: JsonOpt = False,
@@ -116,6 +128,7 @@ def map_cmd(
     scanclique map fr079-raw --out runs/fr079 --workers 2
     scanclique map intel --out runs/intel --covariances
     scanclique map fr079-raw --out runs/fr079 --online   # + trajectory_live.tum
+    scanclique map aces.clf --out runs/aces --relations aces.relations
     scanclique config --for map > map.toml      # every key of MapConfig, to edit
     scanclique map intel --out runs/intel -c map.toml --save-config runs/used.toml
     ```
@@ -173,6 +186,7 @@ def map_cmd(
                 workers=workers,
                 config=cfg,
                 online=online,
+                relations=relations,
             )
         )
     for f in run.removed:
@@ -198,6 +212,97 @@ def map_cmd(
     )
 
 
+def evaluate_cmd(
+    trajectory: Annotated[
+        Path,
+        typer.Argument(
+            help="A TUM trajectory (timestamp x y z qx qy qz qw): scanclique map's "
+            "trajectory.tum, or another system's.",
+            dir_okay=False,
+        ),
+    ],
+    relations: Annotated[
+        str,
+        typer.Argument(
+            help="A relations file of the SLAM benchmark (t1 t2 x y z roll pitch yaw), or "
+            "a registered log with relations (intel, fr079)."
+        ),
+    ],
+    log: Annotated[
+        str | None,
+        typer.Option(
+            "--log",
+            help="The log the trajectory is of: its laser lines say where the laser sits on "
+            "the robot, whose frame the relations refer to (default: the registered log "
+            "named by RELATIONS).",
+        ),
+    ] = None,
+    mounting: Annotated[
+        str | None,
+        typer.Option(
+            "--mounting",
+            help="The robot's frame in the trajectory's, 'x,y,theta' (m, m, rad); '0,0,0' "
+            "for a trajectory of the robot's own poses. Overrides --log.",
+        ),
+    ] = None,
+    short: Annotated[
+        float,
+        typer.Option("--short", min=0.0, help="Relations spanning at most this are short (s)."),
+    ] = 10.0,
+    json_out: JsonOpt = False,
+) -> None:
+    """Score a trajectory by the relation metric of the SLAM benchmark (Kuemmerle et al.
+    2009): the error of every relation, mean and standard deviation, absolute and squared,
+    and split into short and long relations.
+
+    Each relation's poses are the trajectory's at its two times: the row at that time, or
+    interpolated between rows at most 1 s apart; a relation with a time outside the
+    trajectory is counted as missing.
+
+    **Examples**
+
+    ```
+    scanclique map fr079 --out runs/fr079 && scanclique evaluate runs/fr079/trajectory.tum fr079
+    scanclique evaluate runs/aces/trajectory.tum aces.relations --log aces.clf
+    scanclique evaluate cartographer.tum intel.relations --mounting 0,0,0 --json
+    ```
+    """
+    from ..mapping.evaluate import run_evaluate
+
+    pose = None
+    if mounting is not None:
+        pose = _guard(lambda: _parse_mounting(mounting))
+    run = _guard(
+        lambda: run_evaluate(trajectory, relations, log=log, mounting=pose, short_seconds=short)
+    )
+    if json_out:
+        _print_json(run.to_dict())
+        return
+    _console().print(
+        _table(
+            run.table_rows(), f"scanclique evaluate {trajectory.name}", ("Metric", "Value", "Units")
+        )
+    )
+
+
+def _parse_mounting(text: str):
+    """``'x,y,theta'`` (m, m, rad) as a Pose2; an ArgumentError naming the option else."""
+    import math
+
+    from ..errors import ArgumentError
+    from ..geometry import Pose2
+
+    parts = text.replace(" ", "").split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ArgumentError(f"--mounting expects three finite numbers x,y,theta, got {text!r}")
+    return Pose2(*values)
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``scanclique map`` to ``app``."""
+    """Add ``scanclique map`` and ``scanclique evaluate`` to ``app``."""
     app.command("map")(map_cmd)
+    app.command("evaluate")(evaluate_cmd)

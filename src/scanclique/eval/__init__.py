@@ -14,6 +14,8 @@ from .relations import (
     read_relations,
     relation_errors,
     relation_metrics,
+    relation_rows,
+    trajectory_relation_metrics,
 )
 
 __all__ = [
@@ -25,4 +27,6 @@ __all__ = [
     "read_relations",
     "relation_errors",
     "relation_metrics",
+    "relation_rows",
+    "trajectory_relation_metrics",
 ]

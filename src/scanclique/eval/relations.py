@@ -38,9 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParseError, ScanError
+from ..errors import ArgumentError, ParseError, ScanError
 from ..geometry import Pose2
 from ..io.text import plain_float
+from ..io.tum import MAX_GAP, poses_at
 
 __all__ = [
     "frame_mounting",
@@ -52,6 +53,8 @@ __all__ = [
     "join_relations",
     "relation_errors",
     "relation_metrics",
+    "relation_rows",
+    "trajectory_relation_metrics",
 ]
 
 #: relations spanning at most this many seconds are "short" (consecutive-ish), the others
@@ -345,3 +348,93 @@ def relation_metrics(
     """
     t, r, span = relation_errors(relations, poses, timestamps, mounting=mounting)
     return SplitErrors.of(t, r, span, short_seconds)
+
+
+def trajectory_relation_metrics(
+    trajectory,
+    relations: Sequence[Relation],
+    *,
+    mounting: Pose2 | None = None,
+    max_gap: float = MAX_GAP,
+    short_seconds: float = SHORT_SECONDS,
+) -> SplitErrors:
+    """The relation metric of a trajectory at any rate (any system's, or the
+    ``trajectory.tum`` of ``scanclique map``), as the benchmark's own evaluator scores one.
+
+    Each relation's two poses are the trajectory's at its two times
+    (:func:`scanclique.io.poses_at` on the rows in time order): the row at that time
+    (within :data:`scanclique.io.tum.TIME_TOLERANCE`), else interpolated between the two
+    rows around it when they are at most ``max_gap`` seconds apart. A relation with a time
+    outside the rows or in a larger gap is counted as missing (``RelationErrors.missing``),
+    not scored.
+
+    Parameters
+    ----------
+    trajectory : array_like, shape (N, 4)
+        Rows ``time x y theta`` (:func:`scanclique.io.read_tum`), in any order.
+    relations : sequence of Relation
+    mounting : Pose2, optional
+        As for :func:`relation_errors`: the pose of the relations' frame (the robot's) in
+        the trajectory's (the laser's, for ``scanclique map``'s trajectory of a log whose
+        laser sits off the robot's centre: :func:`frame_mounting`).
+    max_gap, short_seconds : float
+        Seconds.
+
+    Raises
+    ------
+    ArgumentError
+        No relation's time lies within the trajectory (another log's, or another clock's),
+        or the rows are not ``time x y theta``.
+
+    >>> rows = [[0.0, 0.0, 0.0, 0.0], [1.0, 1.1, 0.0, 0.0], [3.0, 3.0, 0.0, 0.0]]
+    >>> rels = [Relation(0.0, 0.5, Pose2(0.5, 0.0, 0.0)), Relation(0.0, 2.0, Pose2(2.0, 0, 0))]
+    >>> m = trajectory_relation_metrics(rows, rels)  # 0.5 s interpolated; 2 s in a 2 s gap
+    >>> round(m.all.translation_mean, 6), m.all.n, m.all.missing
+    (0.05, 1, 1)
+    """
+    rows = np.asarray(trajectory, dtype=float)
+    if rows.ndim != 2 or rows.shape[1] != 4 or not len(rows):
+        raise ArgumentError(f"a trajectory must be rows time x y theta, (N, 4); got {rows.shape}")
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]  # a log's clock may go back
+    times = sorted({t for r in relations for t in (r.t1, r.t2)})
+    try:
+        poses = poses_at(rows, times, max_gap=max_gap) if times else ()
+    except ArgumentError:
+        raise ArgumentError(
+            f"no relation's time lies within the trajectory (trajectory {len(rows)} rows, "
+            f"{rows[0, 0]:.3f} to {rows[-1, 0]:.3f} s; relations {times[0]:.3f} to "
+            f"{times[-1]:.3f} s): is it of another log or clock?"
+        ) from None
+    keyed = dict(zip(times, poses, strict=True))
+    return relation_metrics(relations, keyed, mounting=mounting, short_seconds=short_seconds)
+
+
+def relation_rows(metrics: Mapping) -> list[tuple[str, str, str]]:
+    """Metric / Value / Units rows of a relation metric (:meth:`SplitErrors.to_dict`):
+    the counts, the mean ± standard deviation of the absolute and of the squared errors
+    (the two the benchmark publishes), the largest translation error, and the mean errors
+    of the relations spanning at most and more than ``short_seconds``."""
+
+    def pm(e: Mapping, key: str, digits: int) -> str:
+        m, s = e[f"{key}_mean"], e[f"{key}_std"]
+        return "n/a" if m is None else f"{m:.{digits}f} ± {s:.{digits}f}"
+
+    a, cut = metrics["all"], metrics["short_seconds"]
+    rows = [
+        ("relations", str(a["n"]), ""),
+        ("relations missing (no pose)", str(a["missing"]), ""),
+        ("relation error (translation)", pm(a, "translation", 4), "m"),
+        ("relation error (rotation)", pm(a, "rotation", 3), "deg"),
+        ("squared error (translation)", pm(a, "translation_sq", 5), "m^2"),
+        ("squared error (rotation)", pm(a, "rotation_sq", 3), "deg^2"),
+        ("largest translation error", "n/a" if a["translation_max"] is None
+         else f"{a['translation_max']:.4f}", "m"),
+    ]  # fmt: skip
+    for part, label in (("short", f"<= {cut:g} s"), ("long", f"> {cut:g} s")):
+        e = metrics[part]
+        rows += [
+            (f"relations {label}", str(e["n"]), ""),
+            (f"  their error ({label})", "n/a" if e["translation_mean"] is None
+             else f"{e['translation_mean']:.4f} / {e['rotation_mean']:.3f}", "m / deg"),
+        ]  # fmt: skip
+    return rows

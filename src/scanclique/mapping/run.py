@@ -78,31 +78,18 @@ def load_map_log(
     return datasets.load_log(s, laser=laser or "main"), Path(s).name
 
 
-def _relations_for(log_or_name: str) -> Path | None:
-    """The relations file of a registered raw benchmark log (by name or by its path)."""
-    name = datasets._canonical(log_or_name) if hasattr(datasets, "_canonical") else None
-    p = Path(log_or_name)
-    for key, ds in datasets.DATASETS.items():
-        if name == key or p.name == Path(ds.relpath).name:
-            if ds.relations is None:
-                return None
-            path = datasets.data_dir() / ds.relations
-            return path if path.is_file() else None
-    return None
-
-
-def relation_summary(scans, relations_path, *pose_sets, mounting=None) -> tuple[dict | None, ...]:
+def relation_summary(scans, relations, *pose_sets, mounting=None) -> tuple[dict | None, ...]:
     """The relation metric (:mod:`scanclique.eval.relations`) of each of ``pose_sets``
-    (one pose per scan, or None), the relations read once; None for each without a
-    relations file."""
-    if relations_path is None:
+    (one pose per scan, or None) against ``(path, relations)``; None for each when
+    ``relations`` is None."""
+    if relations is None:
         return (None,) * len(pose_sets)
-    from ..eval import read_relations, relation_metrics  # noqa: PLC0415
+    from ..eval import relation_metrics  # noqa: PLC0415
 
-    rels = read_relations(relations_path)
+    path, rels = relations
     ts = [s.timestamp for s in scans]
     return tuple(
-        {"relations": str(relations_path),
+        {"relations": str(path),
          **relation_metrics(rels, list(poses), ts, mounting=mounting).to_dict()}
         for poses in pose_sets
     )  # fmt: skip
@@ -174,14 +161,9 @@ class MapRun:
             ("scans per second", f"{n / max(s.get('total', math.nan), 1e-9):.1f}", "1/s"),
         ]
         if self.metrics:
-            a = self.metrics["all"]
-            rows += [
-                ("relations", str(a["n"]), ""),
-                ("relation error (translation)",
-                 f"{a['translation_mean']:.4f} ± {a['translation_std']:.4f}", "m"),
-                ("relation error (rotation)",
-                 f"{a['rotation_mean']:.3f} ± {a['rotation_std']:.3f}", "deg"),
-            ]  # fmt: skip
+            from ..eval import relation_rows  # noqa: PLC0415
+
+            rows += relation_rows(self.metrics)
         covs = self.result.covariances
         if covs is not None:
             sig = pose_sigmas(covs)
@@ -246,6 +228,7 @@ def run_map(
     laser: str | None = None,
     odom_frame: str | None = None,
     base_frame: str | None = None,
+    relations: str | os.PathLike | None = None,
 ) -> MapRun:
     """Map a log and write ``trajectory.tum``, ``graph.g2o``, ``map.pgm``, ``map.yaml``,
     ``report.json`` (``map.png`` when ``plot``; ``covariances.csv`` when the
@@ -263,12 +246,23 @@ def run_map(
 
     ``laser``: which laser of a CARMEN log that holds several; ``odom_frame``,
     ``base_frame``: a bag's tf frames of the odometry and the robot (:func:`load_map_log`).
+
+    ``relations``: a relations file of the SLAM benchmark (Kümmerle et al. 2009) for this
+    log, whose metric the run reports (:attr:`MapRun.metrics`); default: the registered
+    log's own (:func:`scanclique.datasets.log_relations`), else none. Read before the
+    mapping, so that a malformed file is a :class:`~scanclique.errors.ParseError` at once.
     """
     from . import outputs  # noqa: PLC0415
     from .occupancy import occupancy_grid  # noqa: PLC0415
 
     t0 = time.perf_counter()
     cfg = config or (MapConfig.online() if online else MapConfig())
+    rel_file = datasets.log_relations(log_or_name) if relations is None else relations
+    rels = None
+    if rel_file is not None:
+        from ..eval import read_relations  # noqa: PLC0415
+
+        rels = (rel_file, read_relations(rel_file))
     scans, label = load_map_log(
         log_or_name, topic, laser, odom_frame=odom_frame, base_frame=base_frame
     )
@@ -323,12 +317,11 @@ def run_map(
     t_out = time.perf_counter() - t
     from ..eval import frame_mounting  # noqa: PLC0415
 
-    rel_path = _relations_for(str(log_or_name))
     # the relations refer to the robot frame where the log's laser lines say where the
     # laser sits on it (fr079: 0.04 m behind), as benchmarks/mapping.py computes them
     pose_sets = (result.poses,) if live is None else (result.poses, live.live)
     metrics, *live_metrics = relation_summary(
-        scans, rel_path, *pose_sets, mounting=frame_mounting(scans)
+        scans, rels, *pose_sets, mounting=frame_mounting(scans)
     )
     online_summary = None
     if live is not None:
