@@ -45,6 +45,15 @@ first).
 
 Results: ``benchmarks/results/mapping-sensors-2026-12-02-s10.{md,json}``.
 
+**Outdoors** (session 39), one command::
+
+    python benchmarks/mapping_sensors.py --world campus --steps 600 --profiles PROFILES
+
+The same scanners riding ``scanclique.sim.campus_world`` instead of an office: a grid of
+buildings with streets 8 m wide between them, trees along the streets, the façades round
+the campus; 150 m drives. Session 39 ran ``--profiles carmen,hokuyo,rplidar,lds``. Results:
+``benchmarks/results/mapping-sensors-campus-2026-12-07.{md,json}``.
+
 **Real logs with another scanner's limits** (session 14), one command::
 
     python benchmarks/mapping_sensors.py --real fr079-raw,intel-raw
@@ -125,15 +134,21 @@ PUBLISHED = {
 }
 
 
-def drive(profile: str, seed: int, n_steps: int, times: str = "given"):
-    """The scans of drive ``seed`` (``n_steps`` poses 0.25 m apart) seen by ``profile``,
-    a swept profile's beam times published as ``times`` says (:data:`PUBLISHED`)."""
+#: the worlds the drives ride in: indoors (the default) and outdoors (``--world campus``)
+WORLDS = ("office", "campus")
+
+
+def drive(profile: str, seed: int, n_steps: int, times: str = "given", world: str = "office"):
+    """The scans of drive ``seed`` (``n_steps`` poses 0.25 m apart) seen by ``profile`` in
+    ``world`` (:data:`WORLDS`), a swept profile's beam times published as ``times`` says
+    (:data:`PUBLISHED`)."""
     import dataclasses  # noqa: PLC0415
 
-    from scanclique.sim import office_world, simulate_sensor_drive  # noqa: PLC0415
+    from scanclique import sim  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
-    world = office_world(rng)
+    world = getattr(sim, f"{world}_world")(rng)
+    simulate_sensor_drive = sim.simulate_sensor_drive
     kw = dict(PROFILES[profile])
     scans = simulate_sensor_drive(rng, world, n_steps, 0.25, **kw)
     if times == "given" or "sweep" not in kw:
@@ -162,13 +177,19 @@ def errors(result, scans) -> dict:
 
 
 def run_one(
-    profile: str, seed: int, odometry: bool, n_steps: int, deskew: bool = True, times="given"
+    profile: str,
+    seed: int,
+    odometry: bool,
+    n_steps: int,
+    deskew: bool = True,
+    times="given",
+    world: str = "office",
 ) -> dict:
     import dataclasses  # noqa: PLC0415
 
     from scanclique.mapping import MapConfig, map_scans  # noqa: PLC0415
 
-    scans = drive(profile, seed, n_steps, times)
+    scans = drive(profile, seed, n_steps, times, world)
     cfg = MapConfig()
     cfg = dataclasses.replace(cfg, front_end=dataclasses.replace(cfg.front_end, deskew=deskew))
     t0 = time.perf_counter()
@@ -178,6 +199,7 @@ def run_one(
     data_seconds = scans[-1].timestamp - scans[0].timestamp
     rec = {
         "profile": profile,
+        "world": world,
         "seed": seed,
         "odometry": odometry,
         "deskew": deskew,
@@ -377,6 +399,12 @@ def main(argv=None) -> None:
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--odometry", choices=("both", "yes", "no"), default="both")
     ap.add_argument("--steps", type=int, default=60, help="drive poses, 0.25 m apart")
+    ap.add_argument(
+        "--world",
+        choices=WORLDS,
+        default="office",
+        help="indoors (sim.office_world) or outdoors (sim.campus_world)",
+    )
     ap.add_argument("--out", default=None, help="path stem (default: benchmarks/results/...)")
     ap.add_argument("--real", default="", help="real logs to degrade instead (fr079-raw,...)")
     ap.add_argument("--variants", default=",".join(VARIANTS), help="with --real")
@@ -412,7 +440,7 @@ def main(argv=None) -> None:
         for ds in deskews if "sweep" in PROFILES[prof] else [True]:
             for odo in odos:
                 for seed in seeds:
-                    rec = run_one(prof, seed, odo, a.steps, ds, a.times)
+                    rec = run_one(prof, seed, odo, a.steps, ds, a.times, a.world)
                     records.append(rec)
                     _progress(prof + ("" if ds else ", raw"), odo, seed, rec)
     lines = table(records)
@@ -420,18 +448,21 @@ def main(argv=None) -> None:
         "tag": TODAY,
         **provenance(t0),
         "profiles": PROFILES,
+        "world": a.world,
         "steps": a.steps,
         "records": records,
     }
     about = (
-        f"Simulated office drives ({a.steps} poses 0.25 m apart, seeds {a.seeds}), "
+        f"Simulated {a.world} drives ({a.steps} poses 0.25 m apart, seeds {a.seeds}), "
         "`map_scans` with and without odometry (the swept profiles also without de-skew: "
         "`, raw`). git "
         f"{(result['git']['commit'] or '?')[:7]}, {result['seconds']:.0f} s in all."
     )
     print("\n".join(lines))
     title = "Mapping on other laser scanners (benchmarks/mapping_sensors.py)"
-    write_results(a.out, f"mapping-sensors-{TODAY}", result, title, about, lines, t0)
+    world = "" if a.world == "office" else f"{a.world}-"
+    stem = f"mapping-sensors-{world}{TODAY}"
+    write_results(a.out, stem, result, title, about, lines, t0)
 
 
 if __name__ == "__main__":

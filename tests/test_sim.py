@@ -386,3 +386,29 @@ def test_a_ring_drive_goes_round_its_corridor():
     assert 0.15 < drift < 0.4  # the odometry's steady heading drift: 0.003 rad/m over 89 m
     with pytest.raises(ConfigError, match="leaves no block"):
         ring_world(np.random.default_rng(0), 6.0, 4.0, corridor=2.0)
+
+
+def test_a_campus_has_streets_lined_with_trees_and_clear_lanes():
+    from scanclique.sim import campus_world, simulate_scan, simulate_sensor_drive
+
+    world = campus_world(np.random.default_rng(3), blocks=(3, 2), street=10.0)
+    assert len(world.free_regions) == 3 + 4  # streets across and along, the outer ones too
+    c = world.circle_centres
+    assert len(c) > 50 and np.all((world.circle_radii >= 0.1) & (world.circle_radii <= 0.4))
+    # every tree stands near a street's edge, none in a lane's middle
+    for x0, y0, x1, y1 in world.free_regions:
+        inside = (c[:, 0] >= x0) & (c[:, 0] <= x1) & (c[:, 1] >= y0) & (c[:, 1] <= y1)
+        across = c[inside, 1] - y0 if x1 - x0 > y1 - y0 else c[inside, 0] - x0
+        width = min(x1 - x0, y1 - y0)
+        assert np.all((across <= 2.0 + 1e-9) | (across >= width - 2.0 - 1e-9))
+    # a drive stays on the streets, and a scan sees trunks and façades, not a wall ahead
+    rng = np.random.default_rng(3)
+    scans = simulate_sensor_drive(rng, campus_world(rng), 40, n_beams=181, max_range=30.0)
+    ref = np.array([[s.reference.x, s.reference.y] for s in scans])
+    assert campus_world(np.random.default_rng(3)).is_free(ref, 0.05).all()  # rides cut corners
+    s = simulate_scan(world, Pose2(5.0, 5.0, 0.0), n_beams=361, max_range=30.0, range_sigma=0.0)
+    assert 0.2 < s.valid.mean() < 1.0
+    with pytest.raises(ConfigError, match="leaves no lane"):
+        campus_world(np.random.default_rng(0), street=4.0)
+    with pytest.raises(ConfigError, match="at least"):
+        campus_world(np.random.default_rng(0), blocks=(0, 2))

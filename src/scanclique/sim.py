@@ -52,6 +52,7 @@ __all__ = [
     "office_world",
     "random_world",
     "ring_world",
+    "campus_world",
     "cast_rays",
     "simulate_scan",
     "simulate_pair",
@@ -769,6 +770,111 @@ def ring_world(
     for x0, y0, x1, y1 in ((0, 0, L, c), (0, W - c, L, W), (0, 0, c, W), (L - c, 0, L, W)):
         b.region(x0, y0, x1, y1)
     return b.build(f"ring {L:.1f} x {W:.1f} m, corridor {c:.1f} m")
+
+
+def campus_world(
+    rng: np.random.Generator,
+    *,
+    blocks: tuple[int, int] = (2, 2),
+    street: float = 8.0,
+    tree_spacing: float = 8.0,
+) -> World:
+    """Outdoors: a campus of buildings on a grid of streets, lined with trees, closed by
+    the façades round it (the ground of an outdoor log: few long walls, many thin trunks,
+    streets wider than a corridor and open far along their length).
+
+    ``blocks`` = (columns, rows) buildings of 15-30 m a side, each with one recessed
+    entrance (1.5-3 m wide, 0.5-1.5 m deep); streets ``street`` m wide between them and
+    round them; the outer façades bound the outer streets. Trees (trunks of 0.1-0.4 m
+    radius) stand along both edges of every street, 0.8-2 m from the kerb, about one every
+    ``tree_spacing`` m (gaps of 0.5 to 1.5 times that); the middle of a street stays clear.
+    The free regions are the streets.
+
+    Raises
+    ------
+    ConfigError
+        A size that is not positive, a street narrower than 5 m (trees leave no lane), or
+        fewer than one block either way.
+
+    Examples
+    --------
+    >>> w = campus_world(np.random.default_rng(0))
+    >>> w.n_circles > 40, len(w.free_regions)
+    (True, 6)
+    """
+    where = "campus_world"
+    _check_rng(rng, where)
+    _check_positive(where, street=street, tree_spacing=tree_spacing)
+    nx, ny = (int(b) for b in blocks)
+    if nx < 1 or ny < 1:
+        raise ConfigError(f"{where}: blocks must be at least (1, 1), got {blocks}")
+    if street < 5.0:
+        raise ConfigError(f"{where}: a street of {street} m leaves no lane between its trees")
+    b = _Builder(rng)
+    S = float(street)
+    xs, ys = [S], [S]  # the blocks' lower-left corners: a street before each
+    widths = rng.uniform(15.0, 30.0, nx)
+    depths = rng.uniform(15.0, 30.0, ny)
+    for w in widths[:-1]:
+        xs.append(xs[-1] + w + S)
+    for d in depths[:-1]:
+        ys.append(ys[-1] + d + S)
+    W, H = xs[-1] + widths[-1] + S, ys[-1] + depths[-1] + S
+    b.polyline([(0.0, 0.0), (W, 0.0), (W, H), (0.0, H), (0.0, 0.0)])  # the façades round
+    for x0, w in zip(xs, widths, strict=True):
+        for y0, d in zip(ys, depths, strict=True):
+            corners = [(x0, y0), (x0 + w, y0), (x0 + w, y0 + d), (x0, y0 + d), (x0, y0)]
+            side = int(rng.integers(4))  # the one with the entrance
+            for k, (p, q) in enumerate(zip(corners[:-1], corners[1:], strict=True)):
+                p, q = np.array(p), np.array(q)
+                n = float(np.linalg.norm(q - p))
+                if k != side:
+                    b.wall(p, q)
+                    continue
+                u = (q - p) / n
+                inward = np.array([-u[1], u[0]])  # corners run counter-clockwise
+                gw, depth = float(rng.uniform(1.5, 3.0)), float(rng.uniform(0.5, 1.5))
+                c = float(rng.uniform(2.0 + gw / 2, n - 2.0 - gw / 2))
+                a0, a1 = p + (c - gw / 2) * u, p + (c + gw / 2) * u
+                b.wall(p, a0)
+                b.polyline([a0, a0 + depth * inward, a1 + depth * inward, a1])
+                b.wall(a1, q)
+    ends_y = [y0 + d for y0, d in zip(ys, depths, strict=True)]
+    ends_x = [x0 + w for x0, w in zip(xs, widths, strict=True)]
+    streets = [(0.0, y, W, y + S) for y in (0.0, *ends_y)]
+    streets += [(x, 0.0, x + S, H) for x in (0.0, *ends_x)]
+    for x0, y0, x1, y1 in streets:
+        b.region(x0, y0, x1, y1)
+        along_x = x1 - x0 > y1 - y0
+        length = (x1 - x0) if along_x else (y1 - y0)
+        for edge in (0, 1):
+            t = float(rng.uniform(0.0, tree_spacing))
+            while t < length:
+                off = float(rng.uniform(0.8, 2.0))
+                off = off if edge == 0 else S - off
+                c = (x0 + t, y0 + off) if along_x else (x0 + off, y0 + t)
+                r = float(rng.uniform(0.1, 0.4))
+                if not _in_lane(c, streets) and all(
+                    math.hypot(c[0] - cx, c[1] - cy) > 1.0 for cx, cy in b.centres
+                ):
+                    b.centres.append([float(c[0]), float(c[1])])
+                    b.radii.append(r)
+                t += float(rng.uniform(0.5, 1.5)) * tree_spacing
+    return b.build(f"campus {W:.0f} x {H:.0f} m, {nx} x {ny} blocks, streets {S:.0f} m")
+
+
+def _in_lane(c, streets, kerb: float = 2.0) -> bool:
+    """Whether the point ``c`` lies in the middle of a street (more than ``kerb`` m from
+    both its edges across it): at a crossing, the other street's lane."""
+    for x0, y0, x1, y1 in streets:
+        if not (x0 <= c[0] <= x1 and y0 <= c[1] <= y1):
+            continue
+        if x1 - x0 > y1 - y0:
+            if y0 + kerb < c[1] < y1 - kerb:
+                return True
+        elif x0 + kerb < c[0] < x1 - kerb:
+            return True
+    return False
 
 
 def random_world(rng: np.random.Generator) -> World:
