@@ -52,7 +52,8 @@ Results: ``benchmarks/results/mapping-sensors-2026-12-02-s10.{md,json}``.
 The same scanners riding ``scanclique.sim.campus_world`` instead of an office: a grid of
 buildings with streets 8 m wide between them, trees along the streets, the façades round
 the campus; 150 m drives. Session 39 ran ``--profiles carmen,hokuyo,rplidar,lds``. Results:
-``benchmarks/results/mapping-sensors-campus-2026-12-07.{md,json}``.
+``benchmarks/results/mapping-sensors-campus-2026-12-07-s39.{md,json}`` (``-s39-before``:
+before the front end's contest by odometry took ICP's overlap relative to the match's).
 
 **Real logs with another scanner's limits** (session 14), one command::
 

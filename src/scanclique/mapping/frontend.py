@@ -28,7 +28,7 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2, rotation_matrix
 from ..match import PreparedScan, distinct_poses, match_prepared, pose_score, prepare_scan
-from ..refine import icp_covariance, icp_point_to_line, weak_direction
+from ..refine import icp_covariance, icp_point_to_line, nearest, weak_direction
 from ..scan import Scan
 from ..uncertainty import pose_difference
 from ..validation import (
@@ -353,7 +353,10 @@ def contest_by_odometry(
     lies outside the refinement's basin around the odometry increment ``odometry``
     (farther than ``fe.refine_max_shift`` m), point-to-line ICP of the raw scans from the
     odometry; when it converges outside the match's own 99 % ellipse (its covariance) and
-    nearer the odometry, it is a second hypothesis. The raw scans decide between the
+    nearer the odometry, and overlaps the keyframe (its fitness) by ``fe.icp_min_fitness``
+    or at least as much as the match's pose does (:func:`overlap`: a scanner with
+    centimetres of range noise leaves few points within the last 5 cm at any pose), it is
+    a second hypothesis. The raw scans decide between the
     two (:func:`scanclique.match.pose_score`), each score less its :func:`surprise`
     against the odometry when ``odometry_cov`` (the odometry increment's covariance) is
     given: the raw-scan score of a corridor favours the pose of most overlap (standing
@@ -371,7 +374,9 @@ def contest_by_odometry(
         max_correspondence=fe.refine_max_correspondence,
         min_correspondence=fe.refine_min_correspondence,
     )  # fmt: skip
-    if icp.fitness < fe.icp_min_fitness:
+    if icp.fitness < fe.icp_min_fitness and icp.fitness < overlap(
+        pk, pj, step.pose, fe.refine_min_correspondence
+    ):
         return step
     if mahalanobis_sq(icp.pose, np.zeros((3, 3)), step.pose, step.covariance) <= GATE_99:
         return step  # ICP from the odometry went back to the match: one hypothesis
@@ -391,6 +396,16 @@ def contest_by_odometry(
     cov[:2, :2] += np.outer(d, d) / 4.0
     return Step(icp.pose, cov, ICP, "contested_by_odometry", float(s_icp),
                 f"match {s_match:.2f} vs ICP from odometry {s_icp:.2f}")  # fmt: skip
+
+
+def overlap(pk: PreparedScan, pj: PreparedScan, pose: Pose2, distance: float) -> float:
+    """The fraction of scan ``j``'s points that lie within ``distance`` m of keyframe
+    ``k``'s at ``pose`` (maps j into k): the fitness ICP reports, measured at any pose."""
+    pts = np.ascontiguousarray(pj.points)
+    if not len(pts):
+        return 0.0
+    _, d = nearest(pk.cloud, pts, pose, distance)
+    return float(np.mean(d < distance))
 
 
 def associate(
