@@ -419,9 +419,9 @@ def test_contest_by_odometry_with_a_noisy_scanner_outdoors():
     ATE, 0.19 m since)."""
     from scanclique.config import MatchConfig
     from scanclique.mapping.config import FrontEndConfig
-    from scanclique.mapping.frontend import ICP, MATCH, Step, contest_by_odometry, overlap
+    from scanclique.mapping.frontend import ICP, MATCH, Step, contest_by_odometry
     from scanclique.match import prepare_scan
-    from scanclique.refine import icp_point_to_line
+    from scanclique.refine import agreement, icp_point_to_line
     from scanclique.sim import campus_world, simulate_scan
 
     rng = np.random.default_rng(0)
@@ -440,7 +440,12 @@ def test_contest_by_odometry_with_a_noisy_scanner_outdoors():
     assert icp.fitness < fe.icp_min_fitness  # the case the overlap rule is for
     cov = np.diag([0.03**2, 0.03**2, math.radians(0.4) ** 2])
     wrong = Step(Pose2(0.14, -0.42, 0.0), cov, MATCH, "accepted", 0.9)
-    assert overlap(pa, pb, wrong.pose, 0.05) < 0.05 < 0.3 < overlap(pa, pb, truth, 0.05)
+    assert (
+        agreement(pa.cloud, pb.points, wrong.pose, 0.05)
+        < 0.05
+        < 0.3
+        < agreement(pa.cloud, pb.points, truth, 0.05)
+    )
     out = contest_by_odometry(pa, pb, wrong, odo, fe, mc)
     assert out.kind == ICP and out.pose.distance_to(truth)[0] < 0.06
 

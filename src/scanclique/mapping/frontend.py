@@ -28,7 +28,7 @@ import numpy as np
 from ..config import MatchConfig
 from ..geometry import Pose2, rotation_matrix
 from ..match import PreparedScan, distinct_poses, match_prepared, pose_score, prepare_scan
-from ..refine import icp_covariance, icp_point_to_line, nearest, weak_direction
+from ..refine import agreement, icp_covariance, icp_point_to_line, weak_direction
 from ..scan import Scan
 from ..uncertainty import pose_difference
 from ..validation import (
@@ -350,20 +350,20 @@ def contest_by_odometry(
     odometry_cov: np.ndarray | None = None,
 ) -> Step:
     """A consecutive match the wheel odometry disagrees with: when the match's position
-    lies outside the refinement's basin around the odometry increment ``odometry``
-    (farther than ``fe.refine_max_shift`` m), point-to-line ICP of the raw scans from the
-    odometry; when it converges outside the match's own 99 % ellipse (its covariance) and
-    nearer the odometry, and overlaps the keyframe (its fitness) by ``fe.icp_min_fitness``
-    or at least as much as the match's pose does (:func:`overlap`: a scanner with
-    centimetres of range noise leaves few points within the last 5 cm at any pose), it is
-    a second hypothesis. The raw scans decide between the
-    two (:func:`scanclique.match.pose_score`), each score less its :func:`surprise`
-    against the odometry when ``odometry_cov`` (the odometry increment's covariance) is
-    given: the raw-scan score of a corridor favours the pose of most overlap (standing
-    still), so a match slid along it must outscore the odometry's pose by more than the
-    odometry's own evidence against it. When they cannot decide (within
-    ``fe.icp_score_tie``, e.g. slid along a corridor whose doors repeat), the one nearer
-    the odometry is taken, as in :func:`icp_fallback`. ``step`` unchanged otherwise."""
+    lies outside the refinement's basin around the odometry increment ``odometry`` (farther
+    than ``fe.refine_max_shift`` m), point-to-line ICP of the raw scans from the odometry;
+    when it converges outside the match's own 99 % ellipse (its covariance) and nearer the
+    odometry, and overlaps the keyframe (its fitness) by ``fe.icp_min_fitness`` or at least
+    as much as the match's pose does (its :func:`~scanclique.refine.agreement`: a scanner
+    with centimetres of range noise leaves few points within the last 5 cm at any pose), it
+    is a second hypothesis. The raw scans decide between the two
+    (:func:`scanclique.match.pose_score`), each score less its :func:`surprise` against the
+    odometry when ``odometry_cov`` (the odometry increment's covariance) is given: the
+    raw-scan score of a corridor favours the pose of most overlap (standing still), so a
+    match slid along it must outscore the odometry's pose by more than the odometry's own
+    evidence against it. When they cannot decide (within ``fe.icp_score_tie``, e.g. slid
+    along a corridor whose doors repeat), the one nearer the odometry is taken, as in
+    :func:`icp_fallback`. ``step`` unchanged otherwise."""
     if fe is None or not fe.icp_fallback or step.kind != MATCH:
         return step
     t, r = step.pose.distance_to(odometry)
@@ -374,8 +374,8 @@ def contest_by_odometry(
         max_correspondence=fe.refine_max_correspondence,
         min_correspondence=fe.refine_min_correspondence,
     )  # fmt: skip
-    if icp.fitness < fe.icp_min_fitness and icp.fitness < overlap(
-        pk, pj, step.pose, fe.refine_min_correspondence
+    if icp.fitness < fe.icp_min_fitness and icp.fitness < agreement(
+        pk.cloud, pj.points, step.pose, fe.refine_min_correspondence
     ):
         return step
     if mahalanobis_sq(icp.pose, np.zeros((3, 3)), step.pose, step.covariance) <= GATE_99:
@@ -396,16 +396,6 @@ def contest_by_odometry(
     cov[:2, :2] += np.outer(d, d) / 4.0
     return Step(icp.pose, cov, ICP, "contested_by_odometry", float(s_icp),
                 f"match {s_match:.2f} vs ICP from odometry {s_icp:.2f}")  # fmt: skip
-
-
-def overlap(pk: PreparedScan, pj: PreparedScan, pose: Pose2, distance: float) -> float:
-    """The fraction of scan ``j``'s points that lie within ``distance`` m of keyframe
-    ``k``'s at ``pose`` (maps j into k): the fitness ICP reports, measured at any pose."""
-    pts = np.ascontiguousarray(pj.points)
-    if not len(pts):
-        return 0.0
-    _, d = nearest(pk.cloud, pts, pose, distance)
-    return float(np.mean(d < distance))
 
 
 def associate(
