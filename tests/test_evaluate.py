@@ -109,6 +109,7 @@ def test_evaluate_command_table_and_json(tmp_path):
         (("--mounting", "0.5,0"), "--mounting expects three finite numbers"),
         (("--mounting", "a,b,c"), "--mounting expects three finite numbers"),
         (("--mounting", "nan,0,0"), "--mounting expects three finite numbers"),
+        (("--mounting", "1_0,0,0"), "--mounting expects three finite numbers"),
     ],
 )
 def test_evaluate_bad_mounting(tmp_path, args, expected):

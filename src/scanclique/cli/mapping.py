@@ -291,10 +291,11 @@ def _parse_mounting(text: str):
 
     from ..errors import ArgumentError
     from ..geometry import Pose2
+    from ..io.text import plain_float
 
     parts = text.replace(" ", "").split(",")
-    try:
-        values = [float(p) for p in parts]
+    try:  # plain ASCII numbers, as every number field of the readers
+        values = [plain_float(p) for p in parts]
     except ValueError:
         values = []
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
