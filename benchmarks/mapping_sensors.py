@@ -135,7 +135,7 @@ PUBLISHED = {
 }
 
 
-#: the worlds the drives ride in: indoors (the default) and outdoors (``--world campus``)
+#: the worlds the drives ride in (``--world``): indoors (the default) and outdoors
 WORLDS = ("office", "campus")
 
 
@@ -148,10 +148,9 @@ def drive(profile: str, seed: int, n_steps: int, times: str = "given", world: st
     from scanclique import sim  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
-    world = getattr(sim, f"{world}_world")(rng)
-    simulate_sensor_drive = sim.simulate_sensor_drive
+    place = {"office": sim.office_world, "campus": sim.campus_world}[world](rng)
     kw = dict(PROFILES[profile])
-    scans = simulate_sensor_drive(rng, world, n_steps, 0.25, **kw)
+    scans = sim.simulate_sensor_drive(rng, place, n_steps, 0.25, **kw)
     if times == "given" or "sweep" not in kw:
         return scans
     return [dataclasses.replace(s, beam_times=PUBLISHED[times](s.beam_times)) for s in scans]
