@@ -30,7 +30,9 @@ wrong answers are listed with their evidence (mapped features, clique surprise, 
 pose's score over the hit's, free-space conflicts).
 
 Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``; ``lds`` and
-``rplidar`` again in ``places-sensors-2026-12-07-s36.{md,json}``.
+``rplidar`` again in ``places-sensors-2026-12-07-s36.{md,json}``. ``--world campus``
+(session 39) rides ``scanclique.sim.campus_world`` instead, outdoors:
+``places-sensors-campus-2026-12-07.{md,json}``.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import TODAY, git_state, machine, results_path, versions  # noqa: E402
 from mapping_sensors import PROFILES as SCANNERS  # noqa: E402
+from mapping_sensors import WORLDS  # noqa: E402
 from places import RIGHT_R, RIGHT_T, true_places  # noqa: E402
 
 #: the scanners of ``benchmarks/mapping_sensors.py`` (one definition), as one scan sees
@@ -64,16 +67,17 @@ STEP = 0.3
 QUERY_EVERY = 2
 
 
-def drive(profile: str, seed: int, tmp: Path) -> dict:
-    """Add one simulated drive's scans to a new database and query every second one."""
+def drive(profile: str, seed: int, tmp: Path, world: str = "office") -> dict:
+    """Add one simulated drive's scans to a new database and query every second one; the
+    drive rides ``world`` (``office`` or ``campus``, as in ``mapping_sensors.py``)."""
+    from scanclique import sim
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
     from scanclique.places.verify import rival_ratio
-    from scanclique.sim import office_world, simulate_trajectory
 
     rng = np.random.default_rng(100 + seed)
-    world = office_world(rng)
-    scans = simulate_trajectory(rng, world, N_SCANS, step=STEP, **PROFILES[profile])
+    place_world = {"office": sim.office_world, "campus": sim.campus_world}[world](rng)
+    scans = sim.simulate_trajectory(rng, place_world, N_SCANS, step=STEP, **PROFILES[profile])
     n = len(scans)
     out = {"profile": profile, "seed": seed, "queries": 0, "with_true": 0, "accepted": 0}
     out.update(right=0, right_true=0, wrong=[], query_ms=[], add_ms=[])
@@ -146,7 +150,8 @@ def report(res: dict) -> str:
         f"# places on other scanners {res['date']}",
         "",
         f"`python benchmarks/places_sensors.py` at {res['git'].get('commit', '?')}, "
-        f"{res['machine'].get('cpus', '?')} CPUs, {res['seconds']:.0f} s. Simulated office "
+        f"{res['machine'].get('cpus', '?')} CPUs, {res['seconds']:.0f} s. Simulated "
+        f"{res['args'].get('world', 'office')} "
         f"drives ({N_SCANS} scans, {STEP} m apart), every {QUERY_EVERY}nd scan queried "
         "against the places >= 50 scans away; PlaceDB defaults.",
         "",
@@ -184,12 +189,14 @@ def main(argv=None) -> None:
     ap.add_argument("--profiles", default=",".join(PROFILES))
     ap.add_argument("--seeds", type=int, default=6, help="drives per scanner")
     ap.add_argument("--out", default=None, help="results JSON (default benchmarks/results/)")
+    ap.add_argument("--world", choices=WORLDS, default="office", help="indoors or outdoors")
     a = ap.parse_args(argv)
     profiles = a.profiles.split(",")
     unknown = [p for p in profiles if p not in PROFILES]
     if unknown:
         ap.error(f"unknown profile(s) {unknown}; known: {', '.join(PROFILES)}")
-    out_json = results_path(a.out, f"places-sensors-{TODAY}.json")
+    stem = "places-sensors" if a.world == "office" else f"places-sensors-{a.world}"
+    out_json = results_path(a.out, f"{stem}-{TODAY}.json")
     res = {
         "date": TODAY,
         "args": vars(a),
@@ -203,7 +210,7 @@ def main(argv=None) -> None:
         for p in profiles:
             runs = []
             for seed in range(a.seeds):
-                runs.append(drive(p, seed, Path(tmpd)))
+                runs.append(drive(p, seed, Path(tmpd), a.world))
                 el = time.perf_counter() - t0
                 print(f"  {p} drive {seed}: done, {el:.0f} s", file=sys.stderr)
             res["profiles"].append(summary(runs))
