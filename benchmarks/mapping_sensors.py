@@ -139,6 +139,13 @@ PUBLISHED = {
 WORLDS = ("office", "campus")
 
 
+def make_world(name: str, rng):
+    """The world ``name`` (:data:`WORLDS`) drawn from ``rng``; ``places_sensors.py`` too."""
+    from scanclique import sim  # noqa: PLC0415
+
+    return {"office": sim.office_world, "campus": sim.campus_world}[name](rng)
+
+
 def drive(profile: str, seed: int, n_steps: int, times: str = "given", world: str = "office"):
     """The scans of drive ``seed`` (``n_steps`` poses 0.25 m apart) seen by ``profile`` in
     ``world`` (:data:`WORLDS`), a swept profile's beam times published as ``times`` says
@@ -148,9 +155,8 @@ def drive(profile: str, seed: int, n_steps: int, times: str = "given", world: st
     from scanclique import sim  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
-    place = {"office": sim.office_world, "campus": sim.campus_world}[world](rng)
     kw = dict(PROFILES[profile])
-    scans = sim.simulate_sensor_drive(rng, place, n_steps, 0.25, **kw)
+    scans = sim.simulate_sensor_drive(rng, make_world(world, rng), n_steps, 0.25, **kw)
     if times == "given" or "sweep" not in kw:
         return scans
     return [dataclasses.replace(s, beam_times=PUBLISHED[times](s.beam_times)) for s in scans]

@@ -51,7 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import TODAY, git_state, machine, results_path, versions  # noqa: E402
 from mapping_sensors import PROFILES as SCANNERS  # noqa: E402
-from mapping_sensors import WORLDS  # noqa: E402
+from mapping_sensors import WORLDS, make_world  # noqa: E402
 from places import RIGHT_R, RIGHT_T, true_places  # noqa: E402
 
 #: the scanners of ``benchmarks/mapping_sensors.py`` (one definition), as one scan sees
@@ -76,7 +76,7 @@ def drive(profile: str, seed: int, tmp: Path, world: str = "office") -> dict:
     from scanclique.places.verify import rival_ratio
 
     rng = np.random.default_rng(100 + seed)
-    place_world = {"office": sim.office_world, "campus": sim.campus_world}[world](rng)
+    place_world = make_world(world, rng)
     scans = sim.simulate_trajectory(rng, place_world, N_SCANS, step=STEP, **PROFILES[profile])
     n = len(scans)
     out = {"profile": profile, "seed": seed, "queries": 0, "with_true": 0, "accepted": 0}

@@ -247,6 +247,15 @@ def _canonical(name: str) -> str | None:
     return key if key in DATASETS else None
 
 
+def _first_file(relpath: str) -> Path | None:
+    """``relpath`` under the first data directory candidate that holds it as a file."""
+    for base in data_dir_candidates():
+        p = base / relpath
+        if p.is_file():
+            return p
+    return None
+
+
 def dataset_path(name: str) -> Path:
     """The file of a registered log.
 
@@ -267,11 +276,10 @@ def dataset_path(name: str) -> Path:
             f"unknown data set {name!r}: registered are {', '.join(sorted(DATASETS))}"
         )
     ds = DATASETS[key]
-    for base in data_dir_candidates():
-        p = base / ds.relpath
-        if p.is_file():
-            return p
-    raise _not_found(f"data set {key!r}", ds.relpath, ds.source)
+    p = _first_file(ds.relpath)
+    if p is None:
+        raise _not_found(f"data set {key!r}", ds.relpath, ds.source)
+    return p
 
 
 def resolve_log(path_or_name: str | os.PathLike) -> Path:
@@ -369,11 +377,10 @@ def relations_path() -> Path:
     DataNotFoundError
         If the file is not found.
     """
-    for base in data_dir_candidates():
-        p = base / _RELATIONS
-        if p.is_file():
-            return p
-    raise _not_found("Intel relations file", _RELATIONS, _FREIBURG)
+    p = _first_file(_RELATIONS)
+    if p is None:
+        raise _not_found("Intel relations file", _RELATIONS, _FREIBURG)
+    return p
 
 
 def log_relations(path_or_name: str | os.PathLike) -> Path | None:
@@ -386,13 +393,7 @@ def log_relations(path_or_name: str | os.PathLike) -> Path | None:
     """
     key = registered_name(path_or_name)
     rel = None if key is None else DATASETS[key].relations
-    if rel is None:
-        return None
-    for base in data_dir_candidates():
-        p = base / rel
-        if p.is_file():
-            return p
-    return None
+    return None if rel is None else _first_file(rel)
 
 
 def dimacs_dir() -> Path:
