@@ -18,10 +18,13 @@ from scanclique.places.verify import (
     clique_surprise,
     confidence,
     conflict_fraction,
+    look_alike,
     verify_pair,
     verify_seeded,
     weakest_constraint,
 )
+from scanclique.places.verify import LOOK_ALIKE_CONFLICT as ALIKE_C
+from scanclique.places.verify import LOOK_ALIKE_RIVAL as ALIKE_R
 
 
 @pytest.fixture(scope="module")
@@ -168,3 +171,49 @@ def test_a_clique_that_is_no_evidence_has_its_aliases_as_rivals(pair, monkeypatc
     assert v.rival_score == max(base.rival_score, 0.97 * base.score)
     assert v.confidence == confidence(v.score, v.surprise, v.rival_score, v.conflict)
     assert v.confidence < confidence(v.score, v.surprise, base.rival_score, v.conflict)
+
+
+def test_a_look_alike_needs_both_a_rival_and_a_conflict():
+    """An accepted verification becomes ambiguous only when a distinct pose scores at
+    least LOOK_ALIKE_RIVAL of its score *and* more than LOOK_ALIKE_CONFLICT of the points
+    conflict; either sign alone leaves it to the confidence, and other verdicts pass."""
+    import dataclasses
+
+    from scanclique.places.verify import Verification
+
+    assert 0.63 / 0.7 >= ALIKE_R
+    v = Verification(ACCEPTED, Pose2(1.0, 2.0, 0.3), None, 0.7, 12, "accepted", "why", 0.01,
+                     rival_score=0.63, confidence=0.999, conflict=2 * ALIKE_C)  # fmt: skip
+    alike = look_alike(v)
+    assert alike.verdict == AMBIGUOUS and "look-alike" in alike.reason
+    assert alike.reason.endswith("why") and alike.pose == v.pose and alike.confidence == 0.999
+    for other in (
+        dataclasses.replace(v, conflict=ALIKE_C),  # at the bound: not above it
+        dataclasses.replace(v, conflict=0.0),
+        dataclasses.replace(v, rival_score=0.99 * ALIKE_R * 0.7),  # a rival ratio below
+        dataclasses.replace(v, verdict=REJECTED),
+        dataclasses.replace(v, verdict=AMBIGUOUS, reason="rivals"),
+    ):
+        assert look_alike(other) is other
+
+
+def test_streets_alike_are_look_alikes_not_places():
+    """Outdoors, a noisy 360-degree 10 m scanner (RPLIDAR class) sees streets lined with
+    trees and walls alike: the clique of 14 alike trees and wall ends between two streets
+    24 m apart has a confidence above 0.99, but a pose half a turn away explains the raw
+    scans as well and the place's trees stand in the query's free space: ambiguous. A
+    scan and its neighbour 0.6 m on, the same street, stay accepted."""
+    rng = np.random.default_rng(101)
+    world = sc.sim.campus_world(rng)
+    scans = sc.sim.simulate_trajectory(
+        rng, world, 300, step=0.3, n_beams=360, fov=2 * np.pi * 359 / 360, angle_min=-np.pi,
+        max_range=10.0, range_sigma=0.0, range_sigma_per_m=0.015, dropout=0.07,
+    )  # fmt: skip
+    place, query = prepare_scan(scans[100]), prepare_scan(scans[14])
+    v = verify_pair(place, query, min_confidence=0.0)
+    truth = scans[100].reference.inverse() @ scans[14].reference
+    assert v.pose.distance_to(truth)[0] > 5.0  # a wrong pose ...
+    assert v.confidence > 0.99 and v.verdict == AMBIGUOUS and "look-alike" in v.reason
+    near = verify_pair(prepare_scan(scans[16]), query, min_confidence=0.0)
+    truth = scans[16].reference.inverse() @ scans[14].reference
+    assert near.verdict == ACCEPTED and near.pose.distance_to(truth)[0] < 0.2
