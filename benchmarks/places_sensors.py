@@ -32,7 +32,8 @@ pose's score over the hit's, free-space conflicts).
 Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``; ``lds`` and
 ``rplidar`` again in ``places-sensors-2026-12-07-s36.{md,json}``. ``--world campus``
 (session 39) rides ``scanclique.sim.campus_world`` instead, outdoors:
-``places-sensors-campus-2026-12-07.{md,json}``.
+``places-sensors-campus-2026-12-07.{md,json}``; with the look-alike rule (session 40,
+``scanclique.places.verify.look_alike``) ``places-sensors-campus-2026-12-07-s40.{md,json}``.
 """
 
 from __future__ import annotations
