@@ -127,6 +127,39 @@ def test_max_gap_beams_bridges_invalid_beams():
     assert cluster_scan(s).tolist() == [[0, 2], [3, 5], [7, 8]]
 
 
+def test_dropout_fraction_counts_lost_returns_inside_surfaces():
+    """One invalid beam between two returns the clustering rule joins is a lost return;
+    a run of two, one at the border, or one between a near and a far return is not."""
+    from scanclique.features import dropout_fraction
+
+    s = Scan.from_ranges([2.0, np.inf, 2.02, 2.0, np.nan, 2.01, 1.0, np.inf, 5.0, np.inf])
+    assert dropout_fraction(s) == 2 / 10
+    assert dropout_fraction(Scan.from_ranges([2.0, np.inf, np.inf, 2.0])) == 0.0
+    assert dropout_fraction(Scan.from_ranges([np.inf, 2.0])) == 0.0
+    assert dropout_fraction(Scan.from_ranges([1.0, 1.0, 1.0])) == 0.0
+    loose = ClusterConfig(c1=4.0)  # the rule joins 1 m and 5 m: a lost return too
+    assert dropout_fraction(s, loose) == 3 / 10
+
+
+def test_a_scanner_that_loses_returns_is_told_from_a_clean_one():
+    """``drops_returns`` reads the median scan: a 360-degree scanner losing 7 % of its
+    beams does, the same scanner without losses does not, and one lossy scan among clean
+    ones does not make the scanner lossy."""
+    from scanclique.features import DROPOUT_BRIDGE, dropout_fraction, drops_returns
+    from scanclique.sim import office_world, simulate_trajectory
+
+    kw = dict(n_beams=360, fov=2 * np.pi * 359 / 360, angle_min=-np.pi, max_range=10.0,
+              range_sigma_per_m=0.015)  # fmt: skip
+    rng = np.random.default_rng(3)
+    world = office_world(rng)
+    lossy = simulate_trajectory(rng, world, 9, step=0.3, dropout=0.07, **kw)
+    clean = simulate_trajectory(rng, world, 9, step=0.3, **kw)
+    assert min(dropout_fraction(x) for x in lossy) > DROPOUT_BRIDGE
+    assert drops_returns(lossy) and not drops_returns(clean) and not drops_returns([])
+    assert not drops_returns(clean[:5] + lossy[:1])
+    assert drops_returns(lossy, sample=2)  # the first and the last scan
+
+
 def test_clusters_cover_valid_beams_once():
     rng = np.random.default_rng(4)
     r = rng.uniform(0.5, 8.0, 200)

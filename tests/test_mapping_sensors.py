@@ -82,6 +82,31 @@ def test_a_360_degree_scanner_with_dropouts():
     assert set(r.placed_by[1:]) <= {"match", "icp"}
 
 
+def test_a_scanner_that_loses_returns_has_them_bridged():
+    """map_scans reads one lost beam inside a surface as a lost return when the scanner
+    loses returns (features.drops_returns), and says so in the configuration it used;
+    not when told not to, nor for a scanner that does not, nor when the clustering
+    already bridges; the online mapper decides on the first scan."""
+    import dataclasses
+
+    from scanclique.mapping import MapConfig, map_online
+
+    rng = np.random.default_rng(0)
+    scans = simulate_sensor_drive(rng, office_world(rng), 6, 0.25, **RPLIDAR)
+    gap = lambda r: r.config.match.clustering.max_gap_beams  # noqa: E731
+    assert gap(map_scans(scans, use_odometry=False)) == 1
+    off = MapConfig(front_end=FrontEndConfig(bridge_dropouts=False))
+    assert gap(map_scans(scans, use_odometry=False, config=off)) == 0
+    m = MapConfig().match
+    m = dataclasses.replace(m, clustering=dataclasses.replace(m.clustering, max_gap_beams=2))
+    two = MapConfig(match=m)
+    assert gap(map_scans(scans, use_odometry=False, config=two)) == 2
+    clean = simulate_sensor_drive(rng, office_world(rng), 6, 0.25, **{**RPLIDAR, "dropout": 0.0})
+    assert gap(map_scans(clean, use_odometry=False)) == 0
+    assert gap(map_online(scans, use_odometry=False).result) == 1
+    assert gap(map_online(clean[:1] + scans, use_odometry=False).result) == 0
+
+
 def test_ros_no_returns_are_never_walls():
     # ROS LaserScan marks a beam without a return by +inf (REP 117), NaN, 0, -inf or a
     # value below range_min, depending on the driver: each is masked and none becomes a

@@ -78,6 +78,33 @@ def test_a_place_keeps_its_map_pose(tmp_path, worlds):
             db.map_pose(7)
 
 
+def test_a_log_whose_scanner_loses_returns_is_stored_and_searched_bridged(tmp_path):
+    """A new database of ``run_add`` (``scanclique places add``) and ``find_loops`` read
+    one lost return inside a surface as such (``max_gap_beams = 1``) when the log's
+    scanner loses returns (features.drops_returns); a clean log keeps the defaults, an
+    existing database its own configuration, and a given configuration is used as it is."""
+    from scanclique.config import MatchConfig
+    from scanclique.places.run import run_add
+
+    kw = dict(n_beams=360, fov=2 * np.pi * 359 / 360, angle_min=-np.pi, max_range=10.0)
+    rng = np.random.default_rng(2)
+    world = sc.sim.office_world(rng)
+    lossy = sc.sim.simulate_trajectory(rng, world, 8, step=0.3, dropout=0.07, **kw)
+    clean = sc.sim.simulate_trajectory(rng, world, 8, step=0.3, **kw)
+    gap = lambda path: PlaceDB(path, readonly=True).config.clustering.max_gap_beams  # noqa: E731
+    run_add(tmp_path / "lossy.db", lossy, every=4)
+    run_add(tmp_path / "clean.db", clean, every=4)
+    assert gap(tmp_path / "lossy.db") == 1 and gap(tmp_path / "clean.db") == 0
+    run_add(tmp_path / "clean.db", lossy, every=4)  # an existing database keeps its own
+    assert gap(tmp_path / "clean.db") == 0
+    run_add(tmp_path / "given.db", lossy, every=4, config=MatchConfig())
+    assert gap(tmp_path / "given.db") == 0
+    assert find_loops(lossy, candidates=2, min_gap=3).config.clustering.max_gap_beams == 1
+    assert find_loops(clean, candidates=2, min_gap=3).config.clustering.max_gap_beams == 0
+    given = find_loops(lossy, candidates=2, min_gap=3, config=MatchConfig())
+    assert given.config.clustering.max_gap_beams == 0
+
+
 def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
     """``run_add(poses=...)`` with one Pose2 or None per scan: the places added get theirs
     (counted in ``posed``); added again, a place without a map pose gets one, a place

@@ -33,6 +33,7 @@ from .._records import readonly
 from .._workers import check_workers
 from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
+from ..features import bridged
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
 from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_velocity_of
@@ -1267,6 +1268,7 @@ def map_scans(
         covs = () if cfg.back_end.covariances else None
         return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg, covs)
     use_odometry, aside = choose_odometry(scans, use_odometry, cfg)
+    cfg = bridge_dropouts(scans, cfg)
     blind = bool(use_odometry) and not odometry_sees_reversing(scans)
     if blind:
         log.info("the odometry never moves backwards: a match it rejects is tried reversed")
@@ -1289,6 +1291,16 @@ def map_scans(
     if aside is not None:
         return replace(result, odometry_scale=aside)
     return check_odometry(scans, result) if use_odometry else result
+
+
+def bridge_dropouts(scans: Sequence[Scan], cfg: MapConfig) -> MapConfig:
+    """``cfg`` with its matcher's configuration :func:`~scanclique.features.bridged` for
+    ``scans`` (one lost return inside a surface bridged, for a scanner that loses them)
+    when ``front_end.bridge_dropouts`` is set; else ``cfg`` itself."""
+    if not cfg.front_end.bridge_dropouts:
+        return cfg
+    match = bridged(cfg.match, scans)
+    return cfg if match is cfg.match else replace(cfg, match=match)
 
 
 def _sweeps(scans: Sequence[Scan], cfg: MapConfig, use_odometry: bool):

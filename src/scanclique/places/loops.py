@@ -37,7 +37,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +52,7 @@ from ..config import (
     require_count,
 )
 from ..errors import ArgumentError, ScanCliqueError
+from ..features import bridged
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
@@ -120,7 +121,8 @@ class LoopSearch:
     """The result of :func:`find_loops`: every verified pair, sorted by ``(i, j)``.
 
     ``seconds`` has the wall time of ``signatures``, ``prefilter``, ``verify`` and
-    ``total``; ``backend`` is ``"serial"``, ``"processes"`` or ``"dask"``."""
+    ``total``; ``backend`` is ``"serial"``, ``"processes"`` or ``"dask"``; ``config`` the
+    matcher's configuration the scans were prepared and verified with."""
 
     loops: tuple
     n_scans: int
@@ -129,6 +131,7 @@ class LoopSearch:
     backend: str
     workers: int
     seconds: dict
+    config: MatchConfig = field(default_factory=MatchConfig)
 
     @property
     def accepted(self) -> tuple:
@@ -147,6 +150,7 @@ class LoopSearch:
             "n_pairs": len(self.loops),
             "n_accepted": len(self.accepted),
             "seconds": dict(self.seconds),
+            "config": config_to_dict(self.config),
             "loops": [lp.to_dict() for lp in self.loops],
         }
 
@@ -426,6 +430,8 @@ def find_loops(
     scans : sequence of Scan
         The log, in order.
     config : MatchConfig, optional
+        None: the defaults, with one lost return inside a surface bridged for a scanner
+        that loses them (:func:`scanclique.features.bridged`).
     candidates : int
         Prefilter candidates verified per scan.
     min_gap : int
@@ -468,7 +474,7 @@ def find_loops(
             f"first), got {type(scans).__name__}"
         )
     require_config("find_loops: ", config, MatchConfig)
-    cfg = config or MatchConfig()
+    cfg = config or bridged(None, scans)
     if workers == 0:
         workers = os.cpu_count() or 1
     t0 = time.perf_counter()
@@ -519,4 +525,4 @@ def find_loops(
         loops.append(Loop(i, j, rank, d, verdict, None if p is None else Pose2(*p), score, nf))
     loops.sort(key=lambda lp: (lp.i, lp.j))
     seconds["total"] = time.perf_counter() - t0
-    return LoopSearch(tuple(loops), n, candidates, min_gap, backend, used, seconds)
+    return LoopSearch(tuple(loops), n, candidates, min_gap, backend, used, seconds, cfg)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..config import MatchConfig, require_flag
 from ..errors import ScanCliqueError
+from ..features import bridged
 from ..geometry import Pose2, align_poses, wrap_angle
 from ..match import warm_up
 from ..scan import Scan
@@ -139,7 +140,9 @@ def run_add(
     already there are skipped (so a run can be repeated or resumed), except that one
     added without a map pose is given the one ``poses`` has for it (one that has a map
     pose keeps it). ``laser``: which laser of the log
-    (:func:`scanclique.io.read_scans`).
+    (:func:`scanclique.io.read_scans`). ``config`` None: a new database takes the
+    defaults, one lost return inside a surface bridged when the log's scanner loses them
+    (:func:`scanclique.features.bridged`); an existing one keeps its own.
 
     ``poses``, optional: where the places are in a map (:meth:`PlaceDB.add`'s ``pose``),
     as a TUM trajectory file, a directory holding ``trajectory.tum`` (the ``--out`` of
@@ -149,6 +152,9 @@ def run_add(
     ``scanclique map`` writes it, or any trajectory in time order, interpolated); a scan
     without one is added without a pose (counted in :attr:`AddRun.posed`)."""
     scans, label = _scans(source, laser)
+    if config is None and not os.path.exists(path):
+        # a new database: the log's scanner decides whether a lost return is bridged
+        config = bridged(None, scans)
     idx = list(_span(len(scans), start, stop)[:: max(1, every)])
     place_poses, poses_source = _place_poses(poses, scans)
     t0 = time.perf_counter()
