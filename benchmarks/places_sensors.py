@@ -35,7 +35,10 @@ Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``; ``lds``
 ``rplidar`` again in ``places-sensors-2026-12-07-s36.{md,json}``. ``--world campus``
 (session 39) rides ``scanclique.sim.campus_world`` instead, outdoors:
 ``places-sensors-campus-2026-12-07.{md,json}``; with the look-alike rule (session 40,
-``scanclique.places.verify.look_alike``) ``places-sensors-campus-2026-12-07-s40.{md,json}``.
+``scanclique.places.verify.look_alike``) ``places-sensors-campus-2026-12-07-s40.{md,json}``,
+and a lost return bridged too (``scanclique.features.bridged``)
+``places-sensors-campus-2026-12-07-s40b.{md,json}``, indoors
+``places-sensors-2026-12-07-s40.{md,json}``.
 """
 
 from __future__ import annotations
