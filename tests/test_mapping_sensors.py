@@ -105,6 +105,13 @@ def test_a_scanner_that_loses_returns_has_them_bridged():
     assert gap(map_scans(clean, use_odometry=False)) == 0
     assert gap(map_online(scans, use_odometry=False).result) == 1
     assert gap(map_online(clean[:1] + scans, use_odometry=False).result) == 0
+    # the command's table says so
+    from scanclique.mapping.run import MapRun
+
+    said = {m: v for m, v, _ in MapRun("x", map_scans(scans), {}, None).rows()}
+    assert said["lost returns bridged inside a surface"] == "up to 1"
+    said = {m: v for m, v, _ in MapRun("x", map_scans(clean), {}, None).rows()}
+    assert "lost returns bridged inside a surface" not in said
 
 
 def test_ros_no_returns_are_never_walls():

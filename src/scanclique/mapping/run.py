@@ -145,6 +145,9 @@ class MapRun:
         if c["deskewed"]:
             rows.append(("de-skewed (a rotating lidar's sweep)", str(c["deskewed"]), "scans"))
             rows.append(("beam times read", c["sweep_timing"], ""))
+        gap = self.result.config.match.clustering.max_gap_beams
+        if gap:  # the scanner loses returns (features.bridged), or the user bridges them
+            rows.append(("lost returns bridged inside a surface", f"up to {gap}", "beams"))
         if self.odometry_check and self.odometry_check["steps"]:
             rows.append(
                 ("odometry's turn from the scans (median)",
