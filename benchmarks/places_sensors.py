@@ -8,7 +8,7 @@ One command::
 The shared logs all come from 180-degree SICK scanners. The project is judged on logs we
 do not have, so this measures :class:`scanclique.places.PlaceDB`, with its defaults (and,
 since session 40, one lost return bridged for a scanner that loses them, as ``scanclique
-places add`` decides from a log: :func:`scanclique.features.bridged`), on
+places add`` decides from a log: :func:`scanclique.features.for_scanner`), on
 drives of our own simulator (``scanclique.sim.office_world``: rooms off corridors, many
 of them alike, with exact reference poses) for the scanners people use today:
 
@@ -36,7 +36,7 @@ Results: ``benchmarks/results/places-sensors-2026-12-02-s10.{md,json}``; ``lds``
 (session 39) rides ``scanclique.sim.campus_world`` instead, outdoors:
 ``places-sensors-campus-2026-12-07.{md,json}``; with the look-alike rule (session 40,
 ``scanclique.places.verify.look_alike``) ``places-sensors-campus-2026-12-07-s40.{md,json}``,
-and a lost return bridged too (``scanclique.features.bridged``)
+and a lost return bridged too (``scanclique.features.for_scanner``, not widened)
 ``places-sensors-campus-2026-12-07-s40b.{md,json}``, indoors
 ``places-sensors-2026-12-07-s40.{md,json}``.
 """
@@ -77,7 +77,7 @@ def drive(profile: str, seed: int, tmp: Path, world: str = "office") -> dict:
     """Add one simulated drive's scans to a new database and query every second one; the
     drive rides ``world`` (``office`` or ``campus``, as in ``mapping_sensors.py``)."""
     from scanclique import sim
-    from scanclique.features import bridged
+    from scanclique.features import for_scanner
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
     from scanclique.places.verify import rival_ratio
@@ -90,7 +90,7 @@ def drive(profile: str, seed: int, tmp: Path, world: str = "office") -> dict:
     out.update(right=0, right_true=0, wrong=[], query_ms=[], add_ms=[])
     # the database as ``scanclique places add`` makes it from a log: the defaults, a lost
     # return bridged for a scanner that loses them (session 40)
-    with PlaceDB(tmp / f"{profile}-{seed}.db", bridged(None, scans)) as db:
+    with PlaceDB(tmp / f"{profile}-{seed}.db", for_scanner(None, scans, widen=False)) as db:
         for s in scans:
             t = time.perf_counter()
             db.add(s)

@@ -160,6 +160,34 @@ def test_a_scanner_that_loses_returns_is_told_from_a_clean_one():
     assert drops_returns(lossy, sample=2)  # the first and the last scan
 
 
+def test_range_noise_is_read_from_the_scans():
+    """``range_noise`` recovers a noise that grows with the range (1.5 %) and reads a
+    centimetre's as far less; ``for_scanner`` widens the clustering's range term for the
+    first only (to 3 sigma of a difference of two ranges), bridges lost returns only for a
+    scanner that loses them, and leaves a clean scanner's configuration as it is."""
+    import math
+
+    from scanclique.config import MatchConfig
+    from scanclique.features import NOISE_SIGMAS, for_scanner, range_noise
+    from scanclique.sim import office_world, simulate_trajectory
+
+    kw = dict(n_beams=360, fov=2 * np.pi * 359 / 360, angle_min=-np.pi, max_range=10.0)
+    rng = np.random.default_rng(3)
+    world = office_world(rng)
+    noisy = simulate_trajectory(rng, world, 9, step=0.3, range_sigma=0.0,
+                                range_sigma_per_m=0.015, **kw)  # fmt: skip
+    sick = simulate_trajectory(rng, world, 9, step=0.3, range_sigma=0.01, **kw)
+    assert 0.013 < range_noise(noisy) < 0.017 and range_noise(sick) < 0.006
+    assert math.isnan(range_noise([])) and math.isnan(range_noise([Scan.from_ranges([3.0] * 9)]))
+    wide = for_scanner(None, noisy).clustering
+    assert wide.max_gap_beams == 0  # no lost returns
+    assert wide.c2 == round(NOISE_SIGMAS * math.sqrt(2) * range_noise(noisy), 3) > 0.06
+    assert for_scanner(None, noisy, widen=False) == MatchConfig()  # place recognition's
+    assert for_scanner(None, sick) == MatchConfig() and for_scanner(None, []) == MatchConfig()
+    given = MatchConfig()
+    assert for_scanner(given, sick) is given
+
+
 def test_clusters_cover_valid_beams_once():
     rng = np.random.default_rng(4)
     r = rng.uniform(0.5, 8.0, 200)

@@ -117,11 +117,9 @@ def test_a_corridor_does_not_say_the_robot_is_still_backing_up(monkeypatch):
     assert not odometry_sees_reversing(scans)
 
     # the drive as recorded (session 37): each lost return an edge, as before session 40
-    # bridged them (FrontEndConfig.bridge_dropouts), which moves the slid match elsewhere
+    # bridged them (FrontEndConfig.fit_scanner), which moves the slid match elsewhere
     cfg = _chain_config()
-    cfg = dataclasses.replace(
-        cfg, front_end=dataclasses.replace(cfg.front_end, bridge_dropouts=False)
-    )
+    cfg = dataclasses.replace(cfg, front_end=dataclasses.replace(cfg.front_end, fit_scanner=False))
 
     def run():
         res = map_scans(scans, use_odometry=True, config=cfg)

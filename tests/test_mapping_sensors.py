@@ -83,10 +83,12 @@ def test_a_360_degree_scanner_with_dropouts():
 
 
 def test_a_scanner_that_loses_returns_has_them_bridged():
-    """map_scans reads one lost beam inside a surface as a lost return when the scanner
-    loses returns (features.drops_returns), and says so in the configuration it used;
-    not when told not to, nor for a scanner that does not, nor when the clustering
-    already bridges; the online mapper decides on the first scan."""
+    """map_scans fits the clustering to the scanner (features.for_scanner): it reads one
+    lost beam inside a surface as a lost return when the scanner loses returns, and
+    widens the range term to a noise of 1.5 % of the range, and says so in the
+    configuration it used; not when told not to, not the bridging for a scanner that
+    loses no returns, nor when the clustering already bridges; the online mapper decides
+    on the first scan."""
     import dataclasses
 
     from scanclique.mapping import MapConfig, map_online
@@ -94,9 +96,10 @@ def test_a_scanner_that_loses_returns_has_them_bridged():
     rng = np.random.default_rng(0)
     scans = simulate_sensor_drive(rng, office_world(rng), 6, 0.25, **RPLIDAR)
     gap = lambda r: r.config.match.clustering.max_gap_beams  # noqa: E731
-    assert gap(map_scans(scans, use_odometry=False)) == 1
-    off = MapConfig(front_end=FrontEndConfig(bridge_dropouts=False))
-    assert gap(map_scans(scans, use_odometry=False, config=off)) == 0
+    fitted = map_scans(scans, use_odometry=False).config.match.clustering
+    assert fitted.max_gap_beams == 1 and fitted.c2 > 0.06
+    off = MapConfig(front_end=FrontEndConfig(fit_scanner=False))
+    assert map_scans(scans, use_odometry=False, config=off).config.match == off.match
     m = MapConfig().match
     m = dataclasses.replace(m, clustering=dataclasses.replace(m.clustering, max_gap_beams=2))
     two = MapConfig(match=m)
@@ -110,8 +113,10 @@ def test_a_scanner_that_loses_returns_has_them_bridged():
 
     said = {m: v for m, v, _ in MapRun("x", map_scans(scans), {}, None).rows()}
     assert said["lost returns bridged inside a surface"] == "up to 1"
+    assert float(said["clustering's range term (c2)"]) == fitted.c2
     said = {m: v for m, v, _ in MapRun("x", map_scans(clean), {}, None).rows()}
     assert "lost returns bridged inside a surface" not in said
+    assert "clustering's range term (c2)" in said  # its noise is the same
 
 
 def test_ros_no_returns_are_never_walls():

@@ -177,14 +177,15 @@ class FrontEndConfig:
         ranges or against it, stamped at the sweep's start or end, or not to be trusted);
         the online mapper de-skews only from when the scans so far tell. Scans without
         beam times (CARMEN logs) are matched as they are whatever this says.
-    bridge_dropouts :
-        Read one invalid beam between two returns that the clustering rule joins as a
-        lost return, not open space (``MatchConfig.clustering.max_gap_beams = 1``), when
-        the log's scanner loses returns inside surfaces
-        (:func:`~scanclique.features.drops_returns`: cheap 360-degree lidars; the online
-        mapper decides on the first scan). Simulated RPLIDAR A1-class drives on a campus,
-        without odometry: 0.737 -> 0.225 m (seeds 0-2, ``benchmarks/mapping_sensors.py
-        --world campus``). SICK logs are read as they are.
+    fit_scanner :
+        Fit the clustering to the log's scanner (:func:`~scanclique.features.for_scanner`;
+        the online mapper decides on the first scan): one invalid beam between two
+        returns the clustering rule joins read as a lost return, not open space, when the
+        scanner loses returns inside surfaces (cheap 360-degree lidars), and the rule's
+        range term widened to a range noise that grows with the range. Simulated RPLIDAR
+        A1-class drives on a campus (seeds 0-2, ``benchmarks/mapping_sensors.py --world
+        campus``): without odometry 0.737 -> 0.225 m with the bridging alone. The shared
+        SICK logs are read as they are.
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most
@@ -234,7 +235,7 @@ class FrontEndConfig:
     guess_sigma_radians: float = math.radians(60.0)
     deskew: bool = True
     deskew_window: float = 0.5
-    bridge_dropouts: bool = True
+    fit_scanner: bool = True
 
     def __post_init__(self) -> None:
         _check_types(self)

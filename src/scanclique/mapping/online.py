@@ -38,9 +38,9 @@ What ``map_scans`` reads from the whole log, the online mapper reads from the sc
   scans are de-skewed only from when one direction of the times clearly leads (before,
   as they are: times read the wrong way round would double the skew). Such scans map
   differently online and in batch.
-* Whether the scanner loses returns inside surfaces (``FrontEndConfig.bridge_dropouts``,
-  :func:`~scanclique.features.drops_returns`, which ``map_scans`` asks of up to 200 scans
-  of the log) is told from the first scan.
+* The clustering is fitted to the scanner (``FrontEndConfig.fit_scanner``,
+  :func:`~scanclique.features.for_scanner`, which ``map_scans`` asks of up to 200 scans
+  of the log) on the first scan.
 """
 
 from __future__ import annotations
@@ -64,9 +64,9 @@ from .frontend import ReversingWatch
 from .pipeline import (
     MapResult,
     _Mapper,
-    bridge_dropouts,
     check_iterable_of_scans,
     check_odometry,
+    fit_scanner,
     map_scans,
     warn_time_order,
     warn_unmatched,
@@ -167,7 +167,7 @@ class OnlineMapper:
         if self._mapper is None:
             use = scan.odometry is not None if self._use is None else self._use
             blind = self._reverses is False
-            self._cfg = bridge_dropouts([scan], self._cfg)  # the scanner, from its first scan
+            self._cfg = fit_scanner([scan], self._cfg)  # the scanner, from its first scan
             self._mapper = _Mapper(use, blind, self._cfg, self._workers)
         m = self._mapper
         if self._use is None and not m.odo and scan.odometry is not None:

@@ -33,7 +33,7 @@ from .._records import readonly
 from .._workers import check_workers
 from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
-from ..features import bridged
+from ..features import for_scanner
 from ..geometry import Pose2, rotation_matrix
 from ..match import prepare_scan
 from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_velocity_of
@@ -1268,7 +1268,7 @@ def map_scans(
         covs = () if cfg.back_end.covariances else None
         return MapResult((), (), {}, (), (), (), (), False, {"total": 0.0}, cfg, covs)
     use_odometry, aside = choose_odometry(scans, use_odometry, cfg)
-    cfg = bridge_dropouts(scans, cfg)
+    cfg = fit_scanner(scans, cfg)
     blind = bool(use_odometry) and not odometry_sees_reversing(scans)
     if blind:
         log.info("the odometry never moves backwards: a match it rejects is tried reversed")
@@ -1293,13 +1293,13 @@ def map_scans(
     return check_odometry(scans, result) if use_odometry else result
 
 
-def bridge_dropouts(scans: Sequence[Scan], cfg: MapConfig) -> MapConfig:
-    """``cfg`` with its matcher's configuration :func:`~scanclique.features.bridged` for
-    ``scans`` (one lost return inside a surface bridged, for a scanner that loses them)
-    when ``front_end.bridge_dropouts`` is set; else ``cfg`` itself."""
-    if not cfg.front_end.bridge_dropouts:
+def fit_scanner(scans: Sequence[Scan], cfg: MapConfig) -> MapConfig:
+    """``cfg`` with its matcher's clustering fitted to the scanner of ``scans``
+    (:func:`~scanclique.features.for_scanner`: lost returns bridged, the range term
+    widened to the range noise) when ``front_end.fit_scanner`` is set; else ``cfg``."""
+    if not cfg.front_end.fit_scanner:
         return cfg
-    match = bridged(cfg.match, scans)
+    match = for_scanner(cfg.match, scans)
     return cfg if match is cfg.match else replace(cfg, match=match)
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import datasets
 from .._outdir import remove_earlier_output
+from ..config import ClusterConfig
 from ..errors import ScanCliqueError
 from ..scan import Scan
 from ..uncertainty import constellation_std
@@ -145,9 +146,12 @@ class MapRun:
         if c["deskewed"]:
             rows.append(("de-skewed (a rotating lidar's sweep)", str(c["deskewed"]), "scans"))
             rows.append(("beam times read", c["sweep_timing"], ""))
-        gap = self.result.config.match.clustering.max_gap_beams
-        if gap:  # the scanner loses returns (features.bridged), or the user bridges them
-            rows.append(("lost returns bridged inside a surface", f"up to {gap}", "beams"))
+        clu = self.result.config.match.clustering
+        if clu.max_gap_beams:  # the scanner loses returns (features.for_scanner), or asked
+            rows.append(("lost returns bridged inside a surface", f"up to {clu.max_gap_beams}",
+                         "beams"))  # fmt: skip
+        if clu.c2 != ClusterConfig().c2:  # widened to the scanner's range noise, or asked
+            rows.append(("clustering's range term (c2)", f"{clu.c2:g}", "m/m"))
         if self.odometry_check and self.odometry_check["steps"]:
             rows.append(
                 ("odometry's turn from the scans (median)",

@@ -52,7 +52,7 @@ from ..config import (
     require_count,
 )
 from ..errors import ArgumentError, ScanCliqueError
-from ..features import bridged
+from ..features import for_scanner
 from ..geometry import Pose2
 from ..match import prepare_scan
 from ..scan import Scan
@@ -430,8 +430,8 @@ def find_loops(
     scans : sequence of Scan
         The log, in order.
     config : MatchConfig, optional
-        None: the defaults, with one lost return inside a surface bridged for a scanner
-        that loses them (:func:`scanclique.features.bridged`).
+        None: the defaults, one lost return bridged for a scanner that loses them
+        (:func:`scanclique.features.for_scanner`, not widened).
     candidates : int
         Prefilter candidates verified per scan.
     min_gap : int
@@ -474,7 +474,7 @@ def find_loops(
             f"first), got {type(scans).__name__}"
         )
     require_config("find_loops: ", config, MatchConfig)
-    cfg = config or bridged(None, scans)
+    cfg = config or for_scanner(None, scans, widen=False)
     if workers == 0:
         workers = os.cpu_count() or 1
     t0 = time.perf_counter()

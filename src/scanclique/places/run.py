@@ -25,7 +25,7 @@ import numpy as np
 
 from ..config import MatchConfig, require_flag
 from ..errors import ScanCliqueError
-from ..features import bridged
+from ..features import for_scanner
 from ..geometry import Pose2, align_poses, wrap_angle
 from ..match import warm_up
 from ..scan import Scan
@@ -141,8 +141,8 @@ def run_add(
     added without a map pose is given the one ``poses`` has for it (one that has a map
     pose keeps it). ``laser``: which laser of the log
     (:func:`scanclique.io.read_scans`). ``config`` None: a new database takes the
-    defaults, one lost return inside a surface bridged when the log's scanner loses them
-    (:func:`scanclique.features.bridged`); an existing one keeps its own.
+    defaults, one lost return bridged when the log's scanner loses them
+    (:func:`scanclique.features.for_scanner`, not widened); an existing one keeps its own.
 
     ``poses``, optional: where the places are in a map (:meth:`PlaceDB.add`'s ``pose``),
     as a TUM trajectory file, a directory holding ``trajectory.tum`` (the ``--out`` of
@@ -153,8 +153,8 @@ def run_add(
     without one is added without a pose (counted in :attr:`AddRun.posed`)."""
     scans, label = _scans(source, laser)
     if config is None and not os.path.exists(path):
-        # a new database: the log's scanner decides whether a lost return is bridged
-        config = bridged(None, scans)
+        # a new database: a lost return bridged for a scanner that loses them
+        config = for_scanner(None, scans, widen=False)
     idx = list(_span(len(scans), start, stop)[:: max(1, every)])
     place_poses, poses_source = _place_poses(poses, scans)
     t0 = time.perf_counter()
