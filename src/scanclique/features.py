@@ -21,6 +21,10 @@ with their labels, geometries and pose residuals. A kind registered there with a
 extractor (e.g. tree trunks with their diameter) is added to every scan's features by
 :func:`extract_features`, after the built-in ones.
 
+The clustering rule's constants suit a SICK (a centimetre of noise, few lost returns);
+:func:`for_scanner` fits them to a log's scanner (lost returns bridged,
+:func:`drops_returns`; the range term widened to its range noise, :func:`range_noise`).
+
 All coordinates are in the sensor frame, metres and radians.
 
 :func:`extract_features` runs as one compiled kernel (:mod:`scanclique._feature_kernels`,
