@@ -251,12 +251,20 @@ def drops_returns(scans, config: ClusterConfig | None = None, sample: int = 200)
     joins is a lost return, not open space (``ClusterConfig.max_gap_beams = 1``,
     :func:`for_scanner`). False for no
     scans; what is not a Scan is left to the caller's checks."""
+    spread = _spread(scans, sample)
+    if not spread:
+        return False
+    return bool(np.median([dropout_fraction(s, config) for s in spread]) >= DROPOUT_BRIDGE)
+
+
+def _spread(scans, sample: int) -> list[Scan]:
+    """Up to ``sample`` of ``scans`` spread evenly over the log, first and last among
+    them; what is not a Scan left out (to the caller's own checks)."""
     scans = [s for s in scans if isinstance(s, Scan)]
     if not scans:
-        return False
+        return []
     pick = np.unique(np.linspace(0, len(scans) - 1, min(sample, len(scans))).astype(int))
-    f = [dropout_fraction(scans[k], config) for k in pick]
-    return bool(np.median(f) >= DROPOUT_BRIDGE)
+    return [scans[k] for k in pick]
 
 
 #: :func:`for_scanner` widens the clustering rule's range term ``c2`` to this many
@@ -283,13 +291,9 @@ def range_noise(scans, config: ClusterConfig | None = None, sample: int = 200) -
     RPLIDAR and LDS-01 (1.5 % of the range) 1.50-1.55 %, their 270-degree scanners (2 cm)
     0.25-0.58 %."""
     cfg = config or ClusterConfig()
-    scans = [s for s in scans if isinstance(s, Scan)]
-    if not scans:
-        return math.nan
-    pick = np.unique(np.linspace(0, len(scans) - 1, min(sample, len(scans))).astype(int))
     found = []
-    for k in pick:
-        v, r = scans[k].valid, scans[k].ranges
+    for scan in _spread(scans, sample):
+        v, r = scan.valid, scan.ranges
         if len(r) < 3:
             continue
         a, b, c = r[:-2], r[1:-1], r[2:]
