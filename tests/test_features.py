@@ -188,6 +188,22 @@ def test_range_noise_is_read_from_the_scans():
     assert for_scanner(given, sick) is given
 
 
+def test_fitting_to_a_scanner_names_bad_input():
+    from scanclique.errors import ArgumentError, ConfigError, ScanError
+    from scanclique.features import dropout_fraction, drops_returns, for_scanner, range_noise
+
+    with pytest.raises(ScanError, match="dropout_fraction"):
+        dropout_fraction([1.0, 2.0])
+    for bad in (None, 5, "intel.clf"):
+        for f in (drops_returns, range_noise):
+            with pytest.raises(ArgumentError, match="sequence of Scan"):
+                f(bad)
+    with pytest.raises(ConfigError, match="for_scanner"):
+        for_scanner("defaults", [])
+    # what is not a scan among scans is left to the caller's checks, not read
+    assert not drops_returns([None, "x"]) and math.isnan(range_noise([None]))
+
+
 def test_clusters_cover_valid_beams_once():
     rng = np.random.default_rng(4)
     r = rng.uniform(0.5, 8.0, 200)

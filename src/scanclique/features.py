@@ -38,6 +38,7 @@ import dataclasses
 import functools
 import logging
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,8 +47,8 @@ from scipy.spatial import cKDTree
 from . import kinds
 from ._lazy import kernel_module
 from ._records import readonly
-from .config import ClusterConfig, FeatureConfig, MatchConfig
-from .errors import ArgumentError, ConfigError, GraphError
+from .config import ClusterConfig, FeatureConfig, MatchConfig, require_config
+from .errors import ArgumentError, ConfigError, GraphError, ScanError
 from .kinds import CORNER, EDGE_CCW, EDGE_CW, FOREGROUND_POINT
 from .scan import Scan
 
@@ -233,6 +234,8 @@ def dropout_fraction(scan: Scan, config: ClusterConfig | None = None) -> float:
     >>> dropout_fraction(Scan.from_ranges([2.0, 2.01, np.inf, 2.02, 2.03, np.inf, np.inf, 5.0]))
     0.125
     """
+    if not isinstance(scan, Scan):
+        raise ScanError(f"dropout_fraction: scan must be a Scan, got {type(scan).__name__}")
     cfg = config or ClusterConfig()
     v, r = scan.valid, scan.ranges
     if len(r) < 3:
@@ -259,7 +262,13 @@ def drops_returns(scans, config: ClusterConfig | None = None, sample: int = 200)
 
 def _spread(scans, sample: int) -> list[Scan]:
     """Up to ``sample`` of ``scans`` spread evenly over the log, first and last among
-    them; what is not a Scan left out (to the caller's own checks)."""
+    them; what is not a Scan left out (to the caller's own checks). An ArgumentError
+    when ``scans`` is no sequence (None, a number, a path)."""
+    if isinstance(scans, (str, bytes)) or not isinstance(scans, Iterable):
+        raise ArgumentError(
+            f"scans must be a sequence of Scan (read a file with read_scans first), "
+            f"got {type(scans).__name__}"
+        )
     scans = [s for s in scans if isinstance(s, Scan)]
     if not scans:
         return []
@@ -323,6 +332,7 @@ def for_scanner(config: MatchConfig | None, scans, *, widen: bool = True) -> Mat
     and the LDS-01's in offices (0.959 against 0.970), while they made both map better
     (``benchmarks/mapping_sensors.py``; README, "Fitting the clustering to the
     scanner")."""
+    require_config("for_scanner: ", config, MatchConfig)
     cfg = config or MatchConfig()
     clu = cfg.clustering
     fit = clu
