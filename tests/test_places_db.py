@@ -92,8 +92,10 @@ def test_a_log_whose_scanner_loses_returns_is_stored_and_searched_bridged(tmp_pa
     lossy = sc.sim.simulate_trajectory(rng, world, 8, step=0.3, dropout=0.07, **kw)
     clean = sc.sim.simulate_trajectory(rng, world, 8, step=0.3, **kw)
     gap = lambda path: PlaceDB(path, readonly=True).config.clustering.max_gap_beams  # noqa: E731
-    run_add(tmp_path / "lossy.db", lossy, every=4)
-    run_add(tmp_path / "clean.db", clean, every=4)
+    said = dict((m, v) for m, v, _ in run_add(tmp_path / "lossy.db", lossy, every=4).rows())
+    assert said["lost returns bridged inside a surface"] == "up to 1"
+    said = dict((m, v) for m, v, _ in run_add(tmp_path / "clean.db", clean, every=4).rows())
+    assert "lost returns bridged inside a surface" not in said
     assert gap(tmp_path / "lossy.db") == 1 and gap(tmp_path / "clean.db") == 0
     run_add(tmp_path / "clean.db", lossy, every=4)  # an existing database keeps its own
     assert gap(tmp_path / "clean.db") == 0

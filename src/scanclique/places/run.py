@@ -81,6 +81,9 @@ class AddRun:
     poses_source: str = ""
     #: places already present, added before without a map pose, given theirs now
     posed_present: int = 0
+    #: lost returns bridged in the database's clustering (``max_gap_beams``: 1 for a log
+    #: whose scanner loses returns, :func:`scanclique.features.for_scanner`)
+    bridged: int = 0
 
     def rows(self) -> list[tuple[str, str, str]]:
         ms = np.array(self.add_ms) if self.add_ms else np.zeros(1)
@@ -98,6 +101,11 @@ class AddRun:
                 else []
             ),
             ("places in the database", str(self.total), ""),
+            *(
+                [("lost returns bridged inside a surface", f"up to {self.bridged}", "beams")]
+                if self.bridged
+                else []
+            ),
             ("add time, median", f"{np.median(ms):.2f}", "ms"),
             ("add time, p95", f"{np.percentile(ms, 95):.2f}", "ms"),
             ("kernel loading (before the adds)", f"{self.loading_seconds:.1f}", "s"),
@@ -117,6 +125,7 @@ class AddRun:
             "posed": self.posed,
             "posed_present": self.posed_present,
             "poses": self.poses_source or None,
+            "bridged": self.bridged,
             "seconds": self.seconds,
             "loading_seconds": self.loading_seconds,
         }
@@ -179,9 +188,10 @@ def run_add(
             if progress:
                 progress(n + 1, len(idx))
         total = len(db)
+        bridged = db.config.clustering.max_gap_beams
     return AddRun(
         os.fspath(path), label, len(ids), skipped, total, tuple(ids), tuple(ms),
-        time.perf_counter() - t0, loading, posed, poses_source, given,
+        time.perf_counter() - t0, loading, posed, poses_source, given, bridged,
     )  # fmt: skip
 
 
