@@ -349,6 +349,10 @@ def test_a_bag_of_two_lasers_is_read_one_topic_at_a_time(tmp_path):
     r = CliRunner().invoke(cli.app, ["places", "add", str(db), str(path), "--laser", "/rear/scan"])
     assert r.exit_code == 0, r.output
     assert "added 3 places" in r.output
+    # --topic, as scanclique map names a bag's laser, is the same option
+    db = tmp_path / "q.db"
+    r = CliRunner().invoke(cli.app, ["places", "add", str(db), str(path), "--topic", "/rear/scan"])
+    assert r.exit_code == 0 and "added 3 places" in r.output, r.output
 
 
 def test_bags_without_odometry_have_none(tmp_path):

@@ -56,9 +56,10 @@ LaserOpt = Annotated[
     str,
     typer.Option(
         "--laser",
+        "--topic",
         help="Which laser of the log: a CARMEN message type (FLASER, RLASER, ROBOTLASER1..2, "
-        "RAWLASER1..4, LASER3..4) or a ROS bag's LaserScan topic (/front/scan); default: "
-        "the main one.",
+        "RAWLASER1..4, LASER3..4) or a ROS bag's LaserScan topic (/front/scan; --topic as "
+        "for scanclique map); default: the main one.",
     ),
 ]
 
