@@ -203,7 +203,7 @@ def cluster_scan(scan: Scan, config: ClusterConfig | None = None) -> np.ndarray:
         return np.zeros((0, 2), dtype=np.int64)
     r = scan.ranges[idx]
     dr = np.abs(np.diff(r))
-    limit = cfg.c1 + cfg.c2 * np.minimum(r[:-1], r[1:])
+    limit = _join_limit(cfg, r[:-1], r[1:])
     join = (dr < limit) & (np.diff(idx) <= 1 + cfg.max_gap_beams)
     breaks = np.flatnonzero(~join) + 1
     starts = np.concatenate(([0], breaks))
@@ -243,7 +243,7 @@ def dropout_fraction(scan: Scan, config: ClusterConfig | None = None) -> float:
     i = np.flatnonzero(~v[1:-1]) + 1
     i = i[v[i - 1] & v[i + 1]]
     a, b = r[i - 1], r[i + 1]
-    joined = np.abs(a - b) < cfg.c1 + cfg.c2 * np.minimum(a, b)
+    joined = np.abs(a - b) < _join_limit(cfg, a, b)
     return float(np.count_nonzero(joined)) / len(r)
 
 
@@ -252,8 +252,8 @@ def drops_returns(scans, config: ClusterConfig | None = None, sample: int = 200)
     :func:`dropout_fraction` of up to ``sample`` scans spread over the log is at least
     :data:`DROPOUT_BRIDGE`. Then one invalid beam between two returns the clustering rule
     joins is a lost return, not open space (``ClusterConfig.max_gap_beams = 1``,
-    :func:`for_scanner`). False for no
-    scans; what is not a Scan is left to the caller's checks."""
+    :func:`for_scanner`). False for no scans; what is not a Scan is left to the caller's
+    checks."""
     spread = _spread(scans, sample)
     if not spread:
         return False
@@ -306,7 +306,7 @@ def range_noise(scans, config: ClusterConfig | None = None, sample: int = 200) -
         if len(r) < 3:
             continue
         a, b, c = r[:-2], r[1:-1], r[2:]
-        loose = 3.0 * (cfg.c1 + cfg.c2 * np.minimum(np.minimum(a, b), c))
+        loose = 3.0 * _join_limit(cfg, np.minimum(a, b), c)
         with np.errstate(invalid="ignore"):
             ok = v[:-2] & v[1:-1] & v[2:] & (b >= 2.0)
             ok &= (np.abs(a - b) < loose) & (np.abs(c - b) < loose)
@@ -348,6 +348,12 @@ def for_scanner(config: MatchConfig | None, scans, *, widen: bool = True) -> Mat
         fit.max_gap_beams, fit.c2,
     )  # fmt: skip
     return dataclasses.replace(cfg, clustering=fit)
+
+
+def _join_limit(cfg: ClusterConfig, a, b):
+    """The clustering rule's bound on ``|R_a - R_b|`` for two ranges to join one cluster
+    (paper §4): ``c1 + c2 * min(R_a, R_b)``, elementwise."""
+    return cfg.c1 + cfg.c2 * np.minimum(a, b)
 
 
 # --------------------------------------------------------------------------------------
