@@ -7,10 +7,12 @@ with odometry that drifts 0.003 rad/m. Each seed is mapped with and without odom
 with the default configuration, with ``LoopConfig.max_turn`` at pi (no refusal of
 closures that turn the estimate: the mapper before session 31) and with
 ``LoopConfig.max_shift`` at inf (no refusal of closures that move the estimate by more
-than a share of the path between the two places: before session 32), side by side; and
-with chained matching alone (no closures). Figures: mean and max position error (m)
-against the drive's true poses, both in the frame of the first scan, and the closures
-refused as ``"turned"`` and as ``"shifted"``.
+than a share of the path between the two places: before session 32), with
+``LoopConfig.max_conflict`` at 1 (no refusal of closures to a twin place whose raw scans
+conflict: before session 41), side by side; and with chained matching alone (no
+closures). Figures: mean and max position error (m) against the drive's true poses, both
+in the frame of the first scan, and the closures refused as ``"turned"``, ``"shifted"``
+and ``"conflicting"``.
 
     python benchmarks/mapping_ring.py
     python benchmarks/mapping_ring.py --seeds 0,1 --out /tmp/ring
@@ -50,6 +52,9 @@ CONFIGS = {
     ),
     "max_shift=inf": dataclasses.replace(
         MapConfig(), loops=dataclasses.replace(MapConfig().loops, max_shift=math.inf)
+    ),
+    "max_conflict=1": dataclasses.replace(
+        MapConfig(), loops=dataclasses.replace(MapConfig().loops, max_conflict=1.0)
     ),
     "chained only": dataclasses.replace(
         MapConfig(), loops=dataclasses.replace(MapConfig().loops, enabled=False)
@@ -92,6 +97,7 @@ def run(
                     "odometry_mean": float(odo_err.mean()),
                     "turned": sum(c.verdict == "turned" for c in r.loop_closures),
                     "shifted": sum(c.verdict == "shifted" for c in r.loop_closures),
+                    "conflicting": sum(c.verdict == "conflicting" for c in r.loop_closures),
                     "accepted": sum(c.accepted and not c.local for c in r.loop_closures),
                     "seconds": time.perf_counter() - t,
                 }
@@ -107,15 +113,15 @@ def run(
 def table(rows: list[dict]) -> list[str]:
     out = [
         "| seed | odometry | configuration | mean error (m) | max error (m) | closures "
-        "accepted | refused as turned | refused as shifted | odometry alone, mean (m) | "
-        "seconds |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "accepted | refused as turned | refused as shifted | refused as conflicting | "
+        "odometry alone, mean (m) | seconds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         out.append(
             f"| {r['seed']} | {'yes' if r['odometry'] else 'no'} | {r['config']} | "
             f"{r['mean']:.3f} | {r['max']:.2f} | {r['accepted']} | {r['turned']} | "
-            f"{r['shifted']} | "
+            f"{r['shifted']} | {r.get('conflicting', 0)} | "
             f"{r['odometry_mean']:.2f} | {r['seconds']:.1f} |"
         )
     return out

@@ -35,7 +35,7 @@ from .pose import (
     pair_consistent_pairs,
     points_first,
 )
-from .refine import ReferenceCloud, icp_point_to_line, reference_cloud
+from .refine import ReferenceCloud, free_space_conflicts, icp_point_to_line, reference_cloud
 from .scan import Scan
 
 _K = kernel_module("scanclique._match_kernels")
@@ -47,6 +47,7 @@ __all__ = [
     "ScanMatch",
     "prepare_scan",
     "pose_score",
+    "conflict_fraction",
     "estimate_clique_pose",
     "search_pose",
     "match_prepared",
@@ -292,6 +293,29 @@ def pose_score(
     mean fraction of points lying in the other scan's observed free space."""
     cfg = config or _DEFAULT
     return _score(pa, pb, pose.x, pose.y, pose.theta, cfg)
+
+
+def conflict_fraction(
+    place: PreparedScan, query: PreparedScan, pose: Pose2, config: MatchConfig | None = None
+) -> float:
+    """How much of either scan lies where the other saw through, under ``pose`` (maps the
+    query into the place's frame): the larger of the fraction of the query's points in the
+    place's observed free space and of the place's points in the query's
+    (:func:`scanclique.refine.free_space_conflicts`, with ``refine.conflict_margin`` and
+    ``refine.conflict_ratio``), in ``[0, 1]``.
+
+    A look-alike place (a twin room, a corridor seen from its other end) lines its walls
+    up with the query's, but a cupboard, a door or a pillar of one stands where the other
+    saw free floor; the same place conflicts only where people or doors moved. The raw-scan
+    score (:func:`scanclique.match.pose_score`) averages the two directions and weighs
+    conflicts against agreement; the larger one, read on its own, separates revisits from
+    twins better (``benchmarks/places.py --calibrate``).
+    """
+    r = (config or _DEFAULT).refine
+    m, k = r.conflict_margin, r.conflict_ratio
+    c_query = free_space_conflicts(place.scan, query.points, m, k, pose=pose)
+    c_place = free_space_conflicts(query.scan, place.points, m, k, pose=pose.inverse())
+    return float(max(c_query, c_place))
 
 
 def _feature_arrays(f: Features):

@@ -57,7 +57,9 @@ class LoopClosure:
     ``"imprecise"`` (its covariance too loose: :class:`~.config.LoopConfig`),
     ``"turned"`` (it turns the estimate by more than ``max_turn``: a look-alike a quarter
     or half turn round), ``"shifted"`` (it moves the estimate by more than ``max_shift``
-    of the path between the two: a look-alike along the way), ``"uncorroborated"`` or
+    of the path between the two: a look-alike along the way), ``"conflicting"`` (it moves
+    the estimate beyond the front end's and the drift model's bounds and its raw scans see
+    through each other's points: a twin place), ``"uncorroborated"`` or
     ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
     :func:`scanclique.refine.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the

@@ -35,7 +35,7 @@ from ..config import require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
 from ..features import for_scanner
 from ..geometry import Pose2, rotation_matrix
-from ..match import prepare_scan
+from ..match import conflict_fraction, prepare_scan
 from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_velocity_of
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
@@ -781,39 +781,59 @@ class _Mapper:
                     loops.append((i, kidx, pose, cov, source, score, reason))
         self.batch = []
         for i, j, pose, cov, source, score, reason in loops:
-            why = self.shifted(i, j, pose)
-            if why:
+            refused = self.shifted(i, j, pose, cov)
+            if refused is not None:
+                verdict, why = refused
                 self.closures.append(
-                    LoopClosure(self.kf[i], self.kf[j], None, None, "shifted", False, False,
+                    LoopClosure(self.kf[i], self.kf[j], None, None, verdict, False, False,
                                 source, score, why)
                 )  # fmt: skip
             else:
                 self.pending.append((i, j, pose, cov, source, score, reason))
 
-    def shifted(self, i: int, j: int, Z: Pose2) -> str:
-        """Why closure ``i``-``j`` (pose ``Z``) is refused as a look-alike along the way, or
-        "": it moves the current estimate by more than the drift model's candidate radius
-        over the chain's path ``L`` between the two keyframes
-        (:func:`~scanclique.mapping.loops.drift_std`, 3 sigma), by more than
-        ``loops.max_shift`` times ``L``, and by more than 3 sigma of the front end's own
-        uncertainty between them (:meth:`front_std`, through the local matches of the
-        batch: a candidate is verified when its keyframe is made, by the prior of that
-        moment, and the local matches that fix a stretch the chain was unsure of come
-        after it)."""
+    def shifted(self, i: int, j: int, Z: Pose2, P: np.ndarray) -> tuple[str, str] | None:
+        """``(verdict, reason)`` when closure ``i``-``j`` (pose ``Z``, covariance ``P``) is
+        refused as a look-alike, else None. Either way it moves the current estimate by
+        more than 3 sigma of the front end's own uncertainty between the two keyframes
+        (:meth:`front_std`, through the local matches of the batch: a candidate is verified
+        when its keyframe is made, by the prior of that moment, and the local matches that
+        fix a stretch the chain was unsure of come after it); then
+
+        * ``"shifted"``: by more than the drift model's candidate radius over the chain's
+          path ``L`` between the two keyframes (:func:`~scanclique.mapping.loops.drift_std`,
+          3 sigma) and by more than ``loops.max_shift`` times ``L``: a look-alike along the
+          way (a door or two along a corridor);
+        * ``"conflicting"``: outside the drift model's 99 % gate (:meth:`beyond_drift`, as
+          a closure that must be corroborated), and the two keyframes' raw scans, under
+          ``Z``, see through more than ``loops.max_conflict`` of each other's points
+          (:func:`scanclique.match.conflict_fraction`): a twin room, its walls lined up
+          with the other's while its furniture stands where the other saw free floor.
+        """
         shift = self.estimate_shift(i, j, Z)
-        path = float(self.kf_path[j] - self.kf_path[i])
-        bound = max(3.0 * _loops.drift_std(path, self.lc)[0], self.lc.max_shift * path)
-        if shift <= bound:
-            return ""
         s_xy = self.front_std(i, j)[0]
         if shift <= 3.0 * s_xy:
-            return ""
-        return (
-            f"moves the estimate by {shift:.2f} m over a path of {path:.1f} m: more than the "
-            f"drift model's radius, loops.max_shift={self.lc.max_shift:g} of the path and 3 "
-            f"sigma of the front end's own uncertainty ({3.0 * s_xy:.2f} m): a look-alike "
-            "along the way (a door or two along a corridor)"
+            return None
+        path = float(self.kf_path[j] - self.kf_path[i])
+        beyond = (
+            f"moves the estimate by {shift:.2f} m over a path of {path:.1f} m: more than 3 "
+            f"sigma of the front end's own uncertainty ({3.0 * s_xy:.2f} m)"
         )
+        if shift > max(3.0 * _loops.drift_std(path, self.lc)[0], self.lc.max_shift * path):
+            return "shifted", (
+                f"{beyond}, the drift model's radius and loops.max_shift="
+                f"{self.lc.max_shift:g} of the path: a look-alike along the way (a door or "
+                "two along a corridor)"
+            )
+        if not self.beyond_drift(i, j, Z, P):
+            return None
+        conflict = conflict_fraction(self.kf_prep[i], self.kf_prep[j], Z, self.cfg.match)
+        if conflict > self.lc.max_conflict:
+            return "conflicting", (
+                f"{beyond} and the drift model's 99 % gate, and {conflict:.1%} of the raw "
+                "scans' points lie where the other saw through (loops.max_conflict="
+                f"{self.lc.max_conflict:g}): a twin place"
+            )
+        return None
 
     def flush(self, final: bool = False) -> None:
         t = time.perf_counter()

@@ -37,8 +37,8 @@ import numpy as np
 from .._records import readonly
 from ..config import MatchConfig
 from ..geometry import Pose2
-from ..match import PreparedScan, distinct_poses, match_prepared, pose_score
-from ..refine import free_space_conflicts, icp_point_to_line, weak_direction
+from ..match import PreparedScan, conflict_fraction, distinct_poses, match_prepared, pose_score
+from ..refine import icp_point_to_line, weak_direction
 from ..validation import ACCEPTED as _V_ACCEPTED
 from ..validation import AMBIGUOUS as _V_AMBIGUOUS
 from ..validation import ValidationConfig, validate_match
@@ -276,29 +276,6 @@ def rival_ratio(score: float, rival_score: float) -> float:
     distinct pose explains the same scans, as :func:`confidence` reads it."""
     s = float(score)
     return min(1.0, max(0.0, float(rival_score)) / s) if s > 0 else 1.0
-
-
-def conflict_fraction(
-    place: PreparedScan, query: PreparedScan, pose: Pose2, config: MatchConfig | None = None
-) -> float:
-    """How much of either scan lies where the other saw through, under ``pose`` (maps the
-    query into the place's frame): the larger of the fraction of the query's points in the
-    place's observed free space and of the place's points in the query's
-    (:func:`scanclique.refine.free_space_conflicts`, with ``refine.conflict_margin`` and
-    ``refine.conflict_ratio``), in ``[0, 1]``.
-
-    A look-alike place (a twin room, a corridor seen from its other end) lines its walls
-    up with the query's, but a cupboard, a door or a pillar of one stands where the other
-    saw free floor; the same place conflicts only where people or doors moved. The raw-scan
-    score (:func:`scanclique.match.pose_score`) averages the two directions and weighs
-    conflicts against agreement; the larger one, read on its own, separates revisits from
-    twins better (``benchmarks/places.py --calibrate``).
-    """
-    r = (config or MatchConfig()).refine
-    m, k = r.conflict_margin, r.conflict_ratio
-    c_query = free_space_conflicts(place.scan, query.points, m, k, pose=pose)
-    c_place = free_space_conflicts(query.scan, place.points, m, k, pose=pose.inverse())
-    return float(max(c_query, c_place))
 
 
 def confidence(
