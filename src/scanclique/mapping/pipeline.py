@@ -388,6 +388,8 @@ class _Mapper:
         gtsam = _gtsam()
         self.gtsam = gtsam
         self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
+        self.all_factors = gtsam.NonlinearFactorGraph()  # every factor given to iSAM2
+        self.isam_restarts = 0  # iSAM2 restarted from a batch solution (restart_isam)
         self.new_factors = gtsam.NonlinearFactorGraph()
         self.new_values = gtsam.Values()
         self.sig_mod = _loops.signature_module() if self.lc.appearance else None
@@ -894,13 +896,41 @@ class _Mapper:
         self.seconds["pcm"] += time.perf_counter() - t
         t = time.perf_counter()
         if self.new_factors.size() or self.new_values.size():
-            with solving("map_scans (iSAM2)", ODOMETRY_HINT):
+            self.all_factors.push_back(self.new_factors)
+            try:
                 self.isam.update(self.new_factors, self.new_values)
+            except RuntimeError as e:
+                self.restart_isam(e)
             self.new_factors = self.gtsam.NonlinearFactorGraph()
             self.new_values = self.gtsam.Values()
             est = self.isam.calculateEstimate()
             self.est_xy = np.asarray(self.gtsam.utilities.extractPose2(est), dtype=float)
         self.seconds["isam"] += time.perf_counter() - t
+
+    def restart_isam(self, error: RuntimeError) -> None:
+        """iSAM2 from scratch, when its incremental update failed (``error``: an
+        indeterminate linear system): Levenberg–Marquardt over every factor so far from the
+        current estimate, and a new iSAM2 started from that solution. GTSAM's incremental
+        elimination can find a system indeterminate that the batch solves (corrected CSAIL
+        with every second scan, without odometry: a keyframe after a turn of 109 degrees
+        between two steps placed by the prediction, 1 rad of sigma each). Raises
+        :class:`~scanclique.errors.PoseGraphError` when the batch fails too."""
+        gtsam = self.gtsam
+        says = next((ln.strip() for ln in str(error).splitlines() if ln.strip()), "")
+        log.info(
+            "map_scans: iSAM2 could not take keyframes up to %d (%s); solved in batch and "
+            "restarted", len(self.kf) - 1, says,
+        )  # fmt: skip
+        values = gtsam.Values()
+        for k, (x, y, th) in enumerate(self.est_xy):
+            values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(int(self.cfg.back_end.max_iterations))
+        with solving("map_scans (iSAM2, solved in batch after it failed)", ODOMETRY_HINT):
+            solved = gtsam.LevenbergMarquardtOptimizer(self.all_factors, values, params).optimize()
+            self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
+            self.isam.update(self.all_factors, solved)
+        self.isam_restarts += 1
 
     # -- step 2: the front end, one scan at a time --------------------------------------
     def add_scan(self, scan: Scan) -> None:
