@@ -912,8 +912,9 @@ class _Mapper:
         indeterminate linear system): Levenberg–Marquardt over every factor so far from the
         current estimate, and a new iSAM2 started from that solution. GTSAM's incremental
         elimination can find a system indeterminate that the batch solves (corrected CSAIL
-        with every second scan, without odometry: a keyframe after a turn of 109 degrees
-        between two steps placed by the prediction, 1 rad of sigma each). Raises
+        with every second scan, without odometry: near keyframe 119, after a 109-degree
+        step and among steps placed by the prediction with 1 rad of sigma; the run ended
+        there before). Raises
         :class:`~scanclique.errors.PoseGraphError` when the batch fails too."""
         gtsam = self.gtsam
         says = next((ln.strip() for ln in str(error).splitlines() if ln.strip()), "")
