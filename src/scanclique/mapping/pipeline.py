@@ -1015,6 +1015,7 @@ class _Mapper:
         if kind == CONSTANT_VELOCITY:
             # the previous scan's own looseness counts when it lies relative to k too
             carried_w = self.motion.carried(self.kf_of[j - 1] == k and j - 1 != k)
+        reversed_prior = False  # the match was taken against the odometry reversed
         if kind == CONSTANT_VELOCITY and fe.icp_fallback:
             rel_pred, pred_cov = odometry_prior(prior_a, prior_b, noise)
             step = associate_by_scans(
@@ -1056,6 +1057,7 @@ class _Mapper:
                         "odometry reversed (it never reports backing up)"
                     )
                     step, prior_b, path = back, back_b, back_path
+                    reversed_prior = True
             if step is None:
                 step = associate(
                     pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
@@ -1064,7 +1066,12 @@ class _Mapper:
                 )  # fmt: skip
         # the odometry increment and its covariance (the first prior of the fallback)
         odo = odometry_prior(prior_a, prior_b, noise, path=path) if kind == ODOMETRY else None
-        if step.kind == MATCH and odo is not None:
+        # a match taken against the odometry reversed is not contested from there: ICP from
+        # the reversed odometry would confirm the reversal by the prior alone (simulated
+        # campus drive 1, never backing up: a forward match 2.3 sigma from the reversed
+        # odometry lost to ICP slid back along a street, and each step placed backwards
+        # made the next one's prior reversed too, 0.4-0.6 m a step for 60 scans)
+        if step.kind == MATCH and odo is not None and not reversed_prior:
             step = contest_by_odometry(pk, pj, step, odo[0], fe, self.cfg.match, odo[1])
             if step.kind == ICP:
                 self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
