@@ -344,9 +344,9 @@ class LoopConfig:
         wrong ones there (CSAIL without odometry one 2.4 m off, corrected Intel with
         every second beam two, 4.3 and 22 m off). ``inf``: the rule off.
     max_conflict : float
-        A loop closure that moves the current estimate beyond the drift model's radius and
-        the front end's 3 sigma, but by less than ``max_shift`` of the path, is refused
-        (verdict ``"conflicting"``) when the two keyframes' raw scans under it see through
+        A loop closure that moves the current estimate beyond the front end's 3 sigma and
+        the drift model's 99 % gate (not so far as to be refused as ``"shifted"``) is
+        refused (verdict ``"conflicting"``) when the two keyframes' raw scans under it see through
         more than this fraction of each other's points
         (:func:`scanclique.match.conflict_fraction`): a twin room in a building of alike
         rooms lines its walls up with the other's, but its furniture stands where the

@@ -389,7 +389,6 @@ class _Mapper:
         self.gtsam = gtsam
         self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
         self.all_factors = gtsam.NonlinearFactorGraph()  # every factor given to iSAM2
-        self.isam_restarts = 0  # iSAM2 restarted from a batch solution (restart_isam)
         self.new_factors = gtsam.NonlinearFactorGraph()
         self.new_values = gtsam.Values()
         self.sig_mod = _loops.signature_module() if self.lc.appearance else None
@@ -783,7 +782,7 @@ class _Mapper:
                     loops.append((i, kidx, pose, cov, source, score, reason))
         self.batch = []
         for i, j, pose, cov, source, score, reason in loops:
-            refused = self.shifted(i, j, pose, cov)
+            refused = self.look_alike(i, j, pose, cov)
             if refused is not None:
                 verdict, why = refused
                 self.closures.append(
@@ -793,7 +792,7 @@ class _Mapper:
             else:
                 self.pending.append((i, j, pose, cov, source, score, reason))
 
-    def shifted(self, i: int, j: int, Z: Pose2, P: np.ndarray) -> tuple[str, str] | None:
+    def look_alike(self, i: int, j: int, Z: Pose2, P: np.ndarray) -> tuple[str, str] | None:
         """``(verdict, reason)`` when closure ``i``-``j`` (pose ``Z``, covariance ``P``) is
         refused as a look-alike, else None. Either way it moves the current estimate by
         more than 3 sigma of the front end's own uncertainty between the two keyframes
@@ -931,7 +930,6 @@ class _Mapper:
             solved = gtsam.LevenbergMarquardtOptimizer(self.all_factors, values, params).optimize()
             self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
             self.isam.update(self.all_factors, solved)
-        self.isam_restarts += 1
 
     # -- step 2: the front end, one scan at a time --------------------------------------
     def add_scan(self, scan: Scan) -> None:
