@@ -324,6 +324,7 @@ def test_a_twin_room_is_not_taken_for_the_room_it_looks_like():
     from dataclasses import replace  # noqa: PLC0415
 
     from scanclique.mapping import MapConfig  # noqa: PLC0415
+    from scanclique.mapping.run import MapRun  # noqa: PLC0415
 
     rng = np.random.default_rng(3)
     scans = simulate_sensor_drive(rng, office_world(rng), 110, 0.25, **RPLIDAR)
@@ -334,12 +335,15 @@ def test_a_twin_room_is_not_taken_for_the_room_it_looks_like():
         for c in res.accepted_closures:
             truth = scans[c.i].reference.inverse() @ scans[c.j].reference
             wrong += c.pose.distance_to(truth)[0] > 0.3
-        return wrong, [c for c in res.loop_closures if c.verdict == "conflicting"]
+        return wrong, [c for c in res.loop_closures if c.verdict == "conflicting"], res
 
     cfg = MapConfig()
     off = replace(cfg, loops=replace(cfg.loops, max_conflict=1.0))
-    wrong_off, refused_off = wrong_closures(off)
+    wrong_off, refused_off, _ = wrong_closures(off)
     assert wrong_off >= 1 and not refused_off  # the twin room, taken without the rule
-    wrong_on, refused = wrong_closures(cfg)
+    wrong_on, refused, res = wrong_closures(cfg)
     assert wrong_on == 0
     assert refused and all("twin place" in c.reason and c.pose is None for c in refused)
+    # and ``scanclique map``'s table says so
+    rows = {m: v for m, v, _ in MapRun("drive 3", res, {}, None).rows()}
+    assert f"{len(refused)} conflicting" in rows["loop closures refused as look-alikes"]

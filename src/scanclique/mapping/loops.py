@@ -41,9 +41,14 @@ __all__ = [
     "verify",
     "verify_by_icp",
     "closure_doubt",
+    "LOOK_ALIKES",
 ]
 
 log = logging.getLogger(__name__)
+
+#: the verdicts of the closures refused as look-alike places (:class:`LoopClosure`): a
+#: corner a quarter or half turn round, a door or two along a corridor, a twin room
+LOOK_ALIKES = ("turned", "shifted", "conflicting")
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -22,6 +22,7 @@ from ..errors import ScanCliqueError
 from ..scan import Scan
 from ..uncertainty import constellation_std
 from .config import MapConfig
+from .loops import LOOK_ALIKES
 from .pipeline import MapResult, choose_odometry, map_scans
 
 __all__ = [
@@ -141,8 +142,12 @@ class MapRun:
             ),
             ("loop candidates verified", str(c["loop_candidates"]), ""),
             ("loop closures accepted", str(c["loop_closures_accepted"]), ""),
-            ("odometry used", "yes" if self.result.used_odometry else "no", ""),
         ]
+        alike = {v: c["loop_verdicts"].get(v, 0) for v in LOOK_ALIKES}
+        if any(alike.values()):  # a corner turned round, a door along, a twin room
+            text = ", ".join(f"{n} {verdict}" for verdict, n in alike.items())
+            rows.append(("loop closures refused as look-alikes", text, ""))
+        rows.append(("odometry used", "yes" if self.result.used_odometry else "no", ""))
         if c["deskewed"]:
             rows.append(("de-skewed (a rotating lidar's sweep)", str(c["deskewed"]), "scans"))
             rows.append(("beam times read", c["sweep_timing"], ""))
