@@ -77,6 +77,8 @@ BAD_FIELDS = [
     (LoopConfig, "max_shift", 0.0),  # every closure beyond the drift radius refused
     (LoopConfig, "max_shift", NAN),  # silently the drift radius alone (max() skips NaN)
     (LoopConfig, "max_shift", -INF),
+    (LoopConfig, "max_conflict", NAN),  # "conflict > NaN" is never true: the rule off silently
+    (LoopConfig, "max_conflict", -0.05),  # every twin test refused
     (FrontEndConfig, "keyframe_angle", 10.0),  # degrees: keyframes by distance alone, silently
     (FrontEndConfig, "refine_max_turn", 5.0),
     (BackEndConfig, "max_iterations", 2.5),
