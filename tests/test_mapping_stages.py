@@ -1250,3 +1250,44 @@ def test_corrected_csail_every_second_scan_without_odometry_maps(log_path):
     assert len(res.poses) == len(scans) and all(p is not None for p in res.poses)
     assert "constant_velocity" in res.placed_by
     assert res.accepted_closures
+
+
+def test_a_pose_graph_the_batch_cannot_solve_either_is_a_named_error(monkeypatch):
+    """When iSAM2 fails and the batch solve after it fails too, the run ends in a
+    ``PoseGraphError`` that names the solve and says what to check: the odometry's units
+    when mapping with it, the steps placed by the prediction when mapping from the scans."""
+    import gtsam
+    from conftest import circle_drive
+
+    from scanclique.errors import PoseGraphError
+    from scanclique.mapping import map_scans, pipeline
+
+    scans = circle_drive(np.random.default_rng(2), laps=1, n_per_lap=30)
+    indeterminate = "\nIndeterminate linear system detected while working near variable\n3."
+
+    class BrokenISAM2:
+        def __init__(self, params):
+            pass
+
+        def update(self, factors, values):
+            raise RuntimeError(indeterminate)
+
+    class BrokenLM:
+        def __init__(self, *args):
+            pass
+
+        def optimize(self):
+            raise RuntimeError(indeterminate)
+
+    class BrokenGtsam:
+        ISAM2 = BrokenISAM2
+        LevenbergMarquardtOptimizer = BrokenLM
+
+        def __getattr__(self, name):
+            return getattr(gtsam, name)
+
+    monkeypatch.setattr(pipeline, "_gtsam", BrokenGtsam)
+    with pytest.raises(PoseGraphError, match="solved in batch after it failed.*scans alone"):
+        map_scans(scans, use_odometry=False)
+    with pytest.raises(PoseGraphError, match="odometry in metres"):
+        map_scans(scans, use_odometry=True)

@@ -305,6 +305,13 @@ def _tally(items) -> dict:
     return out
 
 
+#: what a pose graph GTSAM cannot solve asks of a user mapping from the scans alone
+SCANS_HINT = (
+    "Mapped from the scans alone: steps the front end could not match are placed by its "
+    "prediction with a loose covariance (MapResult.placed_by says which); with odometry "
+    "(use_odometry=True) they have a better prior."
+)
+
 #: a scan's placed step backwards (m) beyond which the robot counts as backing up, for
 #: odometry that never reports it (:func:`~scanclique.mapping.frontend.odometry_sees_reversing`)
 REVERSING_STEP = 0.01
@@ -926,7 +933,8 @@ class _Mapper:
             values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(int(self.cfg.back_end.max_iterations))
-        with solving("map_scans (iSAM2, solved in batch after it failed)", ODOMETRY_HINT):
+        hint = ODOMETRY_HINT if self.odo else SCANS_HINT
+        with solving("map_scans (iSAM2, solved in batch after it failed)", hint):
             solved = gtsam.LevenbergMarquardtOptimizer(self.all_factors, values, params).optimize()
             self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
             self.isam.update(self.all_factors, solved)
