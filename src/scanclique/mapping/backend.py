@@ -41,6 +41,18 @@ ODOMETRY_HINT = (
 )
 
 
+def levenberg_marquardt(gtsam, graph, values, max_iterations: int = 100):
+    """GTSAM's Levenberg–Marquardt on the factor graph ``graph`` from ``values`` (the
+    optimised ``Values``), at most ``max_iterations`` iterations, stopping when the error
+    changes by less than 1e-6 (relative or absolute). Its ``RuntimeError`` passes through
+    (callers wrap it in :func:`~scanclique.errors.solving`)."""
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(int(max_iterations))
+    params.setRelativeErrorTol(1e-6)
+    params.setAbsoluteErrorTol(1e-6)
+    return gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+
+
 def _gtsam():
     import gtsam  # noqa: PLC0415  (lazy: heavy, optional at import time)
 
@@ -181,12 +193,8 @@ class PoseGraph:
     def optimize(self, max_iterations: int = 100) -> dict[int, Pose2]:
         """Levenberg–Marquardt from the initial guesses; the optimised pose of every node."""
         gtsam = self._g
-        params = gtsam.LevenbergMarquardtParams()
-        params.setMaxIterations(int(max_iterations))
-        params.setRelativeErrorTol(1e-6)
-        params.setAbsoluteErrorTol(1e-6)
         with solving("PoseGraph.optimize", ODOMETRY_HINT):
-            result = gtsam.LevenbergMarquardtOptimizer(self.graph, self.values, params).optimize()
+            result = levenberg_marquardt(gtsam, self.graph, self.values, max_iterations)
         self.result = result
         keys = list(gtsam.KeyVector(result.keys()))
         arr = gtsam.utilities.extractPose2(result)

@@ -44,6 +44,7 @@ from .backend import (
     ODOMETRY_HINT,
     PoseGraph,
     _gtsam,
+    levenberg_marquardt,
     tangent_covariance,
     tangent_covariances,
 )
@@ -931,11 +932,11 @@ class _Mapper:
         values = gtsam.Values()
         for k, (x, y, th) in enumerate(self.est_xy):
             values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
-        params = gtsam.LevenbergMarquardtParams()
-        params.setMaxIterations(int(self.cfg.back_end.max_iterations))
         hint = ODOMETRY_HINT if self.odo else SCANS_HINT
         with solving("map_scans (iSAM2, solved in batch after it failed)", hint):
-            solved = gtsam.LevenbergMarquardtOptimizer(self.all_factors, values, params).optimize()
+            solved = levenberg_marquardt(
+                gtsam, self.all_factors, values, self.cfg.back_end.max_iterations
+            )
             self.isam = gtsam.ISAM2(gtsam.ISAM2Params())
             self.isam.update(self.all_factors, solved)
 
