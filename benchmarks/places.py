@@ -200,6 +200,7 @@ def recognition(
     mapped=False,
 ) -> dict:
     from scanclique.datasets import load_log
+    from scanclique.features import for_scanner
     from scanclique.pairsets import REVISIT_MIN_GAP
     from scanclique.places import ACCEPTED, PlaceDB
     from scanclique.places.hashing import feature_triangles
@@ -220,8 +221,11 @@ def recognition(
     # by score) below (the default min_score and min_confidence are one point of that)
     from scanclique.places.database import ESCALATE, SEEDED
 
+    # the configuration ``scanclique places add`` gives a new database of the log (the
+    # shared logs as recorded: the defaults; a degraded one may meet its reach)
     db = PlaceDB(
         tmp / f"{name}{'-mapped' if mapped else ''}.db",
+        for_scanner(None, scans, widen=False, reach_edges=False),
         min_score=0.0,
         min_confidence=0.0,
         search=search,

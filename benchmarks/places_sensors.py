@@ -89,8 +89,10 @@ def drive(profile: str, seed: int, tmp: Path, world: str = "office") -> dict:
     out = {"profile": profile, "seed": seed, "queries": 0, "with_true": 0, "accepted": 0}
     out.update(right=0, right_true=0, wrong=[], query_ms=[], add_ms=[])
     # the database as ``scanclique places add`` makes it from a log: the defaults, a lost
-    # return bridged for a scanner that loses them (session 40)
-    with PlaceDB(tmp / f"{profile}-{seed}.db", for_scanner(None, scans, widen=False)) as db:
+    # return bridged for a scanner that loses them (session 40), no edges where a wall
+    # leaves the reach (session 42)
+    config = for_scanner(None, scans, widen=False, reach_edges=False)
+    with PlaceDB(tmp / f"{profile}-{seed}.db", config) as db:
         for s in scans:
             t = time.perf_counter()
             db.add(s)

@@ -554,6 +554,7 @@ AGREEMENT_CONFIGS = {
     "no-corners": (FeatureConfig(corners=False), ClusterConfig()),
     "no-points": (FeatureConfig(foreground_points=False, foreground_edges=False), ClusterConfig()),
     "no-crowd": (FeatureConfig(crowd_radius=0.0, min_cluster_beams=1), ClusterConfig()),
+    "no-reach-edges": (FeatureConfig(reach_edges=False), ClusterConfig(c2=0.065)),
     "gaps": (
         FeatureConfig(line_min_points=2, line_min_length=0.05, crowd_radius=1.0),
         ClusterConfig(max_gap_beams=2),
@@ -686,3 +687,27 @@ def test_an_unknown_reading_beside_a_cluster_makes_no_edge(unknown):
     s = Scan(r, ang, range_max=80.0)
     for f in (extract_features(s), _extract_features_reference(s)):
         assert f.counts()["edge_cw"] == 0 and f.counts()["edge_ccw"] == 0
+
+
+@pytest.mark.parametrize("extract", [extract_features, _extract_features_reference])
+def test_a_wall_leaving_the_reach_has_no_edge_where_it_leaves(extract):
+    # a wall 1.5 m ahead, ending 0.8 m to the left, running on to the right past a 3.5 m
+    # reach: its end on the left is an edge (open space beyond, well within reach); where
+    # it leaves the reach (about 3.16 m to the right) it does not end, and a 3.5 m
+    # scanner's "edge" there matched any wall of any place outdoors (session 42):
+    # FeatureConfig.reach_edges=False leaves it out, the default keeps it (mapping)
+    world = World(np.array([[[1.5, -10.0], [1.5, 0.8]]]))
+    short = simulate_scan(world, Pose2.identity(), n_beams=361, max_range=3.5, range_sigma=0.0)
+    off = FeatureConfig(reach_edges=False)
+    f = extract(short, off)
+    assert len(of_label(f, EDGE_CW)) == 0
+    ccw = of_label(f, EDGE_CCW)
+    assert len(ccw) == 1 and np.linalg.norm(ccw[0] - (1.5, 0.8)) < 0.05
+    cw = of_label(extract(short), EDGE_CW)
+    assert len(cw) == 1 and abs(np.hypot(*cw[0]) - 3.5) < 0.05
+    # the same visible piece as a whole wall within a 30 m reach: both ends are edges
+    world = World(np.array([[[1.5, -math.sqrt(3.5**2 - 1.5**2)], [1.5, 0.8]]]))
+    f = extract(
+        simulate_scan(world, Pose2.identity(), n_beams=361, max_range=30.0, range_sigma=0), off
+    )
+    assert len(of_label(f, EDGE_CW)) == 1 and len(of_label(f, EDGE_CCW)) == 1

@@ -107,6 +107,63 @@ def test_a_log_whose_scanner_loses_returns_is_stored_and_searched_bridged(tmp_pa
     assert given.config.clustering.max_gap_beams == 0
 
 
+def test_a_log_whose_scanner_meets_its_reach_is_stored_without_edges_there(tmp_path):
+    """A new database of ``run_add`` and ``find_loops`` leave out the foreground edges
+    where a wall only leaves the sensor's reach (``FeatureConfig.reach_edges``) when the
+    log's scanner meets its reach (features.meets_reach: a 3.5 m 360-degree lidar in an
+    office), keep them when it does not (30 m there), and a given configuration is used
+    as it is; the table of ``places add`` says so."""
+    from scanclique.config import MatchConfig
+    from scanclique.features import meets_reach
+    from scanclique.places.run import run_add
+
+    kw = dict(n_beams=360, fov=2 * np.pi * 359 / 360, angle_min=-np.pi)
+    rng = np.random.default_rng(3)
+    world = sc.sim.office_world(rng)
+    short = sc.sim.simulate_trajectory(rng, world, 8, step=0.3, max_range=3.5, **kw)
+    long = sc.sim.simulate_trajectory(rng, world, 8, step=0.3, max_range=30.0, **kw)
+    assert meets_reach(short) and not meets_reach(long)
+    edges = lambda path: PlaceDB(path, readonly=True).config.features.reach_edges  # noqa: E731
+    said = dict((m, v) for m, v, _ in run_add(tmp_path / "short.db", short, every=4).rows())
+    assert said["edges where a wall leaves the reach"] == "left out"
+    said = dict((m, v) for m, v, _ in run_add(tmp_path / "long.db", long, every=4).rows())
+    assert "edges where a wall leaves the reach" not in said
+    assert not edges(tmp_path / "short.db") and edges(tmp_path / "long.db")
+    run_add(tmp_path / "given.db", short, every=4, config=MatchConfig())
+    assert edges(tmp_path / "given.db")
+    assert not find_loops(short, candidates=2, min_gap=3).config.features.reach_edges
+    assert find_loops(long, candidates=2, min_gap=3).config.features.reach_edges
+
+
+def test_a_database_written_before_a_setting_existed_reads_it_as_its_default(tmp_path):
+    """A place database's stored configuration that lacks a value (written by a version
+    before it existed, as ``features.reach_edges`` before session 42) is compared at that
+    value's default: opened with the defaults it is not refused, with another value it
+    is."""
+    import dataclasses
+    import json
+    import sqlite3
+
+    from scanclique.config import MatchConfig
+    from scanclique.errors import PlaceDatabaseError
+
+    path = tmp_path / "old.db"
+    with PlaceDB(path) as db:
+        db.add(sc.Scan.from_ranges(np.full(90, 2.0)), name="a")
+    con = sqlite3.connect(path)
+    cfg = json.loads(con.execute("SELECT value FROM meta WHERE key = 'config'").fetchone()[0])
+    del cfg["features"]["reach_edges"]
+    con.execute("UPDATE meta SET value = ? WHERE key = 'config'", (json.dumps(cfg),))
+    con.commit()
+    con.close()
+    with PlaceDB(path, MatchConfig()) as db:
+        assert db.config.features.reach_edges and len(db) == 1
+    off = MatchConfig()
+    off = dataclasses.replace(off, features=dataclasses.replace(off.features, reach_edges=False))
+    with pytest.raises(PlaceDatabaseError, match="reach_edges"):
+        PlaceDB(path, off)
+
+
 def test_run_add_gives_each_place_the_pose_given_for_its_scan(tmp_path, worlds):
     """``run_add(poses=...)`` with one Pose2 or None per scan: the places added get theirs
     (counted in ``posed``); added again, a place without a map pose gets one, a place

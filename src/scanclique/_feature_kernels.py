@@ -65,6 +65,7 @@ class Params(NamedTuple):
     min_edge_jump: float
     min_cluster_beams: int
     crowd_radius: float
+    reach_edges: bool
 
 
 def params(cfg, ccfg) -> Params:
@@ -285,6 +286,13 @@ def _neighbour_range(beam, valid, ranges, no_return):
     if no_return[beam]:
         return np.inf
     return np.nan
+
+
+@njit(cache=True)
+def _leaves_reach(r_end, far, range_max, c1, c2):
+    """``features.leaves_reach``: is a cluster end beside a no-return (``far`` inf) within
+    one clustering step (``c1 + c2 * r_end``) of the sensor's reach?"""
+    return math.isinf(far) and r_end + c1 + c2 * r_end >= range_max
 
 
 # --------------------------------------------------------------------------------------
@@ -531,6 +539,12 @@ def extract(ranges, angles, valid, range_max, p):
                 npt += 1
             continue
         if p.foreground_edges and stop - start >= 2:
+            # an end where the surface may leave the sensor's reach, unless asked for
+            if not p.reach_edges:
+                if near_cw and _leaves_reach(r_first, left, range_max, p.c1, p.c2):
+                    near_cw = False
+                if near_ccw and _leaves_reach(r_last, right, range_max, p.c1, p.c2):
+                    near_ccw = False
             if near_cw:
                 pxy[npt, 0] = xy[first, 0]
                 pxy[npt, 1] = xy[first, 1]

@@ -293,6 +293,15 @@ class FeatureConfig:
     min_cluster_beams : int
         Clusters with fewer valid beams yield no feature: a lone return between two
         farther ones is as likely a mixed pixel or a gap in a railing as an object.
+    reach_edges : bool
+        Claim a foreground edge also where a surface may only leave the sensor's reach: a
+        cluster end beside a no-return within one clustering step of ``range_max``
+        (:func:`scanclique.features.leaves_reach`). Such an end is no feature of the world;
+        between scans a step apart it still helps a match (a 3.5 m scanner in offices maps
+        worse without it), but between places it matches any wall at the same distance,
+        so place recognition leaves it out for a scanner whose reach its log meets
+        (:func:`scanclique.features.for_scanner` with ``reach_edges=False``). A scanner
+        that never meets its reach (the shared SICK logs) is the same either way.
     """
 
     foreground_edges: bool = True
@@ -316,6 +325,7 @@ class FeatureConfig:
     min_edge_jump: float = 0.15
     min_cluster_beams: int = 2
     crowd_radius: float = 0.3
+    reach_edges: bool = True
 
     def __post_init__(self) -> None:
         _check_types(self)

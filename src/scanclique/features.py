@@ -66,6 +66,8 @@ __all__ = [
     "NOISE_SIGMAS",
     "range_noise",
     "for_scanner",
+    "leaves_reach",
+    "meets_reach",
     "extract_features",
     "fit_line_tls",
     "split_and_merge",
@@ -260,6 +262,21 @@ def drops_returns(scans, config: ClusterConfig | None = None, sample: int = 200)
     return bool(np.median([dropout_fraction(s, config) for s in spread]) >= DROPOUT_BRIDGE)
 
 
+def meets_reach(scans, config: ClusterConfig | None = None, sample: int = 200) -> bool:
+    """Whether the scanner of ``scans`` sees surfaces leave its reach: some scan of up to
+    ``sample`` spread over the log has a valid return within one clustering step
+    (``c1 + c2 * r``) of its ``range_max``, where a cluster's end may be the reach's
+    rather than the surface's (:func:`leaves_reach`). False for no scans, and for the
+    shared SICK logs (80 m; nothing valid beyond 37 m); True for a 3.5 m or 10 m 360°
+    lidar wherever a wall runs on past its reach."""
+    c = config or ClusterConfig()
+    for s in _spread(scans, sample):
+        r = s.ranges[s.valid]
+        if len(r) and bool(np.any(r + c.c1 + c.c2 * r >= s.range_max)):
+            return True
+    return False
+
+
 def _spread(scans, sample: int) -> list[Scan]:
     """Up to ``sample`` of ``scans`` spread evenly over the log, first and last among
     them; what is not a Scan left out (to the caller's own checks). An ArgumentError
@@ -318,20 +335,28 @@ def range_noise(scans, config: ClusterConfig | None = None, sample: int = 200) -
     return float(1.4826 * np.median(d) / math.sqrt(6.0))
 
 
-def for_scanner(config: MatchConfig | None, scans, *, widen: bool = True) -> MatchConfig:
+def for_scanner(
+    config: MatchConfig | None, scans, *, widen: bool = True, reach_edges: bool = True
+) -> MatchConfig:
     """``config`` (None: the defaults) with its clustering fitted to the scanner of
     ``scans``: one lost return bridged in every cluster (``max_gap_beams = 1``) when it
     bridges none and the scanner loses returns inside surfaces (:func:`drops_returns`),
     and, with ``widen``, the range term ``c2`` widened to :data:`NOISE_SIGMAS` standard
     deviations of a difference of neighbouring ranges (:func:`range_noise`) when that is
-    more; else ``config`` as it is (the shared SICK logs: neither). How a whole log's
-    scans are prepared: by ``map_scans`` (``FrontEndConfig.fit_scanner``), and, without
-    widening, by ``places.find_loops`` and for a new database of ``scanclique places
-    add``: place recognition puts precision first, and the widened rule's features made
-    the simulated RPLIDAR's recognition on a campus less precise (0.913 against 0.946)
-    and the LDS-01's in offices (0.959 against 0.970), while they made both map better
-    (``benchmarks/mapping_sensors.py``; README, "Fitting the clustering to the
-    scanner")."""
+    more; without ``reach_edges``, no foreground edge where a surface may only leave the
+    sensor's reach (``FeatureConfig.reach_edges`` off) when the log meets its reach
+    (:func:`meets_reach`); else ``config`` as it is (the shared SICK logs: none of the
+    three). How a whole log's scans are prepared: by ``map_scans``
+    (``FrontEndConfig.fit_scanner``), and, without widening and without reach edges, by
+    ``places.find_loops`` and for a new database of ``scanclique places add``: place
+    recognition puts precision first, and the widened rule's features made the simulated
+    RPLIDAR's recognition on a campus less precise (0.913 against 0.946) and the LDS-01's
+    in offices (0.959 against 0.970), while they made both map better; the reach's edges
+    made places recognised wrongly (campus LDS-01 precision 0.320 with them, 0.519
+    without; office LDS-01 0.970, 0.989), while mapping without them was worse (office
+    LDS-01 600-pose drives 0.362 / 0.547 m, 0.508 / 0.795 m with / without odometry)
+    (``benchmarks/mapping_sensors.py``, ``benchmarks/places_sensors.py``; README,
+    "Fitting the clustering to the scanner", "A wall leaving a short reach")."""
     require_config("for_scanner: ", config, MatchConfig)
     cfg = config or MatchConfig()
     clu = cfg.clustering
@@ -341,13 +366,16 @@ def for_scanner(config: MatchConfig | None, scans, *, widen: bool = True) -> Mat
     wide = NOISE_SIGMAS * math.sqrt(2.0) * range_noise(scans, clu) if widen else math.nan
     if wide > clu.c2:  # (False for NaN)
         fit = dataclasses.replace(fit, c2=round(wide, 3))
-    if fit == clu:
+    feat = cfg.features
+    if not reach_edges and feat.reach_edges and meets_reach(scans, fit):
+        feat = dataclasses.replace(feat, reach_edges=False)
+    if fit == clu and feat == cfg.features:
         return cfg
     log.info(
-        "the clustering fitted to the scanner: %d lost beam(s) bridged, c2 %.3f m/m",
-        fit.max_gap_beams, fit.c2,
+        "the clustering fitted to the scanner: %d lost beam(s) bridged, c2 %.3f m/m%s",
+        fit.max_gap_beams, fit.c2, "" if feat.reach_edges else ", no edges at the reach",
     )  # fmt: skip
-    return dataclasses.replace(cfg, clustering=fit)
+    return dataclasses.replace(cfg, clustering=fit, features=feat)
 
 
 def _join_limit(cfg: ClusterConfig, a, b):
@@ -578,6 +606,32 @@ def _point_cov(r: float, a: float, cfg: FeatureConfig, beam_width: float) -> np.
     return cfg.range_sigma**2 * np.outer(u, u) + s_across**2 * np.outer(v, v)
 
 
+def leaves_reach(
+    r_end: float, far: float | None, range_max: float, config: ClusterConfig | None = None
+) -> bool:
+    """True when a cluster's end at range ``r_end`` (m) may be where its surface leaves the
+    sensor's reach rather than where it ends: beyond the end is a no-return (``far`` is
+    inf) and ``r_end`` is within one step the clustering rule joins, ``c1 + c2 * r_end``,
+    of ``range_max``. Had the surface gone on a beam further, its next range could have
+    been beyond the reach, so the end says nothing about the world: with
+    ``FeatureConfig.reach_edges`` off it is no foreground edge.
+
+    A scanner that reaches far (the shared SICK logs: 80 m, nothing valid beyond 37 m)
+    never meets it indoors; a 3.5 m reach meets it on every wall it sees leave its circle,
+    and those ends, taken for edges, matched a wall of any other place outdoors (simulated
+    LDS-01 on a campus, ``benchmarks/places_sensors.py --world campus``).
+
+    >>> leaves_reach(3.4, float("inf"), 3.5), leaves_reach(3.4, 5.0, 3.5)
+    (True, False)
+    >>> leaves_reach(2.0, float("inf"), 3.5), leaves_reach(3.4, None, 3.5)
+    (False, False)
+    """
+    c = config or ClusterConfig()
+    if far is None or not math.isinf(far):
+        return False
+    return r_end + c.c1 + c.c2 * r_end >= range_max
+
+
 def _continues(points_xy: np.ndarray, start: int, stop: int, at_end: bool, far: np.ndarray) -> bool:
     """True when ``far`` lies on the continuation of the cluster's surface near one end:
     the gap is a wall seen at grazing incidence, not an occlusion."""
@@ -770,6 +824,11 @@ def _extract_features_reference(
                 add_point(centre, FOREGROUND_POINT, mid, cov + np.eye(2) * (extent / 4) ** 2)
             continue
         if cfg.foreground_edges and stop - start >= 2:
+            # an end where the surface may leave the sensor's reach, unless asked for
+            if not cfg.reach_edges:
+                rm = scan.range_max
+                near_cw = near_cw and not leaves_reach(r_first, left, rm, cluster_config)
+                near_ccw = near_ccw and not leaves_reach(r_last, right, rm, cluster_config)
             if near_cw:
                 a = scan.angles[first]
                 add_point(xy[first], EDGE_CW, first, _point_cov(r_first, a, cfg, beam_width))

@@ -538,7 +538,8 @@ class PlaceDB:
             ) from None
         if given is None:
             return stored_cfg
-        diff = config_differences(stored, given)
+        # a value the stored configuration lacks (written before it existed) is its default
+        diff = config_differences(config_to_dict(stored_cfg), given)
         if diff:
             raise PlaceDatabaseError(
                 f"{where}: the configuration differs from the one its places were prepared "

@@ -430,8 +430,9 @@ def find_loops(
     scans : sequence of Scan
         The log, in order.
     config : MatchConfig, optional
-        None: the defaults, one lost return bridged for a scanner that loses them
-        (:func:`scanclique.features.for_scanner`, not widened).
+        None: the defaults, one lost return bridged for a scanner that loses them and no
+        edges where a wall only leaves the reach (:func:`scanclique.features.for_scanner`,
+        not widened, no reach edges).
     candidates : int
         Prefilter candidates verified per scan.
     min_gap : int
@@ -474,7 +475,7 @@ def find_loops(
             f"first), got {type(scans).__name__}"
         )
     require_config("find_loops: ", config, MatchConfig)
-    cfg = config or for_scanner(None, scans, widen=False)
+    cfg = config or for_scanner(None, scans, widen=False, reach_edges=False)
     if workers == 0:
         workers = os.cpu_count() or 1
     t0 = time.perf_counter()

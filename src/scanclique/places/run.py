@@ -84,6 +84,10 @@ class AddRun:
     #: lost returns bridged in the database's clustering (``max_gap_beams``: 1 for a log
     #: whose scanner loses returns, :func:`scanclique.features.for_scanner`)
     bridged: int = 0
+    #: whether the database's features claim edges where a wall only leaves the sensor's
+    #: reach (``FeatureConfig.reach_edges``: off for a new database of a log whose scanner
+    #: meets its reach, :func:`scanclique.features.for_scanner`)
+    reach_edges: bool = True
 
     def rows(self) -> list[tuple[str, str, str]]:
         ms = np.array(self.add_ms) if self.add_ms else np.zeros(1)
@@ -106,6 +110,11 @@ class AddRun:
                 if self.bridged
                 else []
             ),
+            *(
+                [("edges where a wall leaves the reach", "left out", "")]
+                if not self.reach_edges
+                else []
+            ),
             ("add time, median", f"{np.median(ms):.2f}", "ms"),
             ("add time, p95", f"{np.percentile(ms, 95):.2f}", "ms"),
             ("kernel loading (before the adds)", f"{self.loading_seconds:.1f}", "s"),
@@ -126,6 +135,7 @@ class AddRun:
             "posed_present": self.posed_present,
             "poses": self.poses_source or None,
             "bridged": self.bridged,
+            "reach_edges": self.reach_edges,
             "seconds": self.seconds,
             "loading_seconds": self.loading_seconds,
         }
@@ -150,8 +160,9 @@ def run_add(
     added without a map pose is given the one ``poses`` has for it (one that has a map
     pose keeps it). ``laser``: which laser of the log
     (:func:`scanclique.io.read_scans`). ``config`` None: a new database takes the
-    defaults, one lost return bridged when the log's scanner loses them
-    (:func:`scanclique.features.for_scanner`, not widened); an existing one keeps its own.
+    defaults, one lost return bridged when the log's scanner loses them and no edges where
+    a wall only leaves its reach (:func:`scanclique.features.for_scanner`, not widened, no
+    reach edges); an existing one keeps its own.
 
     ``poses``, optional: where the places are in a map (:meth:`PlaceDB.add`'s ``pose``),
     as a TUM trajectory file, a directory holding ``trajectory.tum`` (the ``--out`` of
@@ -162,8 +173,9 @@ def run_add(
     without one is added without a pose (counted in :attr:`AddRun.posed`)."""
     scans, label = _scans(source, laser)
     if config is None and not os.path.exists(path):
-        # a new database: a lost return bridged for a scanner that loses them
-        config = for_scanner(None, scans, widen=False)
+        # a new database: a lost return bridged for a scanner that loses them, no edges
+        # where a wall only leaves the reach
+        config = for_scanner(None, scans, widen=False, reach_edges=False)
     idx = list(_span(len(scans), start, stop)[:: max(1, every)])
     place_poses, poses_source = _place_poses(poses, scans)
     t0 = time.perf_counter()
@@ -189,9 +201,10 @@ def run_add(
                 progress(n + 1, len(idx))
         total = len(db)
         bridged = db.config.clustering.max_gap_beams
+        reach_edges = db.config.features.reach_edges
     return AddRun(
         os.fspath(path), label, len(ids), skipped, total, tuple(ids), tuple(ms),
-        time.perf_counter() - t0, loading, posed, poses_source, given, bridged,
+        time.perf_counter() - t0, loading, posed, poses_source, given, bridged, reach_edges,
     )  # fmt: skip
 
 
