@@ -119,6 +119,62 @@ def test_a_scanner_that_loses_returns_has_them_bridged():
     assert "clustering's range term (c2)" in said  # its noise is the same
 
 
+LDS01 = dict(RPLIDAR, max_range=3.5, dropout=0.05, scan_rate=5.0, speed=0.22)
+
+
+def test_loop_closures_of_a_short_reach_are_verified_without_its_edges():
+    """map_scans verifies loop closures (not local matches) on the keyframes prepared
+    again without the edges where a wall only leaves the reach, for a scanner that meets
+    its reach (LoopConfig.reach_edges off, features.meets_reach), and says so; not for
+    one that does not, nor when told not to fit the scanner; the local jobs keep the
+    front end's features; on one worker beside the front end the map is the same."""
+    import dataclasses
+
+    from scanclique.mapping import MapConfig
+    from scanclique.mapping.parallel import _verify_jobs
+    from scanclique.mapping.pipeline import loop_match
+    from scanclique.mapping.run import MapRun
+
+    rng = np.random.default_rng(4)
+    world = office_world(rng)
+    short = simulate_sensor_drive(rng, world, 24, 0.25, **LDS01)
+    far = simulate_sensor_drive(rng, world, 4, 0.25, **{**LDS01, "max_range": 30.0})
+    r = map_scans(short, use_odometry=False)
+    assert not r.config.loops.reach_edges and not loop_match(r.config).features.reach_edges
+    assert map_scans(far, use_odometry=False).config.loops.reach_edges
+    off = MapConfig(front_end=FrontEndConfig(fit_scanner=False))
+    assert map_scans(short, use_odometry=False, config=off).config.loops.reach_edges
+    said = {m: v for m, v, _ in MapRun("x", r, {}, None).rows()}
+    assert said["edges where a wall leaves the reach"] == "left out of loop closures"
+    two = map_scans(short, use_odometry=False, workers=2)
+    assert [p.as_array().tolist() for p in two.poses] == [p.as_array().tolist() for p in r.poses]
+    # the verifier: a loop job on the loops' scans and configuration, a local one not
+    from scanclique.mapping.parallel import Verifier
+
+    cfg = r.config
+    a, b = (prepare_scan(short[k], cfg.match) for k in (0, 3))
+    la, lb = (dataclasses.replace(p, config=loop_match(cfg)) for p in (a, b))
+    seen = []
+    import scanclique.mapping.loops as loops
+
+    orig = loops.verify
+
+    def spy(pa, pb, *args, **kw):
+        seen.append((pa is la, args[3].features.reach_edges, kw["quick"]))
+        return orig(pa, pb, *args, **kw)
+
+    v = Verifier(cfg.match, cfg.front_end, (0.01, 0.005), 1, loop_match(cfg))
+    try:
+        loops.verify = spy
+        job = (0, 3, Pose2.identity(), Pose2(0.25, 0.0, 0.0), (0.1, 0.05))
+        _verify_jobs(v.token, [(*job, True, False), (*job, False, False)], {0: a, 3: b},
+                     {0: la, 3: lb})  # fmt: skip
+    finally:
+        loops.verify = orig
+        v.close()
+    assert seen == [(False, True, True), (True, False, False)]
+
+
 def test_ros_no_returns_are_never_walls():
     # ROS LaserScan marks a beam without a return by +inf (REP 117), NaN, 0, -inf or a
     # value below range_min, depending on the driver: each is masked and none becomes a

@@ -454,3 +454,32 @@ def test_cold_and_warm_kernel_caches_give_identical_matches():
     assert out.returncode == 0, out.stdout + out.stderr[-2000:]
     assert "(cache cold)" in out.stdout and "(cache warm)" in out.stdout, out.stdout
     assert "fields that differ: 0" in out.stdout, out.stdout
+
+
+def test_a_scan_prepared_again_under_other_features_is_as_if_prepared_so():
+    # prepared_again (the mapper's loop keyframes without the reach's edges) keeps the
+    # raw arrays and makes the features and graph again; another raw sampling is refused
+    import dataclasses
+
+    from scanclique.config import FeatureConfig, MatchConfig, RefineConfig
+    from scanclique.errors import ConfigError
+    from scanclique.match import prepare_scan, prepared_again
+    from scanclique.sim import office_world, simulate_scan
+
+    rng = np.random.default_rng(5)
+    world = office_world(rng)
+    x0, y0, x1, y1 = world.free_regions[0]
+    pose = Pose2((x0 + x1) / 2, (y0 + y1) / 2, 0.3)
+    scan = simulate_scan(world, pose, n_beams=360, fov=2 * np.pi * 359 / 360, max_range=3.5,
+                         angle_min=-np.pi, range_sigma=0.0)  # fmt: skip
+    off = MatchConfig(features=FeatureConfig(reach_edges=False))
+    p = prepare_scan(scan)
+    again, direct = prepared_again(p, off), prepare_scan(scan, off)
+    assert again.cloud is p.cloud and again.config == off
+    assert np.array_equal(again.features.points_xy, direct.features.points_xy)
+    assert np.array_equal(again.features.points_label, direct.features.points_label)
+    assert again.graph.n_points == direct.graph.n_points
+    assert len(again.features.points_xy) < len(p.features.points_xy)  # the reach's edges
+    other = dataclasses.replace(off, refine=RefineConfig(sample_points=60))
+    with pytest.raises(ConfigError, match="sample"):
+        prepared_again(p, other)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -46,6 +46,7 @@ __all__ = [
     "PreparedScan",
     "ScanMatch",
     "prepare_scan",
+    "prepared_again",
     "pose_score",
     "conflict_fraction",
     "estimate_clique_pose",
@@ -277,6 +278,30 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
         {"features": t1 - t0, "graph": t2 - t1},
         cfg,
     )
+
+
+def prepared_again(p: PreparedScan, config: MatchConfig) -> PreparedScan:
+    """``p`` with its features (paper §4) and feature graph (§5.1) made again under
+    ``config``, its raw-point arrays (cloud, sample, free ranges) kept: the same as
+    :func:`prepare_scan` of ``p.scan`` under ``config`` at the cost of the features alone.
+    ``config`` must sample the raw points as ``p``'s did (``refine.sample_points``); a
+    :class:`~scanclique.errors.ConfigError` otherwise."""
+    _check_args("prepared_again", config, p=p, cls=PreparedScan)
+    config = config or _DEFAULT
+    if config.refine.sample_points != p.config.refine.sample_points:
+        raise ConfigError(
+            f"prepared_again: config samples {config.refine.sample_points} raw points, the "
+            f"prepared scan {p.config.refine.sample_points}; prepare the scan again instead"
+        )
+    t0 = time.perf_counter()
+    feats = extract_features(p.scan, config.features, config.clustering)
+    t1 = time.perf_counter()
+    graph = feature_graph(feats, config.correspondence, config.features)
+    t2 = time.perf_counter()
+    return replace(
+        p, features=feats, graph=graph, seconds={"features": t1 - t0, "graph": t2 - t1},
+        config=config,
+    )  # fmt: skip
 
 
 #: the raw-point cloud of a prepared scan keeps at most this many points (evenly spaced in

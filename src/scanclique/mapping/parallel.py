@@ -35,31 +35,36 @@ Job = tuple
 _STATE = RunState("mapping.parallel")
 
 
-def _install(token: str, match_cfg, front_end, floor) -> None:
-    _STATE.install(token, lambda: {"match": match_cfg, "front_end": front_end, "floor": floor})
+def _install(token: str, match_cfg, front_end, floor, loop_cfg=None) -> None:
+    _STATE.install(
+        token,
+        lambda: {
+            "match": match_cfg, "loop_match": loop_cfg or match_cfg, "front_end": front_end,
+            "floor": floor,
+        },
+    )  # fmt: skip
 
 
-def _verify_jobs(token: str, jobs: Sequence[Job], prepared: dict) -> list:
+def _verify_jobs(
+    token: str, jobs: Sequence[Job], prepared: dict, loop_prepared: dict | None = None
+) -> list:
     """Verify ``jobs`` (see :data:`Job`); one ``(pose, covariance, verdict, score,
     reason)`` per job (:func:`scanclique.mapping.loops.verify`); ``prepared``: scan index
-    -> PreparedScan of every scan the jobs name."""
+    -> PreparedScan of every scan the jobs name; ``loop_prepared``, when given, the same
+    prepared under the loops' configuration for the jobs that are not local
+    (``LoopConfig.reach_edges``)."""
     state = _STATE.require(token)
-    fe, cfg, floor = state["front_end"], state["match"], state["floor"]
-    return [
-        _loops.verify(
-            prepared[i],
-            prepared[j],
-            est_i,
-            est_j,
-            sigma,
-            cfg,
-            floor,
-            fe,
-            quick=quick,
-            strict=strict,
-        )  # fmt: skip
-        for i, j, est_i, est_j, sigma, quick, strict in jobs
-    ]
+    fe, floor = state["front_end"], state["floor"]
+    out = []
+    for i, j, est_i, est_j, sigma, quick, strict in jobs:
+        loop = not quick and loop_prepared is not None
+        p, cfg = (loop_prepared, state["loop_match"]) if loop else (prepared, state["match"])
+        out.append(
+            _loops.verify(
+                p[i], p[j], est_i, est_j, sigma, cfg, floor, fe, quick=quick, strict=strict
+            )
+        )
+    return out
 
 
 class Verifier:
@@ -73,28 +78,33 @@ class Verifier:
     ----------
     match_cfg, front_end, floor :
         What :func:`scanclique.mapping.loops.verify` is called with.
+    loop_cfg : MatchConfig, optional
+        The configuration of the jobs that are not local, when it differs
+        (``LoopConfig.reach_edges``; their scans then come in ``submit``'s
+        ``loop_prepared``).
     workers : int
         Processes working, this one included (>= 1).
     """
 
-    def __init__(self, match_cfg, front_end, floor, workers: int = 1):
+    def __init__(self, match_cfg, front_end, floor, workers: int = 1, loop_cfg=None):
         check_workers("map_scans: workers", workers)
         self.workers = workers
         self.token = new_token()
         self.pool = None
-        args = (self.token, match_cfg, front_end, floor)
+        args = (self.token, match_cfg, front_end, floor, loop_cfg)
         if workers > 1:
             self.pool = local_pool(workers - 1, _install, args)
         else:
             _install(*args)
 
-    def submit(self, jobs: Sequence[Job], prepared: dict):
+    def submit(self, jobs: Sequence[Job], prepared: dict, loop_prepared: dict | None = None):
         """Start verifying ``jobs``; ``prepared``: scan index -> PreparedScan of every scan
-        they name."""
+        they name; ``loop_prepared``: the same under the loops' configuration, for the
+        jobs that are not local (when the Verifier has one)."""
         jobs = [tuple(job) for job in jobs]
         if self.pool is None:
-            return Done(_verify_jobs(self.token, jobs, prepared))
-        return self.pool.submit(_verify_jobs, self.token, jobs, prepared)
+            return Done(_verify_jobs(self.token, jobs, prepared, loop_prepared))
+        return self.pool.submit(_verify_jobs, self.token, jobs, prepared, loop_prepared)
 
     def close(self) -> None:
         if self.pool is not None:

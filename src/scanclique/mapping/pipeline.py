@@ -31,11 +31,11 @@ import numpy as np
 from .._lazy import kernel_module
 from .._records import readonly
 from .._workers import check_workers
-from ..config import require_callable, require_config, require_flag
+from ..config import MatchConfig, require_callable, require_config, require_flag
 from ..errors import ArgumentError, ScanError, solving
-from ..features import for_scanner
+from ..features import for_scanner, meets_reach
 from ..geometry import Pose2, rotation_matrix
-from ..match import conflict_fraction, prepare_scan
+from ..match import conflict_fraction, prepare_scan, prepared_again
 from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_velocity_of
 from ..uncertainty import constellation_std
 from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
@@ -404,7 +404,12 @@ class _Mapper:
         # handle of their verdicts)
         self.batch: list = []
         self.anchors: list = []  # accepted closures of the recent batches (PCM anchors)
-        self.verifier = Verifier(cfg.match, self.fe, self.floor, workers)
+        # the loops' own matcher configuration: the keyframes prepared again without the
+        # edges where a wall only leaves the reach (LoopConfig.reach_edges); None: the
+        # front end's
+        self.loop_match = loop_match(cfg)
+        self.kf_loop_prep: list = []
+        self.verifier = Verifier(cfg.match, self.fe, self.floor, workers, self.loop_match)
 
     # -- helpers ----------------------------------------------------------------------
     def prepare(self, j: int):
@@ -613,6 +618,10 @@ class _Mapper:
         self.new_values.insert(kidx, gtsam.Pose2(guess.x, guess.y, guess.theta))
         self.kf.append(j)
         self.kf_prep.append(prep)
+        if self.loop_match is not None:
+            t = time.perf_counter()
+            self.kf_loop_prep.append(prepared_again(prep, self.loop_match))
+            self.seconds["prepare"] += time.perf_counter() - t
         self.kf_path.append(path)
         self.est_xy = np.vstack([self.est_xy, guess.as_array()[None]])
         if self.sig_mod is not None:
@@ -662,7 +671,12 @@ class _Mapper:
         if tasks:
             prepared = {self.kf[i]: self.kf_prep[i] for i, _, _ in meta}
             prepared[self.kf[kidx]] = self.kf_prep[kidx]
-            self.batch.append((kidx, meta, self.verifier.submit(tasks, prepared)))
+            loop_prepared = None
+            if self.loop_match is not None:
+                loop_prepared = {self.kf[i]: self.kf_loop_prep[i] for i, lo, _ in meta if not lo}
+                loop_prepared[self.kf[kidx]] = self.kf_loop_prep[kidx]
+            handle = self.verifier.submit(tasks, prepared, loop_prepared)
+            self.batch.append((kidx, meta, handle))
         self.seconds["loops"] += time.perf_counter() - t
 
     def prior_sigma(self, i: int, kidx: int, local: bool, source: str) -> tuple[float, float]:
@@ -1361,11 +1375,31 @@ def map_scans(
 def fit_scanner(scans: Sequence[Scan], cfg: MapConfig) -> MapConfig:
     """``cfg`` with its matcher's clustering fitted to the scanner of ``scans``
     (:func:`~scanclique.features.for_scanner`: lost returns bridged, the range term
-    widened to the range noise) when ``front_end.fit_scanner`` is set; else ``cfg``."""
+    widened to the range noise), and its loop closures verified without the edges where
+    a wall only leaves the reach when the scanner meets it (``LoopConfig.reach_edges``
+    off, :func:`~scanclique.features.meets_reach`), when ``front_end.fit_scanner`` is set;
+    else ``cfg``."""
     if not cfg.front_end.fit_scanner:
         return cfg
     match = for_scanner(cfg.match, scans)
-    return cfg if match is cfg.match else replace(cfg, match=match)
+    out = cfg if match is cfg.match else replace(cfg, match=match)
+    if (
+        cfg.loops.reach_edges
+        and match.features.reach_edges
+        and meets_reach(scans, match.clustering)
+    ):
+        out = replace(out, loops=replace(cfg.loops, reach_edges=False))
+    return out
+
+
+def loop_match(cfg: MapConfig) -> MatchConfig | None:
+    """The matcher configuration loop closures are verified with when it is not the
+    front end's: ``cfg.match`` without the edges where a wall only leaves the reach
+    (``LoopConfig.reach_edges`` off while the features have them); else None."""
+    f = cfg.match.features
+    if cfg.loops.reach_edges or not f.reach_edges:
+        return None
+    return replace(cfg.match, features=replace(f, reach_edges=False))
 
 
 def _sweeps(scans: Sequence[Scan], cfg: MapConfig, use_odometry: bool):

@@ -23,7 +23,7 @@ from ..scan import Scan
 from ..uncertainty import constellation_std
 from .config import MapConfig
 from .loops import LOOK_ALIKES
-from .pipeline import MapResult, choose_odometry, map_scans
+from .pipeline import MapResult, choose_odometry, loop_match, map_scans
 
 __all__ = [
     "MapRun",
@@ -157,6 +157,8 @@ class MapRun:
                          "beams"))  # fmt: skip
         if clu.c2 != ClusterConfig().c2:  # widened to the scanner's range noise, or asked
             rows.append(("clustering's range term (c2)", f"{clu.c2:g}", "m/m"))
+        if loop_match(self.result.config) is not None:  # the scanner meets its reach
+            rows.append(("edges where a wall leaves the reach", "left out of loop closures", ""))
         if self.odometry_check and self.odometry_check["steps"]:
             rows.append(
                 ("odometry's turn from the scans (median)",

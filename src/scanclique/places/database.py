@@ -395,8 +395,12 @@ class PlaceDB:
     config : MatchConfig, optional
         The configuration to prepare and match scans with. A new database stores it; an
         existing one refuses a configuration whose :data:`PREPARE_KEYS` values differ
-        from its own (its places were prepared with those). None: the stored one (the
-        defaults for a new database).
+        from its own (its places were prepared with those; a value the stored one lacks,
+        written before it existed, counts as its default). None: the stored one (the
+        defaults for a new database). For a new database of a log's scans,
+        ``features.for_scanner(None, scans, widen=False, reach_edges=False)`` is what
+        ``scanclique places add`` takes: lost returns bridged for a scanner that loses
+        them, no edges where a wall only leaves a short reach.
     readonly : bool
         Open an existing database for queries only. A reader of a WAL database needs
         SQLite's ``-wal`` and ``-shm`` files beside it and creates them when they are
