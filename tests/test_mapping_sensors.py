@@ -142,6 +142,9 @@ def test_loop_closures_of_a_short_reach_are_verified_without_its_edges():
     r = map_scans(short, use_odometry=False)
     assert not r.config.loops.reach_edges and not loop_match(r.config).features.reach_edges
     assert map_scans(far, use_odometry=False).config.loops.reach_edges
+    from scanclique.mapping import map_online  # the online mapper: from its first scan
+
+    assert not map_online(short, use_odometry=False).result.config.loops.reach_edges
     off = MapConfig(front_end=FrontEndConfig(fit_scanner=False))
     assert map_scans(short, use_odometry=False, config=off).config.loops.reach_edges
     said = {m: v for m, v, _ in MapRun("x", r, {}, None).rows()}
