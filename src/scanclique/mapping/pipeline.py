@@ -669,10 +669,12 @@ class _Mapper:
             )
             meta.append((i, local, source))
         if tasks:
-            prepared = {self.kf[i]: self.kf_prep[i] for i, _, _ in meta}
+            # the scans the jobs name, the loops' own when they have them (LoopConfig.reach_edges)
+            own = self.loop_match is not None
+            prepared = {self.kf[i]: self.kf_prep[i] for i, lo, _ in meta if lo or not own}
             prepared[self.kf[kidx]] = self.kf_prep[kidx]
             loop_prepared = None
-            if self.loop_match is not None:
+            if own:
                 loop_prepared = {self.kf[i]: self.kf_loop_prep[i] for i, lo, _ in meta if not lo}
                 loop_prepared[self.kf[kidx]] = self.kf_loop_prep[kidx]
             handle = self.verifier.submit(tasks, prepared, loop_prepared)
