@@ -280,12 +280,12 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     )
 
 
-def prepared_again(p: PreparedScan, config: MatchConfig) -> PreparedScan:
+def prepared_again(p: PreparedScan, config: MatchConfig | None) -> PreparedScan:
     """``p`` with its features (paper §4) and feature graph (§5.1) made again under
     ``config``, its raw-point arrays (cloud, sample, free ranges) kept: the same as
-    :func:`prepare_scan` of ``p.scan`` under ``config`` at the cost of the features alone.
-    ``config`` must sample the raw points as ``p``'s did (``refine.sample_points``); a
-    :class:`~scanclique.errors.ConfigError` otherwise."""
+    :func:`prepare_scan` of ``p.scan`` under ``config`` (None: the defaults) at the cost of
+    the features alone. ``config`` must sample the raw points as ``p``'s did
+    (``refine.sample_points``); a :class:`~scanclique.errors.ConfigError` otherwise."""
     _check_args("prepared_again", config, p=p, cls=PreparedScan)
     config = config or _DEFAULT
     if config.refine.sample_points != p.config.refine.sample_points:
