@@ -496,12 +496,14 @@ def icp_fallback(
     the odometry. Accepted (kind ``"icp"``) when its raw-scan score
     (:func:`scanclique.match.pose_score`) is at least ``fe.icp_min_score``, ICP paired at
     least ``fe.icp_min_fitness`` of the points, and it lies within ``fe.icp_gate`` sigma
-    (per coordinate) of at least one of the ``priors`` (wheel odometry and the
-    constant-velocity prediction of the chain: two independent motion estimates, so that
-    a wheel slip or a reversing robot whose odometry disagrees with the scans does not
-    break the chain); its covariance is ``2 x`` the floor plus a hundredth of the first
-    prior's, and in a corridor (:func:`weak_direction` below ``fe.icp_min_constraint``)
-    the component along it is the odometry's. Where the odometry turned at least
+    (per coordinate) of at least one of the ``priors`` (wheel odometry and, when the scan
+    before was placed by a feature match, the constant-velocity prediction of the chain:
+    two independent motion estimates, so that a wheel slip or a reversing robot whose
+    odometry disagrees with the scans does not break the chain; the caller leaves the
+    prediction out after a step ICP placed, whose error it would carry); its covariance
+    is ``2 x`` the floor plus a hundredth of the first prior's, and in a corridor
+    (:func:`weak_direction` below ``fe.icp_min_constraint``) the component along it is
+    the odometry's. Where the odometry turned at least
     ``fe.sharp_turn`` and no pose meets those bounds, ICP from the two priors is held to
     ``fe.scan_min_fitness`` and ``fe.scan_min_score`` instead (little overlap), and the
     pose's translation keeps the odometry's covariance. None otherwise. (Without odometry

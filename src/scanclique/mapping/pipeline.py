@@ -1099,11 +1099,17 @@ class _Mapper:
             if step.kind == ICP:
                 self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
         if step.kind != MATCH and fe.icp_fallback and odo is not None:
-            priors = [odo]
-            # the chain's own constant-velocity prediction too
+            # the chain's own constant-velocity prediction: a seed of ICP always, and a
+            # prior ICP's pose may agree with instead of the odometry only when the scan
+            # before was placed by a feature match. After a step ICP placed, the chain's
+            # velocity carries that step's own error and would confirm the next one's (a
+            # 3.5 m scanner outdoors: steps turned 20-31 degrees against odometry right to
+            # 0.5, each agreeing with the one before; campus drives 2 and 3 with odometry
+            # 23.5 / 6.9 -> 4.2 / 3.0 m)
             pred = constant_velocity(prev2, prev, *times)
-            priors.append(odometry_prior(chain_k, pred, fe.velocity_noise))
-            seeds = [p for p, _ in priors]
+            cv = odometry_prior(chain_k, pred, fe.velocity_noise)
+            seeds = [odo[0], cv[0]]
+            priors = [odo, cv] if self.placed_by[j - 1] in (MATCH, "first") else [odo]
             if step.pose is not None:
                 seeds.append(step.pose)
             alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match)
