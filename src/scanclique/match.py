@@ -254,10 +254,8 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
     _check_args("prepare_scan", config, scan=scan)
     cfg = config or _DEFAULT
     warm_up()  # kernel loading never counts in PreparedScan.seconds
-    t0 = time.perf_counter()
-    feats = extract_features(scan, cfg.features, cfg.clustering)
-    t1 = time.perf_counter()
-    graph = feature_graph(feats, cfg.correspondence, cfg.features)
+    feats, graph, seconds = _features_and_graph(scan, cfg)
+    t = time.perf_counter()
     # the raw-point cloud for scoring and ICP: at most CLOUD_MAX_POINTS, evenly spaced in
     # beam order (a million-beam scan keeps points millimetres apart; the score and the
     # ICP need no more, and their cost stays bounded)
@@ -265,19 +263,18 @@ def prepare_scan(scan: Scan, config: MatchConfig | None = None) -> PreparedScan:
         scan.ranges, scan.angles, scan.valid, CLOUD_MAX_POINTS, cfg.refine.sample_points
     )
     cloud = reference_cloud(cloud_pts)
-    t2 = time.perf_counter()
-    return PreparedScan(
-        scan,
-        feats,
-        graph,
-        cloud,
-        pts,
-        sample,
-        free,
-        angle_index,
-        {"features": t1 - t0, "graph": t2 - t1},
-        cfg,
-    )
+    seconds["graph"] += time.perf_counter() - t
+    return PreparedScan(scan, feats, graph, cloud, pts, sample, free, angle_index, seconds, cfg)
+
+
+def _features_and_graph(scan: Scan, cfg: MatchConfig):
+    """The features (paper §4) and feature graph (§5.1) of ``scan`` under ``cfg``, with
+    the seconds each took (``{"features": ..., "graph": ...}``)."""
+    t0 = time.perf_counter()
+    feats = extract_features(scan, cfg.features, cfg.clustering)
+    t1 = time.perf_counter()
+    graph = feature_graph(feats, cfg.correspondence, cfg.features)
+    return feats, graph, {"features": t1 - t0, "graph": time.perf_counter() - t1}
 
 
 def prepared_again(p: PreparedScan, config: MatchConfig | None) -> PreparedScan:
@@ -293,15 +290,8 @@ def prepared_again(p: PreparedScan, config: MatchConfig | None) -> PreparedScan:
             f"prepared_again: config samples {config.refine.sample_points} raw points, the "
             f"prepared scan {p.config.refine.sample_points}; prepare the scan again instead"
         )
-    t0 = time.perf_counter()
-    feats = extract_features(p.scan, config.features, config.clustering)
-    t1 = time.perf_counter()
-    graph = feature_graph(feats, config.correspondence, config.features)
-    t2 = time.perf_counter()
-    return replace(
-        p, features=feats, graph=graph, seconds={"features": t1 - t0, "graph": t2 - t1},
-        config=config,
-    )  # fmt: skip
+    feats, graph, seconds = _features_and_graph(p.scan, config)
+    return replace(p, features=feats, graph=graph, seconds=seconds, config=config)
 
 
 #: the raw-point cloud of a prepared scan keeps at most this many points (evenly spaced in
