@@ -526,6 +526,12 @@ def test_a_long_loop_is_not_closed_on_a_corner_a_quarter_turn_round():
     # waits for a second one too, which the look-alike never gets; without both rules:
     assert mean_error(map_scans(scans, config=off)) < 0.5
     off = dataclasses.replace(off, loops=dataclasses.replace(off.loops, corroborate_batches=0))
+    # since session 43 the ICP fallback's gate is the odometry as good as it has proved,
+    # and the chain no longer drifts far enough for the look-alike to be proposed
+    # (0.19 m without both rules); with the model's gate:
+    assert mean_error(map_scans(scans, config=off)) < 0.5
+    loose = dataclasses.replace(off.front_end, odometry_fit=False)
+    off = dataclasses.replace(off, front_end=loose)
     assert mean_error(map_scans(scans, config=off)) > 5.0  # what the rules prevent
 
 

@@ -205,6 +205,56 @@ def test_an_icp_step_is_not_confirmed_by_the_chain_it_turned():
     assert _ate(r, scans).mean() < 0.15
 
 
+def test_an_icp_step_is_gated_by_the_odometry_as_good_as_it_has_proved():
+    """With odometry, the ICP fallback gates its poses by the odometry noise model scaled
+    to what the accepted matches have shown (:class:`OdometryFit`). A 3.5 m scanner on a
+    campus (drive 1 of benchmarks/mapping_sensors.py, its first 620 scans, loops off):
+    the model's 4 sigma let ICP steps turn 6-9 degrees from odometry right to half a
+    degree (scans 586-599); now the odometry places them."""
+    import dataclasses
+
+    from scanclique.mapping import MapConfig
+    from scanclique.sim import campus_world
+
+    rng = np.random.default_rng(1)
+    scans = simulate_sensor_drive(rng, campus_world(rng), 300, 0.25, **LDS01)[:620]
+    cfg = MapConfig()
+    cfg = dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, enabled=False))
+    worst = {}
+    for fit in (False, True):
+        fe = dataclasses.replace(cfg.front_end, odometry_fit=fit)
+        r = map_scans(scans, use_odometry=True, config=dataclasses.replace(cfg, front_end=fe))
+        worst[fit] = max(
+            abs(math.remainder((a.inverse() @ b).theta
+                               - (sa.reference.inverse() @ sb.reference).theta, 2 * math.pi))
+            for a, b, sa, sb in zip(r.poses[:-1], r.poses[1:], scans[:-1], scans[1:],
+                                    strict=True)
+        )  # fmt: skip
+    assert math.degrees(worst[False]) > 5.0  # the model's gate: the wrong turns pass
+    assert math.degrees(worst[True]) < 3.0
+
+
+def test_odometry_fit_scales_the_model_to_the_residuals_it_has_seen():
+    from scanclique.mapping.frontend import OdometryFit
+
+    fe = FrontEndConfig()
+    fit = OdometryFit(fe)
+    cov = np.diag([0.1**2, 0.1**2, math.radians(4.0) ** 2])
+    prior = (Pose2(0.1, 0.0, 0.0), cov)
+    for k in range(fe.odometry_fit_min - 1):
+        fit.observe(Pose2(0.1 + 0.01 * (k % 3 - 1), 0.0, math.radians(2.0) * (k % 2)), *prior)
+    assert fit.scales() is None and fit.fitted(prior)[1] is cov  # not yet measured
+    fit.observe(Pose2(0.1, 0.0, 0.0), *prior)
+    m_xy, m_th = fit.scales()
+    assert m_xy == fe.odometry_fit_floor  # residuals of 0.1 sigma: the floor
+    assert m_th == pytest.approx(0.5 / 1.960)  # half a sigma at the 95th percentile
+    np.testing.assert_allclose(np.sqrt(np.diag(fit.fitted(prior)[1])),
+                               np.sqrt(np.diag(cov)) * [m_xy, m_xy, m_th])  # fmt: skip
+    for _ in range(200):  # an odometry worse than its model is never loosened beyond it
+        fit.observe(Pose2(1.0, 1.0, 1.0), *prior)
+    assert fit.scales() == (1.0, 1.0)
+
+
 def test_ros_no_returns_are_never_walls():
     # ROS LaserScan marks a beam without a return by +inf (REP 117), NaN, 0, -inf or a
     # value below range_min, depending on the driver: each is masked and none becomes a

@@ -186,6 +186,19 @@ class FrontEndConfig:
         A1-class drives on a campus (seeds 0-2, ``benchmarks/mapping_sensors.py --world
         campus``): with odometry 0.234 -> 0.127 m, without 0.737 -> 0.170 m. The shared
         SICK logs are read as they are.
+    odometry_fit, odometry_fit_min, odometry_fit_floor :
+        With odometry, the ICP fallback gates and values its poses by the odometry as good
+        as it has proved (:class:`~scanclique.mapping.frontend.OdometryFit`): the noise
+        model's standard deviations scaled by the 95th percentiles of the odometry's
+        residuals against the accepted feature matches (in the model's sigmas), once
+        ``odometry_fit_min`` matches were measured, never below ``odometry_fit_floor``
+        times the model nor above it. ``odometry_noise`` is written for poor odometry; a
+        robot whose wheels track well had its ICP steps turned by 6-9 degrees against
+        odometry right to half a degree (a 3.5 m scanner outdoors, campus drives with
+        odometry 6.24 -> 3.08 m of mean error; session 43). The shared logs' odometry
+        proves 0.2 of the model in translation and 0.46-0.75 in heading: corrected Intel
+        0.0371 -> 0.0368 m, CSAIL 0.0362 -> 0.0357 m, intel-raw 0.0147 -> 0.0146 m,
+        fr079-raw 0.0313 -> 0.0314 m (``benchmarks/mapping.py``).
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most
@@ -236,6 +249,9 @@ class FrontEndConfig:
     deskew: bool = True
     deskew_window: float = 0.5
     fit_scanner: bool = True
+    odometry_fit: bool = True
+    odometry_fit_min: int = 20
+    odometry_fit_floor: float = 0.1
 
     def __post_init__(self) -> None:
         _check_types(self)
@@ -249,7 +265,9 @@ class FrontEndConfig:
             self, "jump_floor", "jump_min_path", "scan_min_fitness", "max_seeds", "shift_cost",
             "turn_cost", "soft_constraint", "refine_max_shift", "refine_max_turn",
             "refine_min_fitness", "icp_min_fitness", "icp_min_constraint", "icp_score_tie",
+            "odometry_fit_min",
         )  # fmt: skip
+        _positive(self, "odometry_fit_floor")
         _radians(self, "keyframe_angle", "refine_max_turn")  # (sharp_turn beyond pi: off)
 
 

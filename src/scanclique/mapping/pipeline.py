@@ -54,6 +54,7 @@ from .frontend import (
     ICP,
     MATCH,
     ODOMETRY,
+    OdometryFit,
     Step,
     VelocityModel,
     associate,
@@ -343,6 +344,7 @@ class _Mapper:
         self.floor = (self.fe.sigma_floor_metres, self.fe.sigma_floor_radians)
         # per scan, appended as each comes (add_scan)
         self.chain: list[Pose2 | None] = []  # front-end poses (dead reckoning)
+        self.odo_fit = OdometryFit(self.fe)  # with odometry: how good it has proved
         self.motion = VelocityModel(self.fe)  # without odometry: the learnt motion model
         self.placed_by: list[str] = []
         self.reasons: dict[int, str] = {}
@@ -1109,13 +1111,17 @@ class _Mapper:
             pred = constant_velocity(prev2, prev, *times)
             cv = odometry_prior(chain_k, pred, fe.velocity_noise)
             seeds = [odo[0], cv[0]]
-            priors = [odo, cv] if self.placed_by[j - 1] in (MATCH, "first") else [odo]
+            # the odometry as good as it has proved against the accepted matches
+            fit = self.odo_fit.fitted(odo) if fe.odometry_fit else odo
+            priors = [fit, cv] if self.placed_by[j - 1] in (MATCH, "first") else [fit]
             if step.pose is not None:
                 seeds.append(step.pose)
             alt = icp_fallback(pk, pj, seeds, priors, fe, self.cfg.match)
             if alt is not None:
                 self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
                 step = alt
+        if step.kind == MATCH and odo is not None and not reversed_prior:
+            self.odo_fit.observe(step.pose, *odo)
         if step.kind in (MATCH, ICP):
             rel, cov, base = step.pose, step.covariance, k
             self.placed_by[j] = step.kind
