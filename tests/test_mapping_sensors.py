@@ -232,6 +232,16 @@ def test_an_icp_step_is_gated_by_the_odometry_as_good_as_it_has_proved():
         )  # fmt: skip
     assert math.degrees(worst[False]) > 5.0  # the model's gate: the wrong turns pass
     assert math.degrees(worst[True]) < 3.0
+    # the map says how good the odometry proved (measured either way), and so does its table
+    from scanclique.mapping.run import MapRun
+
+    m_xy, m_th = r.odometry_fit
+    assert 0.1 <= m_xy < 0.5 and m_th == pytest.approx(0.1)  # right to a tenth in heading
+    assert r.counts()["odometry_fit"] == [m_xy, m_th]
+    said = {m: (v, u) for m, v, u in MapRun("x", r, {}, None).rows()}
+    row = "odometry's error / its noise model"
+    assert said[row] == (f"{m_xy:.2f} / {m_th:.2f}", "translation / heading")
+    assert map_scans(scans[:30], use_odometry=False).odometry_fit is None
 
 
 def test_odometry_fit_scales_the_model_to_the_residuals_it_has_seen():

@@ -200,6 +200,12 @@ class MapResult:
         How the beam times were read (:data:`scanclique.scan.TIMINGS`, as
         :func:`~scanclique.mapping.sweep.sweep_timing` found the log to agree best; not
         ``"given"`` is warned); ``""`` when no scan has beam times or ``deskew`` is off.
+    odometry_fit : (float, float) or None
+        When the map used odometry: the factors of the odometry noise model's standard
+        deviations (translation, heading) the odometry proved against the accepted
+        feature matches (:class:`~scanclique.mapping.frontend.OdometryFit`; the ICP
+        fallback's gate when ``FrontEndConfig.odometry_fit``); None otherwise or before
+        ``odometry_fit_min`` matches.
     """
 
     poses: tuple
@@ -217,6 +223,7 @@ class MapResult:
     odometry_scale: OdometryScale | None = field(repr=False, default=None)
     deskewed: int = 0
     sweep_timing: str = ""
+    odometry_fit: tuple | None = None
 
     @property
     def accepted_closures(self) -> tuple:
@@ -241,6 +248,7 @@ class MapResult:
             "edges": len(self.edges),
             "deskewed": self.deskewed,
             "sweep_timing": self.sweep_timing,
+            "odometry_fit": None if self.odometry_fit is None else list(self.odometry_fit),
         }
 
 
@@ -1264,6 +1272,7 @@ class _Mapper:
             covariances=None if covs is None else tuple(_ro(c) for c in covs),
             deskewed=self.deskewed,
             sweep_timing=(self.timing or "none") if self.swept else "",
+            odometry_fit=self.odo_fit.scales() if self.odo else None,
         )
 
 

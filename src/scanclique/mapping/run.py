@@ -164,6 +164,11 @@ class MapRun:
                 ("odometry's turn from the scans (median)",
                  f"{self.odometry_check['median_turn_deg']:.1f}", "deg")
             )  # fmt: skip
+        if c["odometry_fit"] is not None:
+            rows.append(
+                ("odometry's error / its noise model",
+                 "{:.2f} / {:.2f}".format(*c["odometry_fit"]), "translation / heading")
+            )  # fmt: skip
         if self.odometry_scale and self.odometry_scale["steps"]:
             rows.append(
                 ("odometry's step / the scans' (median)",
