@@ -263,6 +263,10 @@ def test_odometry_fit_scales_the_model_to_the_residuals_it_has_seen():
     for _ in range(200):  # an odometry worse than its model is never loosened beyond it
         fit.observe(Pose2(1.0, 1.0, 1.0), *prior)
     assert fit.scales() == (1.0, 1.0)
+    import dataclasses
+
+    never = OdometryFit(dataclasses.replace(fe, odometry_fit_min=0))
+    assert never.scales() is None  # nothing measured yet: the model, whatever the minimum
 
 
 def test_ros_no_returns_are_never_walls():

@@ -191,14 +191,15 @@ class FrontEndConfig:
         as it has proved (:class:`~scanclique.mapping.frontend.OdometryFit`): the noise
         model's standard deviations scaled by the 95th percentiles of the odometry's
         residuals against the accepted feature matches (in the model's sigmas), once
-        ``odometry_fit_min`` matches were measured, never below ``odometry_fit_floor``
-        times the model nor above it. ``odometry_noise`` is written for poor odometry; a
-        robot whose wheels track well had its ICP steps turned by 6-9 degrees against
-        odometry right to half a degree (a 3.5 m scanner outdoors, campus drives with
-        odometry 6.24 -> 3.08 m of mean error; session 43). The shared logs' odometry
-        proves 0.2 of the model in translation and 0.46-0.75 in heading: corrected Intel
-        0.0371 -> 0.0368 m, CSAIL 0.0362 -> 0.0357 m, intel-raw 0.0147 -> 0.0146 m,
-        fr079-raw 0.0313 -> 0.0314 m (``benchmarks/mapping.py``).
+        ``odometry_fit_min`` matches were measured (at least one), never below
+        ``odometry_fit_floor`` times the model nor above it (a floor of 1: the model).
+        ``odometry_noise`` is written for poor odometry; a robot whose wheels track well
+        had its ICP steps turned by 6-9 degrees against odometry right to half a degree
+        (a 3.5 m scanner outdoors, campus drives with odometry 6.24 -> 3.08 m of mean
+        error; session 43). The shared logs' odometry proves 0.2 of the model in
+        translation and 0.46-0.77 in heading: corrected Intel 0.0371 -> 0.0368 m, CSAIL
+        0.0362 -> 0.0357 m, intel-raw 0.0147 -> 0.0146 m, fr079-raw 0.0313 -> 0.0314 m
+        (``benchmarks/mapping.py``).
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most

@@ -711,7 +711,7 @@ class OdometryFit:
     def scales(self) -> tuple[float, float] | None:
         """``(translation, heading)`` factors of the model's standard deviations the
         odometry has proved to need, or None before ``fe.odometry_fit_min`` matches."""
-        if len(self.th) < self.fe.odometry_fit_min:
+        if len(self.th) < max(self.fe.odometry_fit_min, 1):
             return None
         lo = self.fe.odometry_fit_floor
         m_xy = min(max(self.xy.quantile(0.95) / 2.448, lo), 1.0)
