@@ -269,6 +269,27 @@ def test_odometry_fit_scales_the_model_to_the_residuals_it_has_seen():
     assert never.scales() is None  # nothing measured yet: the model, whatever the minimum
 
 
+def test_a_scan_placed_by_the_odometry_is_as_unsure_as_it_has_proved_unless_it_slipped():
+    """A scan the scans could not place is placed by the odometry with the covariance the
+    odometry has proved (OdometryFit.placing), not the model's; one whose match was
+    rejected for disagreeing with the odometry keeps the model's (a slip)."""
+    from scanclique.mapping.frontend import OdometryFit, Step, prior_step
+
+    fe = FrontEndConfig()
+    fit = OdometryFit(fe)
+    a, b = Pose2(0.0, 0.0, 0.0), Pose2(0.1, 0.0, 0.01)
+    step = prior_step(a, b, fe.odometry_noise, "odometry", "few", "too_few_features", 0.0)
+    assert fit.placing(step).covariance is step.covariance  # not yet measured: the model
+    for _ in range(fe.odometry_fit_min):
+        fit.observe(step.pose, step.pose, step.covariance)  # the odometry exactly right
+    placed = fit.placing(step)
+    assert isinstance(placed, Step) and placed.pose == step.pose and placed.kind == step.kind
+    np.testing.assert_allclose(placed.covariance, step.covariance * fe.odometry_fit_floor**2)
+    slipped = prior_step(a, b, fe.odometry_noise, "odometry", "4.7 sigma", "rejected_odometry",
+                         0.0)  # fmt: skip
+    assert fit.placing(slipped).covariance is slipped.covariance
+
+
 def test_ros_no_returns_are_never_walls():
     # ROS LaserScan marks a beam without a return by +inf (REP 117), NaN, 0, -inf or a
     # value below range_min, depending on the driver: each is masked and none becomes a

@@ -196,10 +196,12 @@ class FrontEndConfig:
         ``odometry_noise`` is written for poor odometry; a robot whose wheels track well
         had its ICP steps turned by 6-9 degrees against odometry right to half a degree
         (a 3.5 m scanner outdoors, campus drives with odometry 6.24 -> 3.08 m of mean
-        error; session 43). The shared logs' odometry proves 0.2 of the model in
-        translation and 0.46-0.77 in heading: corrected Intel 0.0371 -> 0.0368 m, CSAIL
-        0.0362 -> 0.0357 m, intel-raw 0.0147 -> 0.0146 m, fr079-raw 0.0313 -> 0.0314 m
-        (``benchmarks/mapping.py``).
+        error; session 43). A scan the scans could not place at all is placed by the
+        odometry as unsure as it has proved, unless its match was rejected for disagreeing
+        with the odometry (a slip): 3.08 -> 1.23 m. The shared logs' odometry proves 0.2
+        of the model in translation and 0.46-0.77 in heading: corrected Intel 0.0371 ->
+        0.0368 m, CSAIL 0.0362 -> 0.0356 m, intel-raw 0.0147 -> 0.0146 m, fr079-raw 0.0313 ->
+        0.0314 m (``benchmarks/mapping.py``).
     deskew_window :
         Seconds: without odometry, the velocity of the de-skew is the estimate's over
         the last scans spanning at least this before the scan (at most

@@ -1142,6 +1142,8 @@ class _Mapper:
                 a, b = prev, self.motion.predict(prev2, prev, times)
                 noise = fe.velocity_noise
             fb = prior_step(a, b, noise, kind, step.reason or "", step.verdict, step.score)
+            if kind == ODOMETRY and fe.odometry_fit:
+                fb = self.odo_fit.placing(fb)  # as unsure as it has proved, where trusted
             if kind == CONSTANT_VELOCITY and carried_w is not None:
                 # placed by the prediction alone: it is as unsure as the prediction,
                 # inherited looseness included, and all of its translation is the motion's
