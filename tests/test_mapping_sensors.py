@@ -290,6 +290,50 @@ def test_a_scan_placed_by_the_odometry_is_as_unsure_as_it_has_proved_unless_it_s
     assert fit.placing(slipped).covariance is slipped.covariance
 
 
+def test_odometry_that_proved_good_enters_the_batch_graph_but_not_across_a_slip():
+    """The batch back end takes the odometry between consecutive keyframes as edges
+    (kind "odometry_factor", in MapResult.edges and graph.g2o) when it proved at least
+    BackEndConfig.odometry_max_fit times better than its model in heading, scaled as it
+    proved; none across a scan whose match was rejected for disagreeing with it, or
+    matched against it reversed; none for odometry that proved worse, or when off."""
+    import dataclasses
+
+    from scanclique.mapping import MapConfig
+    from scanclique.mapping.pipeline import _Mapper
+    from scanclique.sim import campus_world
+
+    rng = np.random.default_rng(1)
+    scans = simulate_sensor_drive(rng, campus_world(rng), 300, 0.25, **LDS01)[:240]
+    cfg = MapConfig()
+    cfg = dataclasses.replace(cfg, loops=dataclasses.replace(cfg.loops, enabled=False))
+    m = _Mapper(True, False, cfg, 1)
+    try:
+        m.run(scans)
+    finally:
+        m.verifier.close()
+    assert m.odo_fit.scales()[1] <= cfg.back_end.odometry_max_fit  # right to a tenth
+    assert m.odometry_factors() == []  # chained only: the front end's chain alone
+    cfg = MapConfig()  # as if the loops had run (none would have closed so short a drive)
+    m.cfg = cfg
+    factors = m.odometry_factors()
+    assert len(factors) == len(m.kf) - 1  # every pair of consecutive keyframes
+    i, j, Z, P = factors[3]
+    a, b = m.kf[i], m.kf[j]
+    assert Z.distance_to(scans[a].odometry.inverse() @ scans[b].odometry)[0] < 1e-12
+    assert P[2, 2] < (math.radians(4.0) * 0.5) ** 2  # scaled as proved, not the model's
+    # a slip between keyframes 3 and 4, and a scan matched against the odometry reversed
+    m.reasons[m.kf[4]] = "rejected_odometry: pose is 4.7 sigma from odometry (gate 3.4)"
+    m.reversed_at.add(m.kf[7])
+    pairs = {(i, j) for i, j, _, _ in m.odometry_factors()}
+    assert (3, 4) not in pairs and (6, 7) not in pairs and (4, 5) in pairs
+    r = m.result(0.0)
+    assert sum(e.kind == "odometry_factor" for e in r.edges) == len(pairs)
+    for be in (dataclasses.replace(cfg.back_end, odometry_max_fit=0.05),
+               dataclasses.replace(cfg.back_end, odometry_factors=False)):  # fmt: skip
+        m.cfg = dataclasses.replace(cfg, back_end=be)
+        assert m.odometry_factors() == []
+
+
 def test_ros_no_returns_are_never_walls():
     # ROS LaserScan marks a beam without a return by +inf (REP 117), NaN, 0, -inf or a
     # value below range_min, depending on the driver: each is masked and none becomes a

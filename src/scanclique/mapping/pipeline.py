@@ -38,7 +38,13 @@ from ..geometry import Pose2, rotation_matrix
 from ..match import conflict_fraction, prepare_scan, prepared_again
 from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_velocity_of
 from ..uncertainty import constellation_std
-from ..validation import GATE_99, compose_covariance, mahalanobis_sq, odometry_prior
+from ..validation import (
+    GATE_99,
+    REJECTED_ODOMETRY,
+    compose_covariance,
+    mahalanobis_sq,
+    odometry_prior,
+)
 from . import loops as _loops
 from .backend import (
     ODOMETRY_HINT,
@@ -89,7 +95,10 @@ def _ro(a) -> np.ndarray:
 class Edge:
     """One edge of the pose graph: ``x_i^-1 x_j = pose`` (maps points of scan ``j`` into
     scan ``i``) with the covariance of its ``(x, y, theta)``; ``kind`` is ``"match"``,
-    ``"odometry"``, ``"constant_velocity"`` (front end), ``"local"`` or ``"loop"``."""
+    ``"odometry"``, ``"constant_velocity"`` (front end), ``"local"``, ``"loop"`` or
+    ``"odometry_factor"`` (the batch back end's odometry between keyframes,
+    :attr:`BackEndConfig.odometry_factors
+    <scanclique.mapping.config.BackEndConfig.odometry_factors>`)."""
 
     i: int
     j: int
@@ -353,6 +362,8 @@ class _Mapper:
         # per scan, appended as each comes (add_scan)
         self.chain: list[Pose2 | None] = []  # front-end poses (dead reckoning)
         self.odo_fit = OdometryFit(self.fe)  # with odometry: how good it has proved
+        self.reversed_at: set[int] = set()  # scans matched against the odometry reversed
+        self.odo_edges: list = []  # the batch back end's odometry edges (optimize)
         self.motion = VelocityModel(self.fe)  # without odometry: the learnt motion model
         self.placed_by: list[str] = []
         self.reasons: dict[int, str] = {}
@@ -1091,6 +1102,7 @@ class _Mapper:
                     )
                     step, prior_b, path = back, back_b, back_path
                     reversed_prior = True
+                    self.reversed_at.add(j)
             if step is None:
                 step = associate(
                     pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
@@ -1198,6 +1210,37 @@ class _Mapper:
         self.motion.placed(_rotated(loose, frame.theta))
 
     # -- step 5: the batch back end -----------------------------------------------------
+    def odometry_factors(self) -> list[tuple[int, int, Pose2, np.ndarray]]:
+        """``(i, j, Z, P)`` odometry edges of consecutive keyframes ``i``, ``j`` for the
+        batch back end (:attr:`BackEndConfig.odometry_factors`): the odometry increment
+        over the scans between them and the model's covariance over that path scaled as
+        the odometry has proved (:meth:`OdometryFit.fitted`); none unless the odometry
+        proved at least ``odometry_max_fit`` times better than its model in heading, none
+        for a chained-only map (``loops.enabled`` False), and none across a scan whose
+        match was rejected for disagreeing with it (a slip) or matched against it
+        reversed."""
+        be = self.cfg.back_end
+        on = self.odo and be.odometry_factors and self.cfg.loops.enabled  # not chained only
+        fit = self.odo_fit.scales() if on else None
+        if fit is None or fit[1] > be.odometry_max_fit:
+            return []
+        out = []
+        for k in range(1, len(self.kf)):
+            a, b = self.kf[k - 1], self.kf[k]
+            path = [s.odometry for s in self.scans[a : b + 1]]
+            # a slip, or odometry that never reports backing up (matched against it reversed)
+            slipped = any(
+                self.reasons.get(m, "").startswith(REJECTED_ODOMETRY) or m in self.reversed_at
+                for m in range(a + 1, b + 1)
+            )
+            if slipped or any(p is None for p in path):
+                continue
+            Z, P = self.odo_fit.fitted(
+                odometry_prior(path[0], path[-1], self.fe.odometry_noise, path=path)
+            )
+            out.append((k - 1, k, Z, P))
+        return out
+
     def optimize(self) -> tuple[list[Pose2], list[np.ndarray] | None]:
         """The batch back end: every scan's pose, and with
         :attr:`BackEndConfig.covariances` every scan's covariance (else None)."""
@@ -1217,6 +1260,9 @@ class _Mapper:
             robust = be.robust if kind == "loop" else "none"
             scale = self.loop_scale.get((i, j), be.robust_scale)
             g.add_edge(i, j, Z, P, robust, scale, tangent=q)
+        self.odo_edges = self.odometry_factors()
+        for i, j, Z, P in self.odo_edges:
+            g.add_edge(i, j, Z, P)
         out = g.optimize(be.max_iterations)
         kf_pose = {self.kf[k]: out[k] for k in range(len(self.kf))}
         t = time.perf_counter()
@@ -1258,7 +1304,7 @@ class _Mapper:
             Edge(self.kf[i], self.kf[j], Z, P, kind if kind != "chain" else "keyframe")
             for i, j, Z, P, kind in self.kf_edges
             if kind != "chain"
-        ]
+        ] + [Edge(self.kf[i], self.kf[j], Z, P, "odometry_factor") for i, j, Z, P in self.odo_edges]
         seconds["total"] = time.perf_counter() - t0
         return MapResult(
             poses=tuple(poses),
