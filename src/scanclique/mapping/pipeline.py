@@ -362,7 +362,9 @@ class _Mapper:
         # per scan, appended as each comes (add_scan)
         self.chain: list[Pose2 | None] = []  # front-end poses (dead reckoning)
         self.odo_fit = OdometryFit(self.fe)  # with odometry: how good it has proved
-        self.reversed_at: set[int] = set()  # scans matched against the odometry reversed
+        # scans whose match the odometry rejected (a slip) or that were matched against it
+        # reversed: the batch back end takes no odometry edge across them
+        self.odometry_doubted: set[int] = set()
         self.odo_edges: list = []  # the batch back end's odometry edges (optimize)
         self.motion = VelocityModel(self.fe)  # without odometry: the learnt motion model
         self.placed_by: list[str] = []
@@ -1102,7 +1104,7 @@ class _Mapper:
                     )
                     step, prior_b, path = back, back_b, back_path
                     reversed_prior = True
-                    self.reversed_at.add(j)
+                    self.odometry_doubted.add(j)
             if step is None:
                 step = associate(
                     pk, pj, prior_a, prior_b, noise, self.cfg.match, path=path,
@@ -1120,6 +1122,8 @@ class _Mapper:
             step = contest_by_odometry(pk, pj, step, odo[0], fe, self.cfg.match, odo[1])
             if step.kind == ICP:
                 self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
+        if odo is not None and step.verdict == REJECTED_ODOMETRY:
+            self.odometry_doubted.add(j)
         if step.kind != MATCH and fe.icp_fallback and odo is not None:
             # the chain's own constant-velocity prediction: a seed of ICP always, and a
             # prior ICP's pose may agree with instead of the odometry only when the scan
@@ -1228,12 +1232,8 @@ class _Mapper:
         for k in range(1, len(self.kf)):
             a, b = self.kf[k - 1], self.kf[k]
             path = [s.odometry for s in self.scans[a : b + 1]]
-            # a slip, or odometry that never reports backing up (matched against it reversed)
-            slipped = any(
-                self.reasons.get(m, "").startswith(REJECTED_ODOMETRY) or m in self.reversed_at
-                for m in range(a + 1, b + 1)
-            )
-            if slipped or any(p is None for p in path):
+            doubted = any(m in self.odometry_doubted for m in range(a + 1, b + 1))
+            if doubted or any(p is None for p in path):
                 continue
             Z, P = self.odo_fit.fitted(
                 odometry_prior(path[0], path[-1], self.fe.odometry_noise, path=path)
