@@ -730,6 +730,14 @@ class OdometryFit:
         d = np.array([m[0], m[0], m[1]])
         return prior[0], prior[1] * np.outer(d, d)
 
+    @staticmethod
+    def doubts(verdict: str) -> bool:
+        """Whether a step of this verdict says the odometry itself is wrong there: its
+        match was rejected for disagreeing with it (a slip). Such a scan is neither placed
+        by the fitted odometry (:meth:`placing`) nor crossed by the batch back end's
+        odometry edges (:attr:`~scanclique.mapping.config.BackEndConfig.odometry_factors`)."""
+        return verdict == REJECTED_ODOMETRY
+
     def placing(self, step: Step) -> Step:
         """``step``, a scan placed by the odometry (:func:`prior_step`), with the
         covariance the odometry has proved (:meth:`fitted`) where the scans could not
@@ -739,7 +747,7 @@ class OdometryFit:
         1.23 m). Unchanged where the match was rejected for disagreeing with the odometry
         (verdict ``"rejected_odometry"``): there the odometry itself is suspect (a slip
         4.7 sigma of the model off; trusted, office LDS-01 drive 1 went 0.228 -> 0.922 m)."""
-        if step.verdict == REJECTED_ODOMETRY:
+        if self.doubts(step.verdict):
             return step
         _, cov = self.fitted((step.pose, step.covariance))
         return Step(step.pose, cov, step.kind, step.verdict, step.score, step.reason, step.loose)

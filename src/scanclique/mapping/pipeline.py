@@ -40,7 +40,6 @@ from ..scan import Scan, deskew, measured_before, retime, sweep_velocity, sweep_
 from ..uncertainty import constellation_std
 from ..validation import (
     GATE_99,
-    REJECTED_ODOMETRY,
     compose_covariance,
     mahalanobis_sq,
     odometry_prior,
@@ -1122,7 +1121,7 @@ class _Mapper:
             step = contest_by_odometry(pk, pj, step, odo[0], fe, self.cfg.match, odo[1])
             if step.kind == ICP:
                 self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
-        if odo is not None and step.verdict == REJECTED_ODOMETRY:
+        if odo is not None and self.odo_fit.doubts(step.verdict):
             self.odometry_doubted.add(j)
         if step.kind != MATCH and fe.icp_fallback and odo is not None:
             # the chain's own constant-velocity prediction: a seed of ICP always, and a
