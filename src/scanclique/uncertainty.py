@@ -163,7 +163,9 @@ def check_covariance(P, name: str) -> np.ndarray:
     return a
 
 
-def _travel(poses: Sequence[Pose2]) -> tuple[float, float]:
+def travel(poses: Sequence[Pose2]) -> tuple[float, float]:
+    """The distance travelled (m) and the angle turned (rad, absolute values summed)
+    along ``poses`` in order."""
     d = t = 0.0
     for p, q in zip(poses[:-1], poses[1:], strict=True):
         u = p.inverse() @ q
@@ -216,7 +218,7 @@ def odometry_prior(
         poses = [check_pose(p, f"path[{k}]") for k, p in enumerate(path)]
         if len(poses) < 2:
             poses = [a, b]
-        dist, turn = _travel(poses)
+        dist, turn = travel(poses)
     s_xy, s_th = noise.std(dist, turn)
     return rel, np.diag([s_xy**2, s_xy**2, s_th**2])
 

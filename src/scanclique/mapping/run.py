@@ -169,6 +169,12 @@ class MapRun:
                 ("odometry's error / its noise model",
                  "{:.2f} / {:.2f}".format(*c["odometry_fit"]), "translation / heading")
             )  # fmt: skip
+        if c.get("odometry_drift") is not None:
+            per_metre, per_radian = c["odometry_drift"]
+            rows.append(
+                ("odometry's steady heading drift",
+                 f"{math.degrees(per_metre):.2f} / {100 * per_radian:.1f}", "deg/m / % of turn")
+            )  # fmt: skip
         if self.odometry_scale and self.odometry_scale["steps"]:
             rows.append(
                 ("odometry's step / the scans' (median)",
