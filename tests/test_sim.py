@@ -386,6 +386,18 @@ def test_a_ring_drive_goes_round_its_corridor():
     assert 0.15 < drift < 0.4  # the odometry's steady heading drift: 0.003 rad/m over 89 m
     with pytest.raises(ConfigError, match="leaves no block"):
         ring_world(np.random.default_rng(0), 6.0, 4.0, corridor=2.0)
+    # wheels of a wrong radius: every odometry step 5 % short, the true path unchanged
+    short = simulate_ring_drive(
+        np.random.default_rng(0), length=30.0, width=20.0, loops=1.0, scale_error=-0.05,
+        trans_noise_per_m=0.0,
+    )  # fmt: skip
+    assert [s.reference for s in short] == [s.reference for s in scans]
+    steps = [math.hypot(*(a.odometry.inverse() @ b.odometry).as_array()[:2])
+             for a, b in zip(short[:-1], short[1:], strict=True)]  # fmt: skip
+    assert np.allclose(steps, 0.95 * step)
+    for bad in ({"scale_error": -1.0}, {"scale_error": math.nan}, {"heading_bias_per_m": math.inf}):
+        with pytest.raises(ConfigError, match="scale_error|heading_bias_per_m"):
+            simulate_ring_drive(np.random.default_rng(0), length=30.0, width=20.0, **bad)
 
 
 def test_a_campus_has_streets_lined_with_trees_and_clear_lanes():

@@ -1545,11 +1545,13 @@ def _drifting_odometry(
     rot_per_m: float,
     rot_per_rad: float,
     heading_bias_per_m: float = 0.0,
+    scale_error: float = 0.0,
 ) -> list[Pose2]:
     """Odometry poses along the reference poses ``refs``, from ``start``: each step's true
     increment ``u = ref[i-1]^-1 @ ref[i]`` plus zero-mean Gaussian noise (``trans_per_m *
-    |u|`` in x and y, ``rot_per_m * |u| + rot_per_rad * |u.theta|`` in the heading) and a
-    steady heading drift of ``heading_bias_per_m * |u|``."""
+    |u|`` in x and y, ``rot_per_m * |u| + rot_per_rad * |u.theta|`` in the heading), a
+    steady heading drift of ``heading_bias_per_m * |u|`` and its translation ``1 +
+    scale_error`` times the true one (wheels of a wrong radius)."""
     odom = [start]
     for prev, cur in zip(refs[:-1], refs[1:], strict=True):
         u = prev.inverse() @ cur
@@ -1558,7 +1560,8 @@ def _drifting_odometry(
         s_r = rot_per_m * dist + rot_per_rad * abs(u.theta)
         n = rng.normal(0.0, 1.0, 3) * np.array([s_t, s_t, s_r])
         th = u.theta + n[2] + heading_bias_per_m * dist
-        odom.append(odom[-1] @ Pose2(u.x + n[0], u.y + n[1], th))
+        k = 1.0 + scale_error
+        odom.append(odom[-1] @ Pose2(k * u.x + n[0], k * u.y + n[1], th))
     return odom
 
 
@@ -1732,6 +1735,7 @@ def simulate_ring_drive(
     rot_noise_per_m: float = 0.005,
     rot_noise_per_rad: float = 0.02,
     heading_bias_per_m: float = 0.003,
+    scale_error: float = 0.0,
     dt: float = 0.1,
     n_beams: int = 181,
     **scan_kw,
@@ -1743,7 +1747,8 @@ def simulate_ring_drive(
     The odometry is that of :func:`simulate_trajectory` (noise per metre and per radian
     of each step) with a steady heading drift of ``heading_bias_per_m`` rad per metre (a
     wheel a little larger than the other: 0.003 rad/m turns the odometry 33 degrees over
-    a 190 m loop).
+    a 190 m loop), its steps ``1 + scale_error`` times the true ones (wheels of a wrong
+    radius; exact by default).
 
     Returns
     -------
@@ -1759,6 +1764,11 @@ def simulate_ring_drive(
         rot_noise_per_m=rot_noise_per_m,
         rot_noise_per_rad=rot_noise_per_rad,
     )
+    if not (math.isfinite(heading_bias_per_m) and math.isfinite(scale_error) and scale_error > -1):
+        raise ConfigError(
+            f"{where}: heading_bias_per_m {heading_bias_per_m} must be finite and "
+            f"scale_error {scale_error} finite and above -1"
+        )
     world = ring_world(rng, length, width, corridor=corridor)
     r = min(0.8, 0.45 * corridor)
     perimeter = 2.0 * (length + width - 4.0 * corridor / 2.0 - 4.0 * r) + 2.0 * math.pi * r
@@ -1766,7 +1776,7 @@ def simulate_ring_drive(
     refs = [Pose2(*p) for p in _ring_centreline(length, width, corridor, s, r)]
     odom = _drifting_odometry(
         rng, refs, refs[0], trans_noise_per_m, rot_noise_per_m, rot_noise_per_rad,
-        heading_bias_per_m,
+        heading_bias_per_m, scale_error,
     )  # fmt: skip
     return [
         simulate_scan(world, ref, n_beams=n_beams, rng=rng, timestamp=i * dt, odometry=od,
