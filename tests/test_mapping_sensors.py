@@ -299,6 +299,13 @@ def test_odometry_fit_takes_out_a_steady_heading_drift_it_can_show_and_no_other(
     for _ in range(400):
         blind.observe(Pose2(0.25, 0.0, rng.normal(0.0, noise)), Pose2(0.25, 0.0, 0.0), cov)
     assert blind.drift() == (0.0, 0.0) and DRIFT_T >= 3.0
+    # steps steadily 2 % longer than the odometry's: read, not taken out
+    assert fit.steps_off() == 0.0 and blind.steps_off() == 0.0
+    long = OdometryFit(fe)
+    for _ in range(400):
+        seen = Pose2(0.25 * 1.02 + rng.normal(0.0, 0.002), 0.0, 0.0)
+        long.observe(seen, Pose2(0.25, 0.0, 0.0), cov)
+    assert long.steps_off() == pytest.approx(0.02, rel=0.1) and long.drift() == (0.0, 0.0)
     assert OdometryFit(fe).drift() is None and OdometryFit(fe).calibration() is None
 
 
@@ -395,6 +402,7 @@ def test_odometry_edges_of_a_drifting_odometry_have_the_drift_taken_out():
         raw.append(odo.theta - truth.theta)
         fixed.append(Z.theta - truth.theta)
     assert abs(np.mean(raw)) > 3 * abs(np.mean(fixed))  # the steady part is gone
+    assert m.odo_fit.steps_off() == 0.0
     # the map says it, and so does its table
     from scanclique.mapping.run import MapRun
 
@@ -405,6 +413,26 @@ def test_odometry_edges_of_a_drifting_odometry_have_the_drift_taken_out():
     value, unit = said["odometry's steady heading drift"]
     assert unit == "deg/m / % of turn" and float(value.split(" / ")[0]) == pytest.approx(
         math.degrees(per_metre), abs=0.006)  # fmt: skip
+
+
+def test_odometry_whose_steps_are_steadily_off_takes_no_edges():
+    """Wheels of a wrong radius: the matches steadily step further than the odometry
+    (OdometryFit.steps_off), and the odometry enters the batch graph not at all, since
+    its edges would shorten every corridor and the matches, short along a corridor
+    themselves, cannot say by how much."""
+    from scanclique.mapping import MapConfig
+    from scanclique.mapping.pipeline import _Mapper
+    from scanclique.sim import simulate_ring_drive
+
+    scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, scale_error=-0.05)
+    m = _Mapper(True, False, MapConfig(), 1)
+    try:
+        m.run(scans)
+    finally:
+        m.verifier.close()
+    assert m.odo_fit.steps_off() > 0.02  # read short of the 5.3 % it is, but read
+    assert m.odo_fit.calibration()[1][1] <= MapConfig().back_end.odometry_max_fit
+    assert m.odometry_factors() == []  # the heading alone would have qualified
 
 
 def test_ros_no_returns_are_never_walls():

@@ -465,18 +465,21 @@ class BackEndConfig:
     matches show taken out (:attr:`MapResult.odometry_drift
     <scanclique.mapping.MapResult.odometry_drift>`: a graph's edges are independent, so
     a drift within their noise on every edge bends a long corridor; the 200 x 120 m ring
-    with 0.003 rad/m, seeds 0-3, 0.801 -> 0.499 m of mean error, session 44) and the
+    with 0.003 rad/m, seeds 0-3, 0.801 -> 0.484 m of mean error, session 44) and the
     model's covariance over the path scaled to the residuals left, judged so corrected
-    against ``odometry_max_fit`` (not for a chained-only map, ``loops.enabled``
-    False); none across a scan whose match was rejected for disagreeing with the
-    odometry (a slip) or was matched against it reversed. The shared logs' odometry
-    proves 0.27-0.77 once corrected (intel-raw 0.27, corrected Intel 0.31, fr079-raw
-    0.48, CSAIL 0.77) and takes none (their maps unchanged);
-    odometry that tracks well is more exact per step than a short-reach scanner's
-    matches: the simulated LDS-01 on the campus with odometry 1.23 -> 0.85 m, in offices
-    (600 poses) 0.360 -> 0.344 m (session 43). Forced on the shared logs (a first form,
-    without the slip rule), fr079-raw went 0.0314 -> 0.0319 m, CSAIL 0.0356 -> 0.0345 m,
-    intel-raw 0.0146 -> 0.0145 m. The online mapper's iSAM2 estimates do not take them;
+    against ``odometry_max_fit``. None when the matches steadily step more or less than
+    the odometry (``OdometryFit.steps_off``: wheels of a wrong radius, which the edges
+    would carry into every corridor; the ring with 2 % short steps 0.845 -> 0.671 m),
+    none for a chained-only map (``loops.enabled`` False), none across a scan whose
+    match was rejected for disagreeing with the odometry (a slip) or was matched against
+    it reversed. The shared logs' odometry proves 0.27-0.77 once corrected (intel-raw
+    0.27, corrected Intel 0.31, fr079-raw 0.48, CSAIL 0.77) and takes none (their maps
+    unchanged); odometry that tracks well is more exact per step than a short-reach
+    scanner's matches: the simulated LDS-01 on the campus with odometry 1.23 -> 0.85 m,
+    in offices (600 poses) 0.360 -> 0.344 m (session 43). Forced on the shared logs (a
+    first form, without the slip rule), fr079-raw went 0.0314 -> 0.0319 m, CSAIL 0.0356
+    -> 0.0345 m, intel-raw 0.0146 -> 0.0145 m. The online mapper's iSAM2 estimates do
+    not take them;
     its finished map (the batch back end) does."""
 
     robust: str = "cauchy"

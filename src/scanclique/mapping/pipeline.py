@@ -1231,14 +1231,18 @@ class _Mapper:
         are independent, so a drift within their noise on every edge would bend a long
         corridor; 0.003 rad/m bent a 200 x 120 m ring by metres); none unless the odometry
         proved, so corrected, at least ``odometry_max_fit`` times better than its model in
-        heading, none
+        heading, none when the matches steadily step more or less than the odometry
+        (:meth:`OdometryFit.steps_off`: wheels of a wrong radius, or matches short along
+        streets; the edges would shorten or stretch every corridor, and the matches cannot
+        be trusted to say by how much: a 200 x 120 m ring whose odometry steps 2 % short
+        maps 0.845 m with the edges, 0.671 m without), none
         for a chained-only map (``loops.enabled`` False), and none across a scan whose
         match was rejected for disagreeing with it (a slip) or matched against it
         reversed."""
         be = self.cfg.back_end
         on = self.odo and be.odometry_factors and self.cfg.loops.enabled  # not chained only
         cal = self.odo_fit.calibration() if on else None
-        if cal is None or cal[1][1] > be.odometry_max_fit:
+        if cal is None or cal[1][1] > be.odometry_max_fit or self.odo_fit.steps_off() != 0.0:
             return []
         out = []
         for k in range(1, len(self.kf)):
