@@ -732,18 +732,16 @@ class OdometryFit:
     (:meth:`placing`).
     """
 
-    __slots__ = ("fe", "xy", "th", "heading", "along")
+    __slots__ = ("fe", "xy", "th", "rows")
 
     def __init__(self, fe) -> None:
         self.fe = fe
         self.xy = SortedHistory()  # translation residuals / model sigma
         self.th = SortedHistory()  # heading residuals / model sigma
-        # per match: heading residual (rad), its model sigma (rad), the odometry's
-        # distance (m) and signed turn (rad) over the span, for :meth:`drift`
-        self.heading: list[tuple[float, float, float, float]] = []
-        # per match: the residual along the odometry's step (m), the model's translation
-        # sigma (m) and the step (m), for :meth:`steps_off`
-        self.along: list[tuple[float, float, float]] = []
+        # per match, for :meth:`drift` and :meth:`steps_off`: the heading residual (rad)
+        # and its model sigma (rad), the odometry's step (m) and signed turn (rad) over
+        # the span, the residual along that step (m) and the model's translation sigma (m)
+        self.rows: list[tuple[float, float, float, float, float, float]] = []
 
     def observe(self, match: Pose2, odo: Pose2, cov: np.ndarray) -> None:
         """Record a feature match ``match`` (keyframe to scan) against the odometry's
@@ -752,9 +750,8 @@ class OdometryFit:
         self.xy.add(math.hypot(e[0], e[1]) / math.sqrt(cov[0, 0]))
         self.th.add(abs(e[2]) / math.sqrt(cov[2, 2]))
         d = math.hypot(odo.x, odo.y)
-        self.heading.append((e[2], math.sqrt(cov[2, 2]), d, odo.theta))
         u = (e[0] * odo.x + e[1] * odo.y) / d if d > 0 else 0.0
-        self.along.append((u, math.sqrt(cov[0, 0]), d))
+        self.rows.append((e[2], math.sqrt(cov[2, 2]), d, odo.theta, u, math.sqrt(cov[0, 0])))
 
     def steps_off(self) -> float:
         """The odometry's distance's steady relative error as the accepted matches read
@@ -765,10 +762,10 @@ class OdometryFit:
         odometry: 2.9 % on one drive of nine); a steady disagreement only says that one
         of the two is steadily wrong (:meth:`_Mapper.odometry_factors
         <scanclique.mapping.pipeline._Mapper.odometry_factors>`)."""
-        if len(self.along) < max(self.fe.odometry_fit_min, 3):
+        if len(self.rows) < max(self.fe.odometry_fit_min, 3):
             return 0.0
-        a = np.asarray(self.along)
-        return _shown_terms((a[:, 2] / a[:, 1])[:, None], a[:, 0] / a[:, 1])[0]
+        r = np.asarray(self.rows)
+        return _shown_terms((r[:, 2] / r[:, 5])[:, None], r[:, 4] / r[:, 5])[0]
 
     def drift(self) -> tuple[float, float] | None:
         """The odometry's steady heading error, fitted to the accepted matches by least
@@ -782,10 +779,10 @@ class OdometryFit:
         sigma on every step (0.003 rad/m is 0.1 sigma of a 0.25 m step fitted to the
         floor) and 33 degrees over 200 m, which independent edges in a graph cannot say
         (:meth:`corrected`)."""
-        if len(self.heading) < max(self.fe.odometry_fit_min, 3):
+        if len(self.rows) < max(self.fe.odometry_fit_min, 3):
             return None
-        h = np.asarray(self.heading)
-        per_metre, per_radian = _shown_terms(h[:, 2:4] / h[:, 1:2], h[:, 0] / h[:, 1])
+        r = np.asarray(self.rows)
+        per_metre, per_radian = _shown_terms(r[:, 2:4] / r[:, 1:2], r[:, 0] / r[:, 1])
         return per_metre, per_radian
 
     def calibration(self) -> tuple[tuple[float, float], tuple[float, float]] | None:
@@ -823,8 +820,8 @@ class OdometryFit:
         if drift is None:
             q = self.th.quantile(0.95)
         else:
-            h = np.asarray(self.heading)
-            q = float(np.quantile(np.abs(h[:, 0] - h[:, 2:4] @ drift) / h[:, 1], 0.95))
+            r = np.asarray(self.rows)
+            q = float(np.quantile(np.abs(r[:, 0] - r[:, 2:4] @ drift) / r[:, 1], 0.95))
         m_th = min(max(q / 1.960, lo), 1.0)
         return m_xy, m_th
 

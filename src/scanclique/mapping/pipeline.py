@@ -1242,7 +1242,9 @@ class _Mapper:
         be = self.cfg.back_end
         on = self.odo and be.odometry_factors and self.cfg.loops.enabled  # not chained only
         cal = self.odo_fit.calibration() if on else None
-        if cal is None or cal[1][1] > be.odometry_max_fit or self.odo_fit.steps_off() != 0.0:
+        if cal is None or cal[1][1] > be.odometry_max_fit:  # (drift, (xy, heading) scales)
+            return []
+        if self.odo_fit.steps_off() != 0.0:
             return []
         out = []
         for k in range(1, len(self.kf)):
