@@ -415,11 +415,12 @@ def test_odometry_edges_of_a_drifting_odometry_have_the_drift_taken_out():
         math.degrees(per_metre), abs=0.006)  # fmt: skip
 
 
-def test_odometry_whose_steps_are_steadily_off_takes_no_edges():
-    """Wheels of a wrong radius: the matches steadily step further than the odometry
-    (OdometryFit.steps_off), and the odometry enters the batch graph not at all, since
-    its edges would shorten every corridor and the matches, short along a corridor
-    themselves, cannot say by how much."""
+def test_odometry_whose_steps_are_steadily_short_takes_no_edges():
+    """Wheels measuring short: the matches steadily step further than the odometry
+    (OdometryFit.steps_off > 0), and the odometry enters the batch graph not at all,
+    since its edges would shorten every corridor and the matches, short along a corridor
+    themselves, cannot say by how much. Matches stepping short of the odometry may be
+    their own bias, and the edges stay."""
     from scanclique.mapping import MapConfig
     from scanclique.mapping.pipeline import _Mapper
     from scanclique.sim import simulate_ring_drive
@@ -433,6 +434,13 @@ def test_odometry_whose_steps_are_steadily_off_takes_no_edges():
     assert m.odo_fit.steps_off() > 0.02  # read short of the 5.3 % it is, but read
     assert m.odo_fit.calibration()[1][1] <= MapConfig().back_end.odometry_max_fit
     assert m.odometry_factors() == []  # the heading alone would have qualified
+    scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, scale_error=0.05)
+    m = _Mapper(True, False, MapConfig(), 1)
+    try:
+        m.run(scans)
+    finally:
+        m.verifier.close()
+    assert m.odo_fit.steps_off() < -0.02 and len(m.odometry_factors()) > len(m.kf) // 2
 
 
 def test_ros_no_returns_are_never_walls():

@@ -467,9 +467,9 @@ class BackEndConfig:
     a drift within their noise on every edge bends a long corridor; the 200 x 120 m ring
     with 0.003 rad/m, seeds 0-3, 0.801 -> 0.484 m of mean error, session 44) and the
     model's covariance over the path scaled to the residuals left, judged so corrected
-    against ``odometry_max_fit``. None when the matches steadily step more or less than
-    the odometry (``OdometryFit.steps_off``: wheels of a wrong radius, which the edges
-    would carry into every corridor; the ring with 2 % short steps 0.845 -> 0.671 m),
+    against ``odometry_max_fit``. None when the matches steadily step further than the
+    odometry (``OdometryFit.steps_off``: wheels measuring short, which the edges would
+    carry into every corridor; the ring with 2 % short steps 0.845 -> 0.671 m),
     none for a chained-only map (``loops.enabled`` False), none across a scan whose
     match was rejected for disagreeing with the odometry (a slip) or was matched against
     it reversed. The shared logs' odometry proves 0.27-0.77 once corrected (intel-raw
