@@ -713,6 +713,13 @@ def _shown_terms(A: np.ndarray, y: np.ndarray) -> tuple[float, ...]:
     return tuple(float(v) for v in sol)
 
 
+def _scaled(cov: np.ndarray, scales: tuple[float, float]) -> np.ndarray:
+    """An ``(x, y, theta)`` covariance with its standard deviations scaled by ``scales``
+    (translation, heading): :meth:`OdometryFit.fitted` and :meth:`OdometryFit.corrected`."""
+    k = np.array([scales[0], scales[0], scales[1]])
+    return cov * np.outer(k, k)
+
+
 class OdometryFit:
     """How good the wheel odometry has proved against the scans (state carried across
     scans): the residuals of the odometry increments against the feature matches the
@@ -747,11 +754,12 @@ class OdometryFit:
         """Record a feature match ``match`` (keyframe to scan) against the odometry's
         increment ``odo`` over the same span and the model's covariance ``cov`` of it."""
         e = pose_difference(match, odo)
-        self.xy.add(math.hypot(e[0], e[1]) / math.sqrt(cov[0, 0]))
-        self.th.add(abs(e[2]) / math.sqrt(cov[2, 2]))
+        s_xy, s_th = math.sqrt(cov[0, 0]), math.sqrt(cov[2, 2])
+        self.xy.add(math.hypot(e[0], e[1]) / s_xy)
+        self.th.add(abs(e[2]) / s_th)
         d = math.hypot(odo.x, odo.y)
         u = (e[0] * odo.x + e[1] * odo.y) / d if d > 0 else 0.0
-        self.rows.append((e[2], math.sqrt(cov[2, 2]), d, odo.theta, u, math.sqrt(cov[0, 0])))
+        self.rows.append((e[2], s_th, d, odo.theta, u, s_xy))
 
     def steps_off(self) -> float:
         """The odometry's distance's steady relative error as the accepted matches read
@@ -805,8 +813,7 @@ class OdometryFit:
         dth = per_metre * distance + per_radian * z.theta
         c, s = math.cos(dth / 2), math.sin(dth / 2)
         z = Pose2(c * z.x - s * z.y, s * z.x + c * z.y, z.theta + dth)
-        k = np.array([m[0], m[0], m[1]])
-        return z, cov * np.outer(k, k)
+        return z, _scaled(cov, m)
 
     def scales(self, drift: tuple[float, float] | None = None) -> tuple[float, float] | None:
         """``(translation, heading)`` factors of the model's standard deviations the
@@ -829,10 +836,7 @@ class OdometryFit:
         """The odometry ``prior`` (increment, model covariance) with the covariance scaled
         to what the odometry has proved (unchanged before it has been measured)."""
         m = self.scales()
-        if m is None:
-            return prior
-        d = np.array([m[0], m[0], m[1]])
-        return prior[0], prior[1] * np.outer(d, d)
+        return prior if m is None else (prior[0], _scaled(prior[1], m))
 
     @staticmethod
     def doubts(verdict: str) -> bool:
