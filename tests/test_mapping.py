@@ -4,6 +4,7 @@ truth, and the degenerate logs (one scan, no features, a gap)."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -210,7 +211,9 @@ def test_odometry_forced_in_millimetres_is_told_after(office_drive, caplog):
             assert "in metres" in str(e)
             return
     assert r.used_odometry and r.odometry_scale.scaled
-    assert "the odometry moves 1e+03 times as far as the scans" in caplog.text
+    # about 1000 times (the front end takes the scale its matches read out of the
+    # odometry it contests them with, so the map's median step may differ a little)
+    assert re.search(r"the odometry moves (1e\+03|99\d) times as far as the scans", caplog.text)
 
 
 def test_solver_failures_are_named():

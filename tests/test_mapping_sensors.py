@@ -309,6 +309,37 @@ def test_odometry_fit_takes_out_a_steady_heading_drift_it_can_show_and_no_other(
     assert OdometryFit(fe).drift() is None and OdometryFit(fe).calibration() is None
 
 
+def test_odometry_fit_reads_a_steady_scale_error_from_the_matches_fixed_along_the_step():
+    """OdometryFit.scale: the odometry distance's steady relative error, each match
+    weighed by its own sigma along the step, only when shown; matches a corridor leaves
+    loose (large sigma along the step) that stay where the odometry put them count for
+    little, so the wheels' 2 % is read where the unweighted steps_off reads far less."""
+    from scanclique.mapping.frontend import SCALE_REFIT, OdometryFit
+
+    fe = FrontEndConfig()
+    rng = np.random.default_rng(1)
+    cov = np.diag([0.1**2, 0.1**2, math.radians(4.0) ** 2])
+    fixed = np.diag([0.003**2, 0.003**2, 1e-6])  # features fix the step
+    loose = np.diag([0.5**2, 0.003**2, 1e-6])  # a corridor: nothing fixes it along x
+    fit, blind = OdometryFit(fe), OdometryFit(fe)
+    for k in range(600):
+        odo = Pose2(0.25 * 1.02, 0.0, 0.0)  # wheels measuring 2 % long
+        if k % 3:  # two of three matches in corridors, left where the odometry put them
+            fit.observe(Pose2(odo.x + rng.normal(0.0, 0.001), 0.0, 0.0), odo, cov, loose)
+        else:
+            fit.observe(Pose2(0.25 + rng.normal(0.0, 0.003), 0.0, 0.0), odo, cov, fixed)
+        blind.observe(Pose2(0.25 + rng.normal(0.0, 0.003), 0.0, 0.0), Pose2(0.25, 0, 0), cov, fixed)
+    assert fit.scale() == pytest.approx(1 / 1.02 - 1, rel=0.05)
+    assert abs(fit.steps_off()) < 0.5 * abs(fit.scale())  # unweighted: mostly the corridors
+    assert blind.scale() == 0.0  # exact wheels: nothing shown
+    assert OdometryFit.scaled(Pose2(1.0, 2.0, 0.5), -0.5) == Pose2(0.5, 1.0, 0.5)
+    # without the matches' covariances nothing is read; refitted only as matches come
+    bare = OdometryFit(fe)
+    for _ in range(100):
+        bare.observe(Pose2(0.3, 0.0, 0.0), Pose2(0.25, 0.0, 0.0), cov)
+    assert bare.scale() == 0.0 and SCALE_REFIT >= 1
+
+
 def test_a_scan_placed_by_the_odometry_is_as_unsure_as_it_has_proved_unless_it_slipped():
     """A scan the scans could not place is placed by the odometry with the covariance the
     odometry has proved (OdometryFit.placing), not the model's; one whose match was
@@ -415,32 +446,39 @@ def test_odometry_edges_of_a_drifting_odometry_have_the_drift_taken_out():
         math.degrees(per_metre), abs=0.006)  # fmt: skip
 
 
-def test_odometry_whose_steps_are_steadily_short_takes_no_edges():
-    """Wheels measuring short: the matches steadily step further than the odometry
-    (OdometryFit.steps_off > 0), and the odometry enters the batch graph not at all,
-    since its edges would shorten every corridor and the matches, short along a corridor
-    themselves, cannot say by how much. Matches stepping short of the odometry may be
-    their own bias, and the edges stay."""
+def test_odometry_of_a_wrong_radius_has_its_scale_read_and_taken_out_of_its_edges():
+    """Wheels measuring 5 % short or long: the matches the features fix along the step
+    read the steady scale error (OdometryFit.scale, within a fifth of it; the unweighted
+    steps_off reads less), and the batch graph's odometry edges carry the odometry with it
+    taken out. Without a scale read, matches stepping steadily further than the odometry
+    (steps_off > 0) keep its edges out, as before."""
     from scanclique.mapping import MapConfig
     from scanclique.mapping.pipeline import _Mapper
     from scanclique.sim import simulate_ring_drive
 
-    scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, scale_error=-0.05)
-    m = _Mapper(True, False, MapConfig(), 1)
-    try:
-        m.run(scans)
-    finally:
-        m.verifier.close()
-    assert m.odo_fit.steps_off() > 0.02  # read short of the 5.3 % it is, but read
-    assert m.odo_fit.calibration()[1][1] <= MapConfig().back_end.odometry_max_fit
-    assert m.odometry_factors() == []  # the heading alone would have qualified
-    scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, scale_error=0.05)
-    m = _Mapper(True, False, MapConfig(), 1)
-    try:
-        m.run(scans)
-    finally:
-        m.verifier.close()
-    assert m.odo_fit.steps_off() < -0.02 and len(m.odometry_factors()) > len(m.kf) // 2
+    for error in (-0.05, 0.05):
+        scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, scale_error=error)
+        m = _Mapper(True, False, MapConfig(), 1)
+        try:
+            m.run(scans)
+        finally:
+            m.verifier.close()
+        scale = m.odo_fit.scale()
+        assert scale == pytest.approx(1.0 / (1.0 + error) - 1.0, rel=0.2)
+        assert abs(m.odo_fit.steps_off()) < abs(scale)  # corridors' matches follow the seed
+        assert m.odo_fit.calibration()[1][1] <= MapConfig().back_end.odometry_max_fit
+        factors = m.odometry_factors()
+        assert len(factors) > len(m.kf) // 2
+        ratios = []
+        for i, j, Z, _ in factors:
+            odo = scans[m.kf[i]].odometry.inverse() @ scans[m.kf[j]].odometry
+            if math.hypot(odo.x, odo.y) > 0.1:
+                ratios.append(math.hypot(Z.x, Z.y) / math.hypot(odo.x, odo.y))
+        assert np.median(ratios) == pytest.approx(1.0 + scale, abs=1e-6)
+        assert m.result(0.0).odometry_steps == scale
+        if error < 0:  # short wheels, their scale not read: no edges
+            m.odo_fit._scale = (len(m.odo_fit.rows), 0.0)  # as if none were shown
+            assert m.odo_fit.steps_off() > 0.02 and m.odometry_factors() == []
 
 
 def test_ros_no_returns_are_never_walls():

@@ -687,6 +687,12 @@ class VelocityModel:
 #: rad/m 34, the Intel wheels' 0.06 rad/m 27-34.
 DRIFT_T = 5.0
 DRIFT_BLOCKS = 20
+#: :meth:`OdometryFit.scale` is refitted once this many matches (or a twentieth more,
+#: whichever is more) have come since its last fit: the jackknife refits it 21 times
+SCALE_REFIT = 25
+#: the least standard deviation (m) along the odometry's step a match is weighted by in
+#: :meth:`OdometryFit.scale` (a covariance of zero would weigh one match as all)
+SCALE_SIGMA_MIN = 1e-3
 
 
 def _shown_terms(A: np.ndarray, y: np.ndarray) -> tuple[float, ...]:
@@ -739,7 +745,7 @@ class OdometryFit:
     (:meth:`placing`).
     """
 
-    __slots__ = ("fe", "xy", "th", "rows")
+    __slots__ = ("fe", "xy", "th", "rows", "along", "_scale")
 
     def __init__(self, fe) -> None:
         self.fe = fe
@@ -749,10 +755,15 @@ class OdometryFit:
         # and its model sigma (rad), the odometry's step (m) and signed turn (rad) over
         # the span, the residual along that step (m) and the model's translation sigma (m)
         self.rows: list[tuple[float, float, float, float, float, float]] = []
+        self.along: list[float] = []
+        self._scale = None
 
-    def observe(self, match: Pose2, odo: Pose2, cov: np.ndarray) -> None:
+    def observe(
+        self, match: Pose2, odo: Pose2, cov: np.ndarray, match_cov: np.ndarray | None = None
+    ) -> None:
         """Record a feature match ``match`` (keyframe to scan) against the odometry's
-        increment ``odo`` over the same span and the model's covariance ``cov`` of it."""
+        increment ``odo`` over the same span and the model's covariance ``cov`` of it;
+        ``match_cov``, the match's own covariance, weighs it in :meth:`scale`."""
         e = pose_difference(match, odo)
         s_xy, s_th = math.sqrt(cov[0, 0]), math.sqrt(cov[2, 2])
         self.xy.add(math.hypot(e[0], e[1]) / s_xy)
@@ -760,6 +771,51 @@ class OdometryFit:
         d = math.hypot(odo.x, odo.y)
         u = (e[0] * odo.x + e[1] * odo.y) / d if d > 0 else 0.0
         self.rows.append((e[2], s_th, d, odo.theta, u, s_xy))
+        along = math.nan  # the match's own standard deviation along the odometry's step
+        if match_cov is not None and d > 0:
+            v = np.array([odo.x, odo.y]) / d
+            along = math.sqrt(max(float(v @ match_cov[:2, :2] @ v), 0.0))
+        self.along.append(along)
+
+    def scale(self) -> float:
+        """The odometry's distance's steady relative error as the accepted matches read it,
+        each weighted by its own standard deviation along the odometry's step (the
+        scans' step is the odometry's times ``1 +`` it); 0 unless it stands
+        :data:`DRIFT_T` jackknife errors from zero (:func:`_shown_terms`), and before
+        ``fe.odometry_fit_min`` matches with a covariance. Refitted once a twentieth more
+        matches (at least :data:`SCALE_REFIT`) have come.
+
+        Wheels of a wrong radius are a steady error within the odometry's noise on every
+        step, and where the scans fix no position along a corridor the odometry alone
+        places the robot along it: 2 % long over a 640 m loop put the far end a door or
+        two along, where look-alike closures agreed with it (the simulated 200 x 120 m
+        ring, seed 0: 45 of 48 closures 4-6 m off, 4.15 m of mean error). Matches fixed
+        along the step read that error right (the ring: -2.2 % for 2 % long, +1.8 % for 2
+        % short, nothing shown with exact steps), while those a corridor leaves loose stay
+        partly where the odometry seeded them; their own sigma weighs them down (their
+        unweighted :meth:`steps_off` reads -0.2 % of the same 2 %)."""
+        n = len(self.rows)
+        least = max(self.fe.odometry_fit_min, 3)
+        if n < least:
+            return 0.0
+        if self._scale is not None and n < self._scale[0] + max(SCALE_REFIT, n // 20):
+            return self._scale[1]
+        r = np.asarray(self.rows)
+        sm = np.asarray(self.along)
+        ok = np.isfinite(sm) & (sm > 0) & (r[:, 2] > 0)
+        value = 0.0
+        if ok.sum() >= least:
+            sm = np.maximum(sm[ok], SCALE_SIGMA_MIN)
+            value = _shown_terms((r[ok, 2] / sm)[:, None], r[ok, 4] / sm)[0]
+        self._scale = (n, value)
+        return value
+
+    @staticmethod
+    def scaled(pose: Pose2, scale: float) -> Pose2:
+        """An odometry increment ``pose`` with its translation times ``1 + scale`` (the
+        steady error :meth:`scale` reads taken out; its heading unchanged)."""
+        f = 1.0 + scale
+        return Pose2(pose.x * f, pose.y * f, pose.theta)
 
     def steps_off(self) -> float:
         """The odometry's distance's steady relative error as the accepted matches read

@@ -221,6 +221,14 @@ class MapResult:
         by the odometry's turn plus it; a term the matches do not show is 0. Taken out of
         the batch back end's odometry edges (``BackEndConfig.odometry_factors``). None
         otherwise or before ``odometry_fit_min`` matches.
+    odometry_steps : float or None
+        When the map used odometry: its distance's steady relative error the accepted
+        feature matches, each weighed by its own sigma along the step, show
+        (:meth:`~scanclique.mapping.frontend.OdometryFit.scale`; the scans' steps are the
+        odometry's times ``1 +`` it; 0 when not shown), as read at the end of the log.
+        Taken out, as read at each scan, of the odometry the front end contests its
+        matches with and seeds the ICP fallback by, and of the batch back end's odometry
+        edges. None otherwise.
     """
 
     poses: tuple
@@ -240,6 +248,7 @@ class MapResult:
     sweep_timing: str = ""
     odometry_fit: tuple | None = None
     odometry_drift: tuple | None = None
+    odometry_steps: float | None = None
 
     @property
     def accepted_closures(self) -> tuple:
@@ -266,6 +275,7 @@ class MapResult:
             "sweep_timing": self.sweep_timing,
             "odometry_fit": None if self.odometry_fit is None else list(self.odometry_fit),
             "odometry_drift": None if self.odometry_drift is None else list(self.odometry_drift),
+            "odometry_steps": self.odometry_steps,
         }
 
 
@@ -1121,6 +1131,12 @@ class _Mapper:
                 )  # fmt: skip
         # the odometry increment and its covariance (the first prior of the fallback)
         odo = odometry_prior(prior_a, prior_b, noise, path=path) if kind == ODOMETRY else None
+        measured = odo  # the odometry as logged: what OdometryFit reads its errors from
+        scale = self.odo_fit.scale() if odo is not None else 0.0
+        if scale != 0.0:
+            # its steady scale error taken out where the odometry alone may place the scan
+            # along a corridor: the contest of the match and the ICP fallback's seed
+            odo = (OdometryFit.scaled(odo[0], scale), odo[1])
         # a match taken against the odometry reversed is not contested from there: ICP from
         # the reversed odometry would confirm the reversal by the prior alone (simulated
         # campus drive 1, never backing up: a forward match 2.3 sigma from the reversed
@@ -1153,7 +1169,7 @@ class _Mapper:
                 self.reasons[j] = f"{step.verdict}: {step.reason}; placed by ICP"
                 step = alt
         if step.kind == MATCH and odo is not None and not reversed_prior:
-            self.odo_fit.observe(step.pose, *odo)
+            self.odo_fit.observe(step.pose, *measured, step.covariance)
         if step.kind in (MATCH, ICP):
             rel, cov, base = step.pose, step.covariance, k
             self.placed_by[j] = step.kind
@@ -1229,14 +1245,16 @@ class _Mapper:
         model's covariance over that path scaled to the residuals left
         (:meth:`OdometryFit.calibration`, :meth:`OdometryFit.corrected`: edges of a graph
         are independent, so a drift within their noise on every edge would bend a long
-        corridor; 0.003 rad/m bent a 200 x 120 m ring by metres); none unless the odometry
+        corridor; 0.003 rad/m bent a 200 x 120 m ring by metres), and its steady scale
+        error too when the matches, each weighed by its own sigma along the step, show one
+        (:meth:`OdometryFit.scale`); none unless the odometry
         proved, so corrected, at least ``odometry_max_fit`` times better than its model in
-        heading, none when the matches steadily step further than the odometry
-        (:meth:`OdometryFit.steps_off` above 0: wheels measuring short, whose edges would
-        shorten every corridor, by an amount the matches cannot be trusted to say: a 200 x
-        120 m ring whose odometry steps 2 % short maps 0.845 m with the edges, 0.671 m
-        without). Matches stepping short of the odometry are no such sign: along a street
-        or corridor they stay partly where their seed put them and read steps short
+        heading, none when no scale error is shown but the matches steadily step further
+        than the odometry (:meth:`OdometryFit.steps_off` above 0: wheels measuring short,
+        whose edges would shorten every corridor: a 200 x 120 m ring whose odometry steps
+        2 % short maps 0.845 m with the edges, 0.671 m without, 0.541 m with its scale
+        taken out of the edges). Matches stepping short of the odometry are no such sign:
+        along a street or corridor they stay partly where their seed put them and read steps short
         themselves (the simulated campus LDS-01, whose odometry is exact, 2.9 % on drive
         0; without the edges that drive's online map went 0.11 -> 0.33 m), none
         for a chained-only map (``loops.enabled`` False), and none across a scan whose
@@ -1247,7 +1265,8 @@ class _Mapper:
         cal = self.odo_fit.calibration() if on else None
         if cal is None or cal[1][1] > be.odometry_max_fit:  # (drift, (xy, heading) scales)
             return []
-        if self.odo_fit.steps_off() > 0.0:  # the matches step further: the wheels are short
+        scale = self.odo_fit.scale()
+        if scale == 0.0 and self.odo_fit.steps_off() > 0.0:  # the wheels are short
             return []
         out = []
         for k in range(1, len(self.kf)):
@@ -1256,6 +1275,8 @@ class _Mapper:
             doubted = any(m in self.odometry_doubted for m in range(a + 1, b + 1))
             if doubted or any(p is None for p in path):
                 continue
+            if scale != 0.0:  # the steady scale error the matches read taken out
+                path = [path[0] @ OdometryFit.scaled(path[0].inverse() @ q, scale) for q in path]
             Z, P = self.odo_fit.corrected(
                 odometry_prior(path[0], path[-1], self.fe.odometry_noise, path=path),
                 travel(path)[0],
@@ -1345,6 +1366,7 @@ class _Mapper:
             sweep_timing=(self.timing or "none") if self.swept else "",
             odometry_fit=self.odo_fit.scales() if self.odo else None,
             odometry_drift=self.odo_fit.drift() if self.odo else None,
+            odometry_steps=self.odo_fit.scale() if self.odo else None,
         )
 
 

@@ -175,6 +175,11 @@ class MapRun:
                 ("odometry's steady heading drift",
                  f"{math.degrees(per_metre):.2f} / {100 * per_radian:.1f}", "deg/m / % of turn")
             )  # fmt: skip
+        if c.get("odometry_steps"):
+            rows.append(
+                ("odometry's steady scale error (taken out)",
+                 f"{100 * c['odometry_steps']:+.1f}", "% of its steps")
+            )  # fmt: skip
         if self.odometry_scale and self.odometry_scale["steps"]:
             rows.append(
                 ("odometry's step / the scans' (median)",
