@@ -404,23 +404,32 @@ def test_odometry_that_proved_good_enters_the_batch_graph_but_not_across_a_slip(
         assert m.odometry_factors() == []
 
 
+def _mapped_ring(**odometry_errors):
+    """Half a loop of the simulated ring (seed 0) mapped with its odometry, whose errors
+    ``simulate_ring_drive`` takes (``heading_bias_per_m``, ``scale_error``): the scans and
+    the batch mapper after the run, for its odometry fit and edges."""
+    from scanclique.mapping import MapConfig
+    from scanclique.mapping.pipeline import _Mapper
+    from scanclique.sim import simulate_ring_drive
+
+    scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, **odometry_errors)
+    m = _Mapper(True, False, MapConfig(), 1)
+    try:
+        m.run(scans)
+    finally:
+        m.verifier.close()
+    return scans, m
+
+
 def test_odometry_edges_of_a_drifting_odometry_have_the_drift_taken_out():
     """Odometry whose heading drifts steadily (a wheel a little larger than the other)
     enters the batch graph with that drift taken out (OdometryFit.calibration): edges
     are independent in a graph, so a drift within their noise on every edge would bend
     a long corridor (the 200 x 120 m ring, seeds 0-3: 0.879 / 0.713 / 0.565 / 1.047 m
     with the drift in its edges)."""
-    from scanclique.mapping import MapConfig
-    from scanclique.mapping.pipeline import _Mapper
-    from scanclique.sim import simulate_ring_drive
 
     bias = 0.01  # rad/m
-    scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, heading_bias_per_m=bias)
-    m = _Mapper(True, False, MapConfig(), 1)
-    try:
-        m.run(scans)
-    finally:
-        m.verifier.close()
+    scans, m = _mapped_ring(heading_bias_per_m=bias)
     per_metre, _ = m.odo_fit.drift()
     assert per_metre == pytest.approx(-bias, rel=0.2)  # the scans turn less than the wheels
     factors = m.odometry_factors()
@@ -453,16 +462,9 @@ def test_odometry_of_a_wrong_radius_has_its_scale_read_and_taken_out_of_its_edge
     taken out. Without a scale read, matches stepping steadily further than the odometry
     (steps_off > 0) keep its edges out, as before."""
     from scanclique.mapping import MapConfig
-    from scanclique.mapping.pipeline import _Mapper
-    from scanclique.sim import simulate_ring_drive
 
     for error in (-0.05, 0.05):
-        scans = simulate_ring_drive(np.random.default_rng(0), loops=0.5, scale_error=error)
-        m = _Mapper(True, False, MapConfig(), 1)
-        try:
-            m.run(scans)
-        finally:
-            m.verifier.close()
+        scans, m = _mapped_ring(scale_error=error)
         scale = m.odo_fit.scale()
         assert scale == pytest.approx(1.0 / (1.0 + error) - 1.0, rel=0.2)
         assert abs(m.odo_fit.steps_off()) < abs(scale)  # corridors' matches follow the seed
