@@ -745,18 +745,18 @@ class OdometryFit:
     (:meth:`placing`).
     """
 
-    __slots__ = ("fe", "xy", "th", "rows", "along", "_scale")
+    __slots__ = ("fe", "xy", "th", "rows", "_scale")
 
     def __init__(self, fe) -> None:
         self.fe = fe
         self.xy = SortedHistory()  # translation residuals / model sigma
         self.th = SortedHistory()  # heading residuals / model sigma
-        # per match, for :meth:`drift` and :meth:`steps_off`: the heading residual (rad)
-        # and its model sigma (rad), the odometry's step (m) and signed turn (rad) over
-        # the span, the residual along that step (m) and the model's translation sigma (m)
-        self.rows: list[tuple[float, float, float, float, float, float]] = []
-        self.along: list[float] = []
-        self._scale = None
+        # per match, for :meth:`drift`, :meth:`steps_off` and :meth:`scale`: the heading
+        # residual (rad) and its model sigma (rad), the odometry's step (m) and signed turn
+        # (rad) over the span, the residual along that step (m), the model's translation
+        # sigma (m) and the match's own sigma along the step (m; NaN when not given)
+        self.rows: list[tuple[float, ...]] = []
+        self._scale: tuple[int, float] | None = None  # (matches, value) of the last fit
 
     def observe(
         self, match: Pose2, odo: Pose2, cov: np.ndarray, match_cov: np.ndarray | None = None
@@ -770,12 +770,11 @@ class OdometryFit:
         self.th.add(abs(e[2]) / s_th)
         d = math.hypot(odo.x, odo.y)
         u = (e[0] * odo.x + e[1] * odo.y) / d if d > 0 else 0.0
-        self.rows.append((e[2], s_th, d, odo.theta, u, s_xy))
         along = math.nan  # the match's own standard deviation along the odometry's step
         if match_cov is not None and d > 0:
             v = np.array([odo.x, odo.y]) / d
             along = math.sqrt(max(float(v @ match_cov[:2, :2] @ v), 0.0))
-        self.along.append(along)
+        self.rows.append((e[2], s_th, d, odo.theta, u, s_xy, along))
 
     def scale(self) -> float:
         """The odometry's distance's steady relative error as the accepted matches read it,
@@ -801,7 +800,7 @@ class OdometryFit:
         if self._scale is not None and n < self._scale[0] + max(SCALE_REFIT, n // 20):
             return self._scale[1]
         r = np.asarray(self.rows)
-        sm = np.asarray(self.along)
+        sm = r[:, 6]
         ok = np.isfinite(sm) & (sm > 0) & (r[:, 2] > 0)
         value = 0.0
         if ok.sum() >= least:
