@@ -719,6 +719,15 @@ def _shown_terms(A: np.ndarray, y: np.ndarray) -> tuple[float, ...]:
     return tuple(float(v) for v in sol)
 
 
+def _steady_step_error(rows: np.ndarray, sigma: np.ndarray) -> float:
+    """The odometry's distance's steady relative error in :class:`OdometryFit`'s
+    ``rows`` (the residual along each step regressed on the step's length, each row
+    weighed by ``sigma``, m), 0 unless shown (:func:`_shown_terms`):
+    :meth:`OdometryFit.steps_off` weighs by the model's sigma, :meth:`OdometryFit.scale`
+    by each match's own sigma along the step."""
+    return _shown_terms((rows[:, 2] / sigma)[:, None], rows[:, 4] / sigma)[0]
+
+
 def _scaled(cov: np.ndarray, scales: tuple[float, float]) -> np.ndarray:
     """An ``(x, y, theta)`` covariance with its standard deviations scaled by ``scales``
     (translation, heading): :meth:`OdometryFit.fitted` and :meth:`OdometryFit.corrected`."""
@@ -804,8 +813,7 @@ class OdometryFit:
         ok = np.isfinite(sm) & (sm > 0) & (r[:, 2] > 0)
         value = 0.0
         if ok.sum() >= least:
-            sm = np.maximum(sm[ok], SCALE_SIGMA_MIN)
-            value = _shown_terms((r[ok, 2] / sm)[:, None], r[ok, 4] / sm)[0]
+            value = _steady_step_error(r[ok], np.maximum(sm[ok], SCALE_SIGMA_MIN))
         self._scale = (n, value)
         return value
 
@@ -828,7 +836,7 @@ class OdometryFit:
         if len(self.rows) < max(self.fe.odometry_fit_min, 3):
             return 0.0
         r = np.asarray(self.rows)
-        return _shown_terms((r[:, 2] / r[:, 5])[:, None], r[:, 4] / r[:, 5])[0]
+        return _steady_step_error(r, r[:, 5])
 
     def drift(self) -> tuple[float, float] | None:
         """The odometry's steady heading error, fitted to the accepted matches by least

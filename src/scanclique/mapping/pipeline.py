@@ -1276,7 +1276,8 @@ class _Mapper:
             if doubted or any(p is None for p in path):
                 continue
             if scale != 0.0:  # the steady scale error the matches read taken out
-                path = [path[0] @ OdometryFit.scaled(path[0].inverse() @ q, scale) for q in path]
+                start, back = path[0], path[0].inverse()
+                path = [start @ OdometryFit.scaled(back @ q, scale) for q in path]
             Z, P = self.odo_fit.corrected(
                 odometry_prior(path[0], path[-1], self.fe.odometry_noise, path=path),
                 travel(path)[0],
