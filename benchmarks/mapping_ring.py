@@ -17,14 +17,22 @@ and ``"conflicting"``.
     python benchmarks/mapping_ring.py
     python benchmarks/mapping_ring.py --seeds 0,1 --out /tmp/ring
     python benchmarks/mapping_ring.py --size 200x120 --step 0.05 --loops 1.25 --configs default
+    python benchmarks/mapping_ring.py --size 200x120 --loops 1.25 --configs default \
+        --modes batch,online --odometry yes --scale-error 0.02
 
-The last is a long loop of a large building (640 m round, parallel corridors 117 m apart)
+The third is a long loop of a large building (640 m round, parallel corridors 117 m apart)
 scanned densely (5 cm a scan: 10 Hz at 0.5 m/s), closed once: before session 35 a
-parallel corridor was closed on after 470 m (``_Mapper.moves_far``).
+parallel corridor was closed on after 470 m (``_Mapper.moves_far``). The fourth maps that
+loop a scan every 25 cm with wheels 2 % long, in batch and online (session 46).
 
 ``--scale-error -0.02`` makes the odometry's steps 2 % short (wheels of a wrong radius), a
-steady error the mapper does not take out (session 44: the matches it would be read from
-are themselves short along a street or corridor).
+steady error the mapper reads from the matches and takes out (session 45,
+``OdometryFit.scale``).
+
+``--modes batch,online`` maps each drive with ``map_scans`` and, as a robot would live, with
+``map_online`` (``MapConfig.online()``: closures decided every 5 keyframes; the rows'
+configuration changes the same loop settings). The column "wrong" counts the accepted loop
+closures more than 1 m or 5 degrees off the truth.
 
 Writes benchmarks/results/mapping-ring-<date>.json and .md.
 """
@@ -33,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import math
 import sys
 import time
@@ -45,7 +54,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
 from scanclique import map_scans  # noqa: E402
-from scanclique.mapping import MapConfig  # noqa: E402
+from scanclique.mapping import MapConfig, map_online  # noqa: E402
 from scanclique.sim import simulate_ring_drive  # noqa: E402
 
 #: the configurations compared: name -> MapConfig
@@ -66,6 +75,29 @@ CONFIGS = {
 }
 
 
+#: the loop settings ``MapConfig.online()`` changes, taken into a row's configuration online
+ONLINE_LOOPS = ("pcm_batch", "pcm_anchor_batches", "corroborate_batches")
+
+
+def online_config(cfg: MapConfig) -> MapConfig:
+    """``cfg`` with the online mapper's loop settings (:meth:`MapConfig.online`)."""
+    on = MapConfig.online().loops
+    return dataclasses.replace(
+        cfg, loops=dataclasses.replace(cfg.loops, **{k: getattr(on, k) for k in ONLINE_LOOPS})
+    )
+
+
+def wrong_closures(result, truth, metres: float = 1.0, degrees: float = 5.0) -> int:
+    """Accepted loop closures (not local matches) more than ``metres`` or ``degrees`` off
+    the truth's relative pose of their two scans."""
+    n = 0
+    for c in result.loop_closures:
+        if c.accepted and not c.local:
+            t, r = c.pose.distance_to(truth[c.i].inverse() @ truth[c.j])
+            n += t > metres or math.degrees(r) > degrees
+    return n
+
+
 def run(
     seed: int,
     loops: float,
@@ -73,10 +105,13 @@ def run(
     step: float = 0.25,
     configs: tuple[str, ...] = tuple(CONFIGS),
     scale_error: float = 0.0,
+    modes: tuple[str, ...] = ("batch",),
+    odometries: tuple[bool, ...] = (True, False),
 ) -> list[dict]:
     """The configurations ``configs`` of :data:`CONFIGS`, with and without odometry, on
     one drive round a ring of ``size`` (length, width m), a scan every ``step`` m, the
-    odometry's steps ``1 + scale_error`` times the true ones."""
+    odometry's steps ``1 + scale_error`` times the true ones; mapped by ``map_scans``
+    (mode ``"batch"``) and / or ``map_online`` (``"online"``)."""
     scans = simulate_ring_drive(
         np.random.default_rng(seed), length=size[0], width=size[1], loops=loops, step=step,
         scale_error=scale_error,
@@ -85,49 +120,54 @@ def run(
     odo = [scans[0].odometry.inverse() @ s.odometry for s in scans]
     odo_err = np.array([p.distance_to(t)[0] for p, t in zip(odo, truth, strict=True)])
     rows = []
-    for odometry in (True, False):
-        for name in configs:
-            cfg = CONFIGS[name]
-            t = time.perf_counter()
+    for mode, odometry, name in itertools.product(modes, odometries, configs):
+        cfg = CONFIGS[name]
+        t = time.perf_counter()
+        if mode == "online":
+            r = map_online(scans, use_odometry=odometry, config=online_config(cfg)).result
+        else:
             r = map_scans(scans, use_odometry=odometry, config=cfg)
-            e = np.array([p.distance_to(q)[0] for p, q in zip(r.poses, truth, strict=True)])
-            rows.append(
-                {
-                    "seed": seed,
-                    "size": list(size),
-                    "step": step,
-                    "scans": len(scans),
-                    "odometry": odometry,
-                    "config": name,
-                    "mean": float(e.mean()),
-                    "max": float(e.max()),
-                    "odometry_mean": float(odo_err.mean()),
-                    "turned": sum(c.verdict == "turned" for c in r.loop_closures),
-                    "shifted": sum(c.verdict == "shifted" for c in r.loop_closures),
-                    "conflicting": sum(c.verdict == "conflicting" for c in r.loop_closures),
-                    "accepted": sum(c.accepted and not c.local for c in r.loop_closures),
-                    "seconds": time.perf_counter() - t,
-                }
-            )
-            print(
-                f"seed {seed} {'odometry' if odometry else 'no odometry'} {name}: "
-                f"{e.mean():.3f} / {e.max():.2f} m",
-                flush=True,
-            )
+        e = np.array([p.distance_to(q)[0] for p, q in zip(r.poses, truth, strict=True)])
+        rows.append(
+            {
+                "seed": seed,
+                "size": list(size),
+                "step": step,
+                "scans": len(scans),
+                "mode": mode,
+                "odometry": odometry,
+                "config": name,
+                "mean": float(e.mean()),
+                "max": float(e.max()),
+                "odometry_mean": float(odo_err.mean()),
+                "turned": sum(c.verdict == "turned" for c in r.loop_closures),
+                "shifted": sum(c.verdict == "shifted" for c in r.loop_closures),
+                "conflicting": sum(c.verdict == "conflicting" for c in r.loop_closures),
+                "accepted": sum(c.accepted and not c.local for c in r.loop_closures),
+                "wrong": wrong_closures(r, truth),
+                "seconds": time.perf_counter() - t,
+            }
+        )
+        print(
+            f"seed {seed} {mode} {'odometry' if odometry else 'no odometry'} {name}: "
+            f"{e.mean():.3f} / {e.max():.2f} m, {rows[-1]['wrong']} wrong closures",
+            flush=True,
+        )
     return rows
 
 
 def table(rows: list[dict]) -> list[str]:
     out = [
-        "| seed | odometry | configuration | mean error (m) | max error (m) | closures "
-        "accepted | refused as turned | refused as shifted | refused as conflicting | "
-        "odometry alone, mean (m) | seconds |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| seed | mode | odometry | configuration | mean error (m) | max error (m) | closures "
+        "accepted | wrong (> 1 m or 5 deg) | refused as turned | refused as shifted | "
+        "refused as conflicting | odometry alone, mean (m) | seconds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         out.append(
-            f"| {r['seed']} | {'yes' if r['odometry'] else 'no'} | {r['config']} | "
-            f"{r['mean']:.3f} | {r['max']:.2f} | {r['accepted']} | {r['turned']} | "
+            f"| {r['seed']} | {r.get('mode', 'batch')} | {'yes' if r['odometry'] else 'no'} | "
+            f"{r['config']} | {r['mean']:.3f} | {r['max']:.2f} | {r['accepted']} | "
+            f"{r.get('wrong', '')} | {r['turned']} | "
             f"{r['shifted']} | {r.get('conflicting', 0)} | "
             f"{r['odometry_mean']:.2f} | {r['seconds']:.1f} |"
         )
@@ -145,6 +185,10 @@ def main(argv=None) -> None:
         "--scale-error", type=float, default=0.0,
         help="the odometry's steps are 1 + this times the true ones (wheels of a wrong radius)",
     )  # fmt: skip
+    ap.add_argument(
+        "--modes", default="batch", help="batch (map_scans), online (map_online) or both"
+    )
+    ap.add_argument("--odometry", choices=("both", "yes", "no"), default="both")
     ap.add_argument("--out", default=None, help="path stem (default: benchmarks/results/...)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
@@ -155,10 +199,15 @@ def main(argv=None) -> None:
         size = ()
     configs = tuple(c for c in args.configs.split(",") if c)
     unknown = sorted(set(configs) - set(CONFIGS))
-    if len(size) != 2 or unknown:
-        ap.error(f"--size LENGTHxWIDTH and --configs of {', '.join(CONFIGS)} ({unknown})")
+    modes = tuple(m for m in args.modes.split(",") if m)
+    if len(size) != 2 or unknown or not modes or set(modes) - {"batch", "online"}:
+        ap.error(
+            f"--size LENGTHxWIDTH, --configs of {', '.join(CONFIGS)} ({unknown}) and "
+            f"--modes of batch, online ({args.modes!r})"
+        )
+    odometry = {"both": (True, False), "yes": (True,), "no": (False,)}[args.odometry]
     for seed in (int(s) for s in args.seeds.split(",")):
-        rows += run(seed, args.loops, size, args.step, configs, args.scale_error)
+        rows += run(seed, args.loops, size, args.step, configs, args.scale_error, modes, odometry)
     lines = [
         f"Ring {size[0]:g} x {size[1]:g} m, driven {args.loops:g} times, a scan every "
         f"{args.step:g} m"
