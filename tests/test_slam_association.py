@@ -306,3 +306,33 @@ def test_merged_cliques_in_a_field_of_many_trees():
     assert out["merge"][1] < out["distinct"][1] - 0.03
     assert out["merge"][2].pairs > out["distinct"][2].pairs
     assert out["merge"][2].wrong_rate < 0.01
+
+
+@pytest.mark.parametrize("method", ["nn", "jcbb", "clique", "clique-jcbb"])
+@pytest.mark.parametrize("twice", ["observation", "landmark"])
+def test_an_observation_or_landmark_given_twice_is_associated_without_error(method, twice):
+    """Two points at one place (an observation given twice, two landmarks mapped at one
+    spot) have a distance of 0, whose direction the clique's distance test cannot take
+    from them (it divided by zero: found by fuzzing, session 46): each observation gets a
+    landmark, NEW or REJECTED."""
+    R = np.diag([0.1, 0.01]) ** 2
+    z = np.array([[10.0, 0.0], [10.0, 0.0 if twice == "observation" else 0.02]])
+    lm = np.array([[10.0, 0.0], [10.0, 0.2 if twice == "observation" else 0.0]])
+    a = slam.associate(
+        z, R, lm, np.tile(np.eye(2) * 0.01, (2, 1, 1)), np.zeros(3), np.eye(3) * 1e-4,
+        method=method,
+    )  # fmt: skip
+    got = np.asarray(a.landmarks)
+    assert got.shape == (2,)
+    assert set(got.tolist()) <= {0, 1, slam.NEW, slam.REJECTED}
+    # one landmark is never given to both observations
+    paired = got[got >= 0]
+    assert len(set(paired.tolist())) == len(paired)
+
+
+def test_ekf_slam_takes_a_step_whose_observation_is_given_twice():
+    z = [[10.0, 0.0], [10.0, 0.0]]
+    steps = [slam.Step(0.0, [0.0, 0.0], z), slam.Step(0.1, [0.0, 0.0], z)]
+    for method in ("nn", "jcbb", "clique"):
+        r = slam.ekf_slam(steps, slam.Unicycle(), association=method)
+        assert np.isfinite(r.poses).all(), method

@@ -237,6 +237,23 @@ def test_odometry_prior_path_counts_the_travel():
         odometry_prior(a, (1, 2, 3))
 
 
+@pytest.mark.parametrize(
+    "far, noise",
+    [
+        (1e150, None),
+        (1.0, OdometryNoise(per_metre=1e200)),
+        (0.0, OdometryNoise(floor_metres=1e200)),
+    ],
+)
+def test_an_odometry_prior_beyond_any_float_variance_is_infinitely_loose(far, noise):
+    """A sigma whose square no float holds (odometry 1e150 m away, a noise term of 1e200:
+    found by fuzzing, session 46, as an OverflowError) is an infinite variance: the prior
+    gates nothing, and the Mahalanobis distance stays a number."""
+    prior, cov = odometry_prior(ORIGIN, Pose2(far, 0.0, 0.0), noise)
+    assert cov[0, 0] == math.inf and cov[1, 1] == math.inf
+    assert np.isfinite(mahalanobis_sq(Pose2(far, 0.0, 0.0), np.eye(3) * 1e-4, prior, cov))
+
+
 def test_mahalanobis_ignores_directions_the_features_do_not_fix():
     corridor = np.diag([np.inf, 1e-4, 1e-6])
     prior_cov = np.diag([0.01, 0.01, 0.001])

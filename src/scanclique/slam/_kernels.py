@@ -302,18 +302,31 @@ def correspondence_adjacency(z, R, pos, Pm, oi, lj, sig2):
             dx = pts[i, 0] - pts[kk, 0]
             dy = pts[i, 1] - pts[kk, 1]
             do = np.sqrt(dx * dx + dy * dy)
-            ux = dx / do
-            uy = dy / do
+            mx = pos[j, 0] - pos[ll, 0]
+            my = pos[j, 1] - pos[ll, 1]
+            dm = np.sqrt(mx * mx + my * my)
+            # the distances' directions; two points that coincide (an observation given
+            # twice, two landmarks at one place) take the other pair's, or x
+            if do > 0.0:
+                ux = dx / do
+                uy = dy / do
+            elif dm > 0.0:
+                ux = mx / dm
+                uy = my / dm
+            else:
+                ux = 1.0
+                uy = 0.0
+            if dm > 0.0:
+                wx = mx / dm
+                wy = my / dm
+            else:
+                wx = ux
+                wy = uy
             vo = (
                 ux * ux * (C[i, 0, 0] + C[kk, 0, 0])
                 + 2 * ux * uy * (C[i, 0, 1] + C[kk, 0, 1])
                 + uy * uy * (C[i, 1, 1] + C[kk, 1, 1])
             )
-            mx = pos[j, 0] - pos[ll, 0]
-            my = pos[j, 1] - pos[ll, 1]
-            dm = np.sqrt(mx * mx + my * my)
-            wx = mx / dm
-            wy = my / dm
             # var of u^T (m_j - m_l): blocks jj + ll - jl - lj
             s00 = Pm[2 * j, 2 * j] + Pm[2 * ll, 2 * ll] - 2 * Pm[2 * j, 2 * ll]
             s11 = (
