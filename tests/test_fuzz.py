@@ -631,3 +631,33 @@ if __name__ == "__main__":  # pragma: no cover
     _ = io  # keep the import for doctest-free module
     atheris.Setup(sys.argv, _atheris_one_input)
     atheris.Fuzz()
+
+
+# a few values, and the landmarks where some observations are, so that two points often
+# coincide (session 46: the clique's distance test divided by zero when two did)
+_GRID = st.sampled_from([2.0, 5.0, 10.0])
+_ANGLE = st.sampled_from([-0.5, 0.0, 0.02, 0.5])
+
+
+@settings(FUZZ, max_examples=max(EXAMPLES, 300))  # small problems: 300 in about a second
+@given(
+    z=st.lists(st.tuples(_GRID, _ANGLE), min_size=1, max_size=5),
+    seen=st.lists(st.integers(0, 4), max_size=5),
+    method=st.sampled_from(["nn", "jcbb", "clique", "clique-jcbb"]),
+)
+def test_landmark_association_on_coinciding_points(z, seen, method):
+    from scanclique import slam
+
+    z = np.array(z, dtype=float).reshape(-1, 2)
+    k = [s % len(z) for s in seen]  # landmarks at observed spots, maybe twice at one
+    lm = np.column_stack([z[k, 0] * np.cos(z[k, 1]), z[k, 0] * np.sin(z[k, 1])]).reshape(-1, 2)
+    R = np.diag([0.1, 0.01]) ** 2
+    a = slam.associate(
+        z, R, lm, np.tile(np.eye(2) * 0.01, (len(lm), 1, 1)), np.zeros(3), np.eye(3) * 1e-4,
+        method=method,
+    )  # fmt: skip
+    got = np.asarray(a.landmarks)
+    assert got.shape == (len(z),)
+    paired = got[got >= 0]
+    assert set(got.tolist()) <= set(range(len(lm))) | {slam.NEW, slam.REJECTED}
+    assert len(set(paired.tolist())) == len(paired)
