@@ -10,9 +10,10 @@ closures that turn the estimate: the mapper before session 31) and with
 than a share of the path between the two places: before session 32), with
 ``LoopConfig.max_conflict`` at 1 (no refusal of closures to a twin place whose raw scans
 conflict: before session 41), side by side; and with chained matching alone (no
-closures). Figures: mean and max position error (m) against the drive's true poses, both
-in the frame of the first scan, and the closures refused as ``"turned"``, ``"shifted"``
-and ``"conflicting"``.
+closures). ``--odometry yes`` (``no``) maps it only with (without) odometry. Figures:
+mean and max position error (m) against the drive's true poses, both in the frame of the
+first scan, and the closures refused as ``"turned"``, ``"shifted"`` and
+``"conflicting"``.
 
     python benchmarks/mapping_ring.py
     python benchmarks/mapping_ring.py --seeds 0,1 --out /tmp/ring
@@ -108,10 +109,10 @@ def run(
     modes: tuple[str, ...] = ("batch",),
     odometries: tuple[bool, ...] = (True, False),
 ) -> list[dict]:
-    """The configurations ``configs`` of :data:`CONFIGS`, with and without odometry, on
-    one drive round a ring of ``size`` (length, width m), a scan every ``step`` m, the
-    odometry's steps ``1 + scale_error`` times the true ones; mapped by ``map_scans``
-    (mode ``"batch"``) and / or ``map_online`` (``"online"``)."""
+    """The configurations ``configs`` of :data:`CONFIGS`, with odometry and / or without
+    (``odometries``), on one drive round a ring of ``size`` (length, width m), a scan
+    every ``step`` m, the odometry's steps ``1 + scale_error`` times the true ones; mapped
+    by ``map_scans`` (mode ``"batch"``) and / or ``map_online`` (``"online"``)."""
     scans = simulate_ring_drive(
         np.random.default_rng(seed), length=size[0], width=size[1], loops=loops, step=step,
         scale_error=scale_error,
