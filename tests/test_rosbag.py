@@ -619,3 +619,34 @@ def test_multi_echo_scans_read_their_first_echoes(tmp_path, ros1, monkeypatch):
         assert np.array_equal(a.angles, b.angles) and a.range_max == b.range_max
     a, m = map_scans(ref), map_scans(back)
     assert a.poses == m.poses and sum(p == "match" for p in m.placed_by) >= 4
+
+
+def test_a_damaged_bag_is_a_parse_error_naming_it(tmp_path):
+    """A byte of a bag's chunks or index damaged, or a ROS 2 bag's database cut short:
+    rosbags and SQLite raise their own types (KeyError, AssertionError,
+    UnicodeDecodeError, CorruptError, or a message of another type; found by fuzzing,
+    session 46), read as a ParseError naming the bag, or the scans when the damage is in
+    the numbers."""
+    scans = _drive(3, 3)
+    good = tmp_path / "good.bag"
+    write_ros1(good, scans)
+    data = good.read_bytes()
+    bad = tmp_path / "bad.bag"
+    failed = 0
+    step = 21  # the second half of the bag, every 21st byte (the chunks and the index)
+    for at in range(step * (len(data) // (2 * step)), len(data), step):
+        b = bytearray(data)
+        b[at] ^= 0xFF
+        bad.write_bytes(bytes(b))
+        try:
+            read_bag(bad)
+        except ParseError as exc:
+            assert "bad.bag" in str(exc)
+            failed += 1
+    assert failed > 0
+    d = tmp_path / "cut"
+    write_ros2(d, scans)
+    db3 = next(d.glob("*.db3"))
+    db3.write_bytes(db3.read_bytes()[:-72])
+    with pytest.raises(ParseError, match="cut"):
+        read_bag(d)

@@ -309,6 +309,36 @@ def mounting(links: dict, laser: str, bases) -> tuple[Pose2 | None, str, bool]:
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 
 
+#: a message whose contents are not its connection's type (a damaged bag's index)
+_DAMAGED = "unreadable: its contents are not the topic's message type (a damaged bag?)"
+
+
+def _messages(reader, connections: list, name: str):
+    """``reader.messages(connections=connections)``, its ``(connection, time_ns, raw)``
+    triples, none for no connections (an empty list would mean every message to rosbags);
+    a damaged bag's error while reading them (rosbags and its storage raise their own
+    types: ``KeyError``, ``AssertionError``, ``UnicodeDecodeError``, ``ReaderError``,
+    SQLite's ``CorruptError``) a :class:`ParseError` naming the bag."""
+    if not connections:
+        return
+    it = iter(reader.messages(connections=connections))
+    k = 0
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            return
+        except Exception as exc:  # noqa: BLE001  (rosbags raises its own types)
+            topics = ", ".join(sorted({c.topic for c in connections}))
+            raise ParseError(
+                name, None,
+                f"the bag is damaged: reading {topics} failed after {k} message(s) "
+                f"({type(exc).__name__}: {exc})",
+            ) from None  # fmt: skip
+        k += 1
+        yield item
+
+
 def is_bag(path: str | os.PathLike) -> bool:
     """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a directory with ``metadata.yaml``,
     or a ``.db3`` / ``.mcap`` file)."""
@@ -429,7 +459,7 @@ def read_bag(
         seen: set[tuple[str, str]] = set()  # (parent, child) frames of the moving transforms
         bases = (base_frame,) if base_frame else ("base_link", "base_footprint")
         links: dict = {}  # child frame -> (parent, R, t): the robot's fixed frames
-        for c, _t_ns, raw in reader.messages(connections=static_c) if static_c else ():
+        for c, _t_ns, raw in _messages(reader, static_c, name):
             try:
                 for tr in reader.deserialize(raw, c.msgtype).transforms:
                     _link(tr, links)
@@ -437,9 +467,7 @@ def read_bag(
                 raise ParseError(
                     name, None, f"{c.topic}: cannot deserialise {c.msgtype} ({exc})"
                 ) from None
-        # (an empty list of connections would mean *all* messages to rosbags)
-        messages = reader.messages(connections=odo_c + tf_c) if odo_c + tf_c else ()
-        for k, (c, t_ns, raw) in enumerate(messages):
+        for k, (c, t_ns, raw) in enumerate(_messages(reader, odo_c + tf_c, name)):
             try:
                 msg = reader.deserialize(raw, c.msgtype)
             except Exception as exc:  # noqa: BLE001
@@ -473,6 +501,8 @@ def read_bag(
                             )
             except ScanCliqueError as exc:
                 raise ParseError(name, None, f"{c.topic} message {k}: {exc}") from None
+            except (AttributeError, TypeError) as exc:  # a damaged bag's other message type
+                raise ParseError(name, None, f"{c.topic} message {k}: {_DAMAGED} ({exc})") from None
         if tf_c and not o_poses:
             pairs = ", ".join(f"{a} -> {b}" for a, b in sorted(seen)) or "none"
             log.warning(
@@ -493,7 +523,7 @@ def read_bag(
         # a MultiEchoLaserScan from its bytes (ROS 2's CDR or ROS 1's); rosbags else
         is2 = getattr(reader, "is2", None)
         bytewise = is2 if isinstance(is2, bool) else None
-        for k, (c, t_ns, raw) in enumerate(reader.messages(connections=scans_c)):
+        for k, (c, t_ns, raw) in enumerate(_messages(reader, scans_c, name)):
             where = f"{name}:{c.topic}#{k}"
             fast = None
             if c.msgtype in MULTIECHO and bytewise is not None:
@@ -506,10 +536,13 @@ def read_bag(
                     None,
                     f"{c.topic} message {k}: cannot deserialise {c.msgtype.split('/')[-1]} ({exc})",
                 ) from None
-            r = msg.ranges if fast or c.msgtype not in MULTIECHO else _first_echoes(msg.ranges)
-            r = np.asarray(r, dtype=float)
-            inc = float(msg.angle_increment)
-            a0 = float(msg.angle_min)
+            try:
+                r = msg.ranges if fast or c.msgtype not in MULTIECHO else _first_echoes(msg.ranges)
+                r = np.asarray(r, dtype=float)
+                inc = float(msg.angle_increment)
+                a0 = float(msg.angle_min)
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise ParseError(name, None, f"{c.topic} message {k}: {_DAMAGED} ({exc})") from None
             if not (math.isfinite(inc) and math.isfinite(a0)) or inc == 0.0:
                 raise ParseError(
                     name, None,
