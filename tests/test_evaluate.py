@@ -134,6 +134,27 @@ def test_evaluate_bad_inputs_are_named(tmp_path):
     assert r.exit_code == 2 and "another log or clock" in r.stderr
 
 
+@pytest.mark.parametrize(
+    "kw, what",
+    [
+        ({"short_seconds": "x"}, "short_seconds must be a positive number"),
+        ({"short_seconds": math.nan}, "short_seconds must be a positive number"),
+        ({"short_seconds": -1.0}, "short_seconds must be a positive number"),
+        ({"mounting": (0.1, 0.0, 0.0)}, "mounting must be a Pose2"),
+        ({"relations": None}, "relations must be a file path"),
+        ({"relations": 5}, "relations must be a file path"),
+        ({"trajectory": None}, "trajectory must be a file path"),
+    ],
+)
+def test_run_evaluate_names_an_argument_of_the_wrong_kind(tmp_path, kw, what):
+    """Found by fuzzing (session 46): these escaped as numpy's, pathlib's and Pose2's own
+    TypeError and AttributeError."""
+    traj, rels = _files(tmp_path)
+    args = {"trajectory": traj, "relations": rels, **kw}
+    with pytest.raises(ArgumentError, match=what):
+        run_evaluate(args.pop("trajectory"), args.pop("relations"), **args)
+
+
 def test_map_reports_the_relations_it_is_given(drive_log, tmp_path):
     scans = read_scans(drive_log)
     rels = tmp_path / "drive.relations"

@@ -295,6 +295,8 @@ def test_output_directories_under_a_file_or_that_are_a_file(tmp_path):
     for args in (["map", log, "--out"], ["slam", vp, "--out"]):
         assert_clean_error(invoke(*args, f / "sub"), "is not a directory")
         assert_clean_error(invoke(*args, f), "exists and is not a directory")
+        # a name longer than the file system allows (an OSError escaped: session 46)
+        assert_clean_error(invoke(*args, tmp_path / ("x" * 300)), "File name too long")
     assert f.read_text() == "kept"
 
 

@@ -650,3 +650,14 @@ def test_a_damaged_bag_is_a_parse_error_naming_it(tmp_path):
     db3.write_bytes(db3.read_bytes()[:-72])
     with pytest.raises(ParseError, match="cut"):
         read_bag(d)
+
+
+def test_a_non_finite_static_transform_is_a_parse_error_naming_the_bag(tmp_path):
+    from types import SimpleNamespace
+
+    scans = _drive(4, 2)
+    chain = [("base_link", "laser", SimpleNamespace(x=math.nan, y=0.0, theta=0.0))]
+    path = tmp_path / "nan_tf"
+    _write_mounted(path, scans, chain)
+    with pytest.raises(ParseError, match=r"nan_tf: the transforms from the robot to /scan"):
+        read_bag(path)

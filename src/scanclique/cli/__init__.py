@@ -158,6 +158,14 @@ def _check_out_dir(path: str | os.PathLike, files: Sequence[str] = ()) -> None:
     if os.fspath(path) == "":
         raise _fail("--out is empty: give the output directory ('.' for this one)")
     p = Path(path)
+    try:
+        _check_existing_out_dir(p, files)
+    except OSError as exc:  # a name too long, a loop of links, ...
+        raise _fail(_escape(f"{p}: {exc.strerror or exc}")) from None
+
+
+def _check_existing_out_dir(p: Path, files: Sequence[str]) -> None:
+    """:func:`_check_out_dir`'s checks of a path that may exist."""
     if p.exists():
         if not p.is_dir():
             raise _fail(_escape(f"{p}: exists and is not a directory (--out names a directory)"))

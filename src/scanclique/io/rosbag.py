@@ -563,7 +563,14 @@ def read_bag(
                     f"angle_increment gives {expect} beams",
                 )  # fmt: skip
             if k == 0:
-                mount, why, mirrored = mounting(links, msg.header.frame_id, bases)
+                try:
+                    mount, why, mirrored = mounting(links, msg.header.frame_id, bases)
+                except ScanCliqueError as exc:  # a non-finite transform on the way
+                    raise ParseError(
+                        name, None,
+                        f"the transforms from the robot to {c.topic}'s frame "
+                        f"{msg.header.frame_id!r}: {exc}",
+                    ) from None  # fmt: skip
                 if mirrored:
                     log.warning(
                         "%s: the laser frame %r is upside down on the robot: its beams are "
