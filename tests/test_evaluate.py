@@ -12,7 +12,7 @@ from conftest import require_log
 from typer.testing import CliRunner
 
 from scanclique import cli, datasets
-from scanclique.errors import ArgumentError, DataNotFoundError, ParseError
+from scanclique.errors import ArgumentError, ConfigError, DataNotFoundError, ParseError
 from scanclique.eval import relation_rows, trajectory_relation_metrics
 from scanclique.eval.relations import Relation
 from scanclique.geometry import Pose2
@@ -137,9 +137,9 @@ def test_evaluate_bad_inputs_are_named(tmp_path):
 @pytest.mark.parametrize(
     "kw, what",
     [
-        ({"short_seconds": "x"}, "short_seconds must be a positive number"),
-        ({"short_seconds": math.nan}, "short_seconds must be a positive number"),
-        ({"short_seconds": -1.0}, "short_seconds must be a positive number"),
+        ({"short_seconds": "x"}, "run_evaluate: short_seconds must be a positive number"),
+        ({"short_seconds": math.nan}, "run_evaluate: short_seconds must be a positive number"),
+        ({"short_seconds": -1.0}, "run_evaluate: short_seconds must be a positive number"),
         ({"mounting": (0.1, 0.0, 0.0)}, "mounting must be a Pose2"),
         ({"relations": None}, "relations must be a file path"),
         ({"relations": 5}, "relations must be a file path"),
@@ -151,7 +151,7 @@ def test_run_evaluate_names_an_argument_of_the_wrong_kind(tmp_path, kw, what):
     TypeError and AttributeError."""
     traj, rels = _files(tmp_path)
     args = {"trajectory": traj, "relations": rels, **kw}
-    with pytest.raises(ArgumentError, match=what):
+    with pytest.raises(ConfigError if "short" in what else ArgumentError, match=what):
         run_evaluate(args.pop("trajectory"), args.pop("relations"), **args)
 
 

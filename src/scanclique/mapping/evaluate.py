@@ -29,9 +29,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from .. import datasets
+from ..config import require_positive
 from ..errors import ArgumentError, DataNotFoundError
 from ..geometry import Pose2
 
@@ -127,8 +126,9 @@ def run_evaluate(
         A malformed trajectory or relations file (file, line and field named).
     ArgumentError
         No relation's time lies within the trajectory; ``trajectory`` or ``relations``
-        not a path (or name), ``mounting`` not a :class:`~scanclique.geometry.Pose2`,
-        ``short_seconds`` not a positive number of seconds.
+        not a path (or name), ``mounting`` not a :class:`~scanclique.geometry.Pose2`.
+    ConfigError
+        ``short_seconds`` not a positive number.
     """
     from ..eval.relations import (  # noqa: PLC0415
         SHORT_SECONDS,
@@ -143,16 +143,8 @@ def run_evaluate(
     relations = check_path(relations, "run_evaluate: relations")
     if mounting is not None and not isinstance(mounting, Pose2):
         raise ArgumentError(f"run_evaluate: mounting must be a Pose2, got {mounting!r}")
-    if short_seconds is not None and not (
-        isinstance(short_seconds, (int, float, np.integer, np.floating))
-        and not isinstance(short_seconds, bool)
-        and math.isfinite(short_seconds)
-        and short_seconds > 0
-    ):
-        raise ArgumentError(
-            f"run_evaluate: short_seconds must be a positive number of seconds, got "
-            f"{short_seconds!r}"
-        )
+    if short_seconds is not None:
+        require_positive("run_evaluate: ", short_seconds=short_seconds)
     rel_file = Path(relations).expanduser()
     if not rel_file.is_file():
         found = datasets.log_relations(relations) if isinstance(relations, str) else None
