@@ -661,3 +661,28 @@ def test_a_non_finite_static_transform_is_a_parse_error_naming_the_bag(tmp_path)
     _write_mounted(path, scans, chain)
     with pytest.raises(ParseError, match=r"nan_tf: the transforms from the robot to /scan"):
         read_bag(path)
+
+
+def test_a_non_finite_odometry_quaternion_is_a_parse_error_naming_the_message(tmp_path):
+    """An Odometry orientation with z = inf read as a heading of 3 pi / 4 (fuzzing,
+    session 46); now refused, naming the topic and the message."""
+    from rosbags.rosbag1 import Writer
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    laser, odom, _ = _msgs(ts, ros1=True)
+    scans = _drive(5, 2)
+    path = tmp_path / "inf_quat.bag"
+    with Writer(path) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
+        for k, s in enumerate(scans):
+            t_ns = int(s.timestamp * 1e9)
+            msg = odom(s.timestamp, s.odometry, k)
+            if k == 1:
+                msg.pose.pose.orientation.z = math.inf
+            w.write(co, t_ns, ts.serialize_ros1(msg, "nav_msgs/msg/Odometry"))
+            w.write(cs, t_ns + 1, ts.serialize_ros1(laser(s, k), "sensor_msgs/msg/LaserScan"))
+    with pytest.raises(
+        ParseError, match=r"inf_quat.bag: /odom message 1: .*quaternion.*not finite"
+    ):
+        read_bag(path)

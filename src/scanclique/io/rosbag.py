@@ -64,7 +64,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..errors import ParseError, ScanCliqueError
+from ..errors import ParseError, ScanCliqueError, ScanError
 from ..geometry import Pose2, pose_at
 from ..scan import MAX_SWEEP, Scan
 
@@ -81,7 +81,12 @@ TF = ("tf2_msgs/msg/TFMessage", "tf2_msgs/TFMessage", "tf/tfMessage", "tf/msg/tf
 
 
 def _yaw(q) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """The heading (rad) of quaternion ``q``; :class:`ScanError` when it is not finite
+    (an infinite component otherwise reads as a heading: z = inf as 3 pi / 4)."""
+    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
+    if not all(map(math.isfinite, (x, y, z, w))):
+        raise ScanError(f"the quaternion ({x}, {y}, {z}, {w}) is not finite")
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def _stamp(msg, t_ns: int) -> float:
