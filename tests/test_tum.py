@@ -66,6 +66,8 @@ def test_another_systems_trajectory_is_interpolated_by_time(tmp_path):
         ("0 1 2 0 0 0 0 1\n# fine\n0.1 1 2 0 0 0 0 2\n", 3, "not a rotation"),
         ("0 1 2 0 0 0 0 1\n0.1 1 2 0 0.7071068 0 0 0.7071068\n", 2, "tilts the z axis by 90"),
         ("# nothing\n\n", None, "holds no poses"),
+        # (its evaluation failed with a bare ScanError naming no file: session 46's fuzz)
+        ("0 1 2 0 0 0 0 1\n0.1 -1e308 2 0 0 0 0 1\n", 2, "beyond 1e\\+09 m"),
     ],
 )
 def test_a_bad_trajectory_file_names_the_line(tmp_path, text, line, words):

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import ArgumentError, ParseError
 from ..geometry import Pose2, interpolate_poses
+from ..scan import MAX_POSE_COORDINATE
 from .table import read_table, table_line
 
 __all__ = [
@@ -100,14 +101,20 @@ def read_tum(path: str | os.PathLike) -> np.ndarray:
     Raises
     ------
     ParseError
-        Names the file, the line and the field: not 8 finite numbers, a quaternion that is
-        not of unit norm, a rotation tilted more than :data:`MAX_TILT`, or no rows at all.
+        Names the file, the line and the field: not 8 finite numbers, a position beyond
+        :data:`~scanclique.scan.MAX_POSE_COORDINATE` of the origin (as the logs' poses), a
+        quaternion that is not of unit norm, a rotation tilted more than :data:`MAX_TILT`,
+        or no rows at all.
     DataNotFoundError
         No such file.
     """
     a = read_table(path, TUM_COLUMNS, ordered=False)
     if not len(a):
         raise ParseError(os.fspath(path), None, "holds no poses (timestamp x y z qx qy qz qw)")
+    far = np.abs(a[:, 1:3]).max(axis=1)
+    _refuse(path, far > MAX_POSE_COORDINATE, "x y", lambda r: (
+        f"x y = {a[r, 1]:g} {a[r, 2]:g} lies beyond {MAX_POSE_COORDINATE:g} m of the frame's "
+        "origin: not a pose"))  # fmt: skip
     q = a[:, 4:8]
     norm = np.linalg.norm(q, axis=1)
     _refuse(path, ~(np.abs(norm - 1.0) <= QUATERNION_TOLERANCE), "qw", lambda r: (
