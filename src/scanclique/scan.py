@@ -274,9 +274,21 @@ def retime(scan: Scan, timing: str) -> Scan:
     (shifted), ``T`` the sweep's span; ``"none"`` drops them. A scan without beam times is
     returned as it is.
 
+    ``reversed`` and ``shifted`` move the stamp to the sweep's other end; when that would
+    put a beam more than :data:`MAX_SWEEP` from the stamp (times that already run up to
+    the stamp from before it, ``-0.9 ... 0`` s, shifted to ``-1.8 ... -0.9``), it is no
+    possible reading of the scan, and the reading of the same direction that keeps the
+    stamp where the times put it is returned instead: ``given`` for ``shifted``,
+    ``negated`` for ``reversed`` (the two readings of a direction differ only by where
+    the stamp lies). A log's scans are each read so: a reading possible for a scan is
+    taken as it is.
+
     >>> s = Scan([1.0, 1.0, 1.0], [0.0, 0.1, 0.2], beam_times=[0.0, 0.05, 0.1])
     >>> [retime(s, t).beam_times.tolist() for t in ("negated", "reversed", "shifted")]
     [[-0.0, -0.05, -0.1], [0.1, 0.05, 0.0], [-0.1, -0.05, 0.0]]
+    >>> late = Scan([1.0, 1.0, 1.0], [0.0, 0.1, 0.2], beam_times=[-0.9, -0.45, 0.0])
+    >>> retime(late, "shifted").beam_times.tolist()   # not -1.8 ... -0.9: as given
+    [-0.9, -0.45, 0.0]
     """
     if timing not in TIMINGS:
         raise ScanError(f"retime: timing must be one of {', '.join(TIMINGS)}, got {timing!r}")
@@ -287,7 +299,13 @@ def retime(scan: Scan, timing: str) -> Scan:
         return replace(scan, beam_times=None)
     span = float(t.max() - t.min()) if t.size else 0.0
     new = {"negated": -t, "reversed": span - t, "shifted": t - span}[timing]
+    if new.size and float(np.max(np.abs(new))) > MAX_SWEEP:  # (never negated: |-t| = |t|)
+        return retime(scan, _SAME_DIRECTION[timing])
     return replace(scan, beam_times=new)
+
+
+#: the reading :func:`retime` takes for one that would move a beam beyond MAX_SWEEP
+_SAME_DIRECTION = {"shifted": "given", "reversed": "negated"}
 
 
 def measured_before(scan: Scan) -> bool:
