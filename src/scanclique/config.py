@@ -28,6 +28,14 @@ __all__ = [
     "RefineConfig",
     "ValidationConfig",
     "MatchConfig",
+    "MAX_ITERATIONS",
+    "MAX_QUICK_EXACT",
+    "MAX_REFINE_CANDIDATES",
+    "MAX_SEARCH_BINS",
+    "MAX_SEARCH_SEEDS",
+    "MAX_SIGMA_METRES",
+    "check_at_most",
+    "check_below_inf",
     "check_nonneg",
     "check_positive",
     "check_types",
@@ -49,6 +57,16 @@ _TYPES = {"bool": (bool,), "int": (int,), "float": (int, float), "str": (str,)}
 _INT64_MAX = 2**63 - 1
 _SECTIONS: dict[tuple[type, str], type | None] = {}
 
+#: the most iterations of an iterative solver a configuration may ask for (ICP, the back
+#: end's Levenberg-Marquardt): the defaults take 10 to 100, and a count such as 2**62
+#: ran without end (or overflowed the solver's 32-bit count)
+MAX_ITERATIONS = 10_000
+
+#: the largest standard deviation in metres a configuration may give (a range noise, a
+#: covariance floor): a kilometre is no sensor's noise, and its square (1e6 m², scaled by
+#: the arithmetic downstream) stays far from overflow, where 1e200 overflowed
+MAX_SIGMA_METRES = 1e3
+
 
 def _section_type(cls, f) -> type | None:
     """The configuration record a field holds (its default's class), None for a scalar."""
@@ -61,8 +79,9 @@ def _section_type(cls, f) -> type | None:
 
 def _check_types(obj) -> None:
     """Every field holds a value of its annotated type (bools are not ints here, ints
-    are accepted for floats), integers fit in 64 bits (the compiled kernels take them)
-    and no number is NaN; sections are checked by their own classes.
+    are accepted for floats and stored as floats: a Python int's square does not overflow,
+    it becomes an object array in NumPy), integers fit in 64 bits (the compiled kernels
+    take them) and no number is NaN; sections are checked by their own classes.
 
     Annotations understood (written as strings, ``from __future__ import annotations``):
     ``bool``, ``int``, ``float``, ``str``, any of them ``| None`` (None allowed),
@@ -98,6 +117,8 @@ def _check_types(obj) -> None:
             raise ConfigError(f"{where} must be {f.type}, got {v!r} ({type(v).__name__})")
         if isinstance(v, int) and not isinstance(v, bool) and abs(v) > _INT64_MAX:
             raise ConfigError(f"{where} must fit in 64 bits (|value| <= 2**63 - 1), got {v}")
+        if name == "float" and isinstance(v, int):
+            object.__setattr__(obj, f.name, float(v))
         if isinstance(v, float) and math.isnan(v):
             raise ConfigError(f"{where} must be a number, got nan")
 
@@ -192,6 +213,25 @@ def check_nonneg(obj, *names: str, infinite: bool = False) -> None:
     require_nonneg(f"{type(obj).__name__}.", **_set(obj, names, infinite))
 
 
+def check_at_most(obj, limit: float, *names: str) -> None:
+    """Each named field of ``obj`` (checked a number first) is at most ``limit``, the
+    documented bound beyond which the value means nothing more and breaks the arithmetic
+    (an array of that size, a count past a solver's integers, a square past float)."""
+    for n in names:
+        v = getattr(obj, n)
+        if v is not None and v > limit:
+            raise ConfigError(f"{type(obj).__name__}.{n} must be at most {limit:g}, got {v!r}")
+
+
+def check_below_inf(obj, *names: str) -> None:
+    """Each named field of ``obj``, a floor on a raw-scan score (checked a number first),
+    is below +inf: -inf is "no floor", +inf would refuse every pose."""
+    for n in names:
+        v = getattr(obj, n)
+        if v == math.inf:
+            raise ConfigError(f"{type(obj).__name__}.{n} must be below inf, got inf")
+
+
 def check_probability(obj, *names: str) -> None:
     """Each named field of ``obj`` is a probability strictly between 0 and 1 (a gate at
     0 or 1 admits nothing or everything)."""
@@ -279,7 +319,8 @@ class FeatureConfig:
     corner_reach : float
         ...when both segments end within this distance (metres) of the intersection.
     range_sigma : float
-        Range noise standard deviation (metres) used for feature covariances.
+        Range noise standard deviation (metres) used for feature covariances; at most
+        :data:`MAX_SIGMA_METRES` (1e200 overflowed the covariances).
     typed_edges : bool
         Label foreground edges as left / right (which side the occluded background is on);
         ``False`` lumps every point feature into one label, as in the paper.
@@ -339,6 +380,7 @@ class FeatureConfig:
         )
         _positive(self, "merge_angle", "merge_distance", "corner_min_angle", "range_sigma")
         check_radians(self, "merge_angle", "corner_min_angle")
+        check_at_most(self, MAX_SIGMA_METRES, "range_sigma")
         _nonneg(self, "corner_reach")
         _nonneg(
             self, "split_ratio", "min_edge_jump", "crowd_radius", "line_max_gap", "line_gap_ratio"
@@ -466,6 +508,14 @@ class PoseConfig:
             raise ConfigError(f"PoseConfig.min_pairs must be an int >= 2, got {self.min_pairs!r}")
 
 
+#: bounds of :class:`RefineConfig` (its docstring): hypotheses refined, the multiple of
+#: them scored on the full sample, orientation bins over pi, peaks or cells per rotation
+MAX_REFINE_CANDIDATES = 10_000
+MAX_QUICK_EXACT = 1_000
+MAX_SEARCH_BINS = 3_600
+MAX_SEARCH_SEEDS = 100
+
+
 @dataclass(frozen=True, slots=True)
 class RefineConfig:
     """Optional refinement on the raw points (point-to-line ICP) seeded by the clique's pose,
@@ -510,6 +560,16 @@ class RefineConfig:
     turned by pi), ``search_top`` translation peaks per rotation voted in cells of
     ``search_cell`` metres by every ``search_stride``-th sample point of A against every
     sample point of B, and ICP from the ``search_icp`` best-scoring seeds.
+
+    Bounds, far above the defaults (beyond them a :class:`ConfigError`: 2**62 asked for
+    arrays of that size, overflowed the kernels' 64-bit counts or ran without end):
+    ``iterations`` at most :data:`MAX_ITERATIONS`; ``candidates`` at most
+    :data:`MAX_REFINE_CANDIDATES`; ``quick_exact`` at most :data:`MAX_QUICK_EXACT` (the
+    product of the two fits a 64-bit count); ``search_bins`` at most
+    :data:`MAX_SEARCH_BINS` (a twentieth of a degree; the correlation costs ``bins**2``
+    per match); ``search_peaks`` and ``search_top`` at most :data:`MAX_SEARCH_SEEDS`
+    each (``2 * peaks * top`` seeds are scored); ``min_score`` below inf (-inf: no
+    floor).
     """
 
     enabled: bool = True
@@ -546,8 +606,11 @@ class RefineConfig:
         check_radians(self, "distinct_radians")
         _positive(self, "search_bins", "search_peaks", "search_top", "search_cell")
         _positive(self, "search_icp", "search_stride")
-        if self.min_score == math.inf:
-            raise ConfigError("RefineConfig.min_score must be below inf, got inf")
+        check_below_inf(self, "min_score")
+        check_at_most(self, MAX_SEARCH_BINS, "search_bins")
+        check_at_most(self, MAX_SEARCH_SEEDS, "search_peaks", "search_top")
+        check_at_most(self, MAX_QUICK_EXACT, "quick_exact")
+        check_at_most(self, MAX_REFINE_CANDIDATES, "candidates")
         if not (isinstance(self.search_below, (int, float)) and math.isfinite(self.search_below)):
             raise ConfigError(
                 f"RefineConfig.search_below must be a finite number, got {self.search_below!r}"
@@ -557,6 +620,7 @@ class RefineConfig:
                 f"RefineConfig.candidates must be an int >= 1, got {self.candidates!r}"
             )
         _nonneg(self, "iterations")
+        check_at_most(self, MAX_ITERATIONS, "iterations")
 
 
 @dataclass(frozen=True, slots=True)
@@ -596,7 +660,7 @@ class ValidationConfig:
         its raw-scan score is at least this. The default, 0.1, is the matcher's default
         ``refine.min_score``, below which it says that no pose explains the raw scans: a
         larger clique the raw scans refute is no evidence for another pose. (Change the
-        two together.)
+        two together.) Below inf, as ``refine.min_score`` (-inf: every hypothesis).
     """
 
     min_features: int = 3
@@ -614,6 +678,7 @@ class ValidationConfig:
                 f"ValidationConfig.min_features must be an int >= 2, got {self.min_features!r}"
             )
         _nonneg(self, "max_std_metres", "max_std_radians", "contender_score")
+        check_below_inf(self, "rival_min_score")
         for name in ("feature_gate", "decisive"):
             v = getattr(self, name)
             if not 0.0 < v < 1.0:

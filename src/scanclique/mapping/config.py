@@ -9,7 +9,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..config import MatchConfig
+from ..config import MAX_ITERATIONS, MAX_SIGMA_METRES, MatchConfig
+from ..config import check_at_most as _at_most
+from ..config import check_below_inf as _below_inf
 from ..config import check_choice as _choice
 from ..config import check_nonneg as _nonneg
 from ..config import check_positive as _positive
@@ -27,7 +29,13 @@ __all__ = [
     "MapConfig",
     "MIN_RESOLUTION",
     "MAX_OCCUPANCY_RANGE",
+    "MAX_SIGMA_FLOOR_RADIANS",
 ]
+
+MAX_SIGMA_FLOOR_RADIANS = 2.0 * math.pi
+"""Largest ``FrontEndConfig.sigma_floor_radians``: a heading sigma of a full turn says
+nothing of the heading already (the metres' bound is
+:data:`scanclique.config.MAX_SIGMA_METRES`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,7 +70,9 @@ class FrontEndConfig:
         widened as below).
     sigma_floor_metres, sigma_floor_radians : float
         Standard deviations added to every match's feature covariance before it weighs an
-        edge (the feature estimate alone is often optimistic).
+        edge (the feature estimate alone is often optimistic); at most
+        :data:`~scanclique.config.MAX_SIGMA_METRES` and :data:`MAX_SIGMA_FLOOR_RADIANS`
+        (1e200 overflowed its square).
     refine, refine_iterations, refine_max_correspondence, refine_min_correspondence :
         Beyond the matcher: an accepted match (consecutive or closure) is refined by
         point-to-line ICP of *all* the new scan's points onto the other's full cloud
@@ -70,11 +80,14 @@ class FrontEndConfig:
         shrinking from ``refine_max_correspondence`` to ``refine_min_correspondence`` m;
         kept when it stays within ``refine_max_shift`` m and ``refine_max_turn`` rad of the
         match and keeps at least ``refine_min_fitness`` of the points paired.
+        ``refine_iterations`` at most :data:`~scanclique.config.MAX_ITERATIONS` (2**62 ran
+        without end).
     icp_fallback, icp_min_score, icp_min_fitness, icp_gate :
         With odometry, when the feature match fails (rejected, ambiguous, too few
         features): ICP from the prior and from the rejected match's pose, accepted when the
         raw scans agree (score, fitness) and it lies within ``icp_gate`` sigma of the prior
         (:func:`scanclique.mapping.frontend.icp_fallback`); only then the prior itself.
+        ``icp_min_score`` below inf (as ``RefineConfig.min_score``; -inf: no floor).
         Without odometry ``icp_fallback`` switches on the front end below (False: the
         matcher alone, the constant-velocity prediction breaking its ties).
         ``icp_min_constraint``: when the smallest eigenvalue of the mean outer product
@@ -127,7 +140,8 @@ class FrontEndConfig:
         matcher without a right hypothesis), kept when ICP paired ``scan_min_fitness`` of
         the points, and the hypotheses as they are; candidates scoring at least
         ``scan_min_score`` compete (a right pose scores 0.3-0.6 across a 70-110 degree
-        turn of a 180-degree scanner, whose overlap is small).
+        turn of a 180-degree scanner, whose overlap is small); below inf, as
+        ``icp_min_score``.
         No turned seeds (``turn_seeds`` 1): 0.0641 / 0.0772 m, 6 of 12, 29.0 m; 12:
         0.0616 / 0.0776 m, 9 of 12. ``scan_min_score`` 0.2: 0.0652 m (0.78 degrees) /
         0.0773 m; 0.4: CSAIL 2.50 m, 6 of 12, 25.6 m (sharp turns left to the
@@ -272,6 +286,10 @@ class FrontEndConfig:
         )  # fmt: skip
         _positive(self, "odometry_fit_floor")
         _radians(self, "keyframe_angle", "refine_max_turn")  # (sharp_turn beyond pi: off)
+        _at_most(self, MAX_SIGMA_METRES, "sigma_floor_metres")
+        _at_most(self, MAX_SIGMA_FLOOR_RADIANS, "sigma_floor_radians")
+        _at_most(self, MAX_ITERATIONS, "refine_iterations")
+        _below_inf(self, "icp_min_score", "scan_min_score")
 
 
 @dataclass(frozen=True, slots=True)
@@ -334,7 +352,7 @@ class LoopConfig:
         A loop closure's match needs at least this raw-scan agreement
         (:func:`scanclique.match.pose_score`; the matcher's own floor is 0.1): a revisit
         seen from afar, or a look-alike place, often maps a few features at a pose the
-        scans hardly support.
+        scans hardly support. Below inf (as ``RefineConfig.min_score``; -inf: no floor).
     appearance : bool
         Also propose candidates by appearance (``scanclique.places.signature``) when that
         module exists.
@@ -441,6 +459,7 @@ class LoopConfig:
         _positive(self, "max_shift", infinite=True)  # inf: the rule off
         _probability(self, "pcm_gate")
         _radians(self, "max_turn")  # pi: the rule off
+        _below_inf(self, "min_score")
 
 
 @dataclass(frozen=True, slots=True)
@@ -452,10 +471,11 @@ class BackEndConfig:
     of defence after PCM; without odometry, a closure across a stretch where the front end
     was less sure than the loops' drift model gets a scale that large
     (:meth:`scanclique.mapping.pipeline._Mapper.robust_scale`). ``max_iterations`` of
-    Levenberg–Marquardt. ``covariances``: also give every scan's pose covariance, from
-    the marginals of the optimised keyframe graph (:attr:`MapResult.covariances
-    <scanclique.mapping.MapResult.covariances>`; off by default, it costs a
-    factorisation and a marginal per keyframe).
+    Levenberg–Marquardt, at most :data:`~scanclique.config.MAX_ITERATIONS` (GTSAM counts
+    them in 32 bits: 2**40 was a TypeError mid-run). ``covariances``: also give every
+    scan's pose covariance, from the marginals of the optimised keyframe graph
+    (:attr:`MapResult.covariances <scanclique.mapping.MapResult.covariances>`; off by
+    default, it costs a factorisation and a marginal per keyframe).
 
     ``odometry_factors``: with odometry whose heading residuals against the accepted
     matches are at most ``odometry_max_fit`` of its noise model's
@@ -493,6 +513,7 @@ class BackEndConfig:
         _check_types(self)
         _choice(self, "robust", ("cauchy", "huber", "none"))
         _positive(self, "robust_scale", "max_iterations", "odometry_max_fit")
+        _at_most(self, MAX_ITERATIONS, "max_iterations")
 
 
 MIN_RESOLUTION = 1e-4
