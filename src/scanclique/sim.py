@@ -42,7 +42,7 @@ from ._records import readonly as _readonly
 from .config import require_nonneg, require_positive
 from .errors import ConfigError, ScanCliqueError
 from .geometry import Pose2
-from .scan import Scan, beam_angles
+from .scan import MAX_POSE_COORDINATE, Scan, beam_angles
 
 __all__ = [
     "World",
@@ -59,6 +59,12 @@ __all__ = [
     "simulate_trajectory",
     "simulate_sensor_drive",
     "simulate_ring_drive",
+    "MAX_BEAMS",
+    "MAX_EXTENT",
+    "MAX_OBJECTS",
+    "MAX_PEOPLE",
+    "MAX_SCANS",
+    "MAX_SCAN_RATE",
 ]
 
 # Building dimensions at laser scale, metres (low, high).
@@ -74,6 +80,27 @@ _TRIES = 40  # rejection-sampling attempts per piece of furniture or person
 _MIN_VALID_FRACTION = 0.5  # a usable view has returns on at least half of its beams...
 _MIN_MEDIAN_RANGE = 0.8  # ...and does not stare into a wall (median return, metres)
 _EPS = 1e-9
+
+# Bounds on what one call may ask for: beyond them a call on a small world ran for minutes
+# (``room_world(5, 5, pillars=10**6)``, ``ring_world(door_every=1e-6)``); each is a
+# ConfigError naming the argument.
+MAX_BEAMS = 100_000
+"""Most beams of a simulated scan (the readers' default ``max_beams``)."""
+MAX_EXTENT = 10_000.0
+"""Largest size of a world, metres (a building or a campus, 10 km)."""
+MIN_EXTENT = 1e-3
+"""Smallest size of a room or a corridor, metres (a thinner one has no walls)."""
+MAX_OBJECTS = 1_000
+"""Most doorways, pillars or clutter objects asked of a world builder, and most
+buildings, doors or trees a builder's sizes make."""
+MAX_TREES = 10_000
+"""Most trees the streets of :func:`campus_world` may line (at the densest spacing)."""
+MAX_PEOPLE = 100
+"""Most moving people in a :func:`simulate_pair`."""
+MAX_SCANS = 100_000
+"""Most scans (or drive steps) one simulated drive makes."""
+MAX_SCAN_RATE = 1_000.0
+"""Fastest scanner of :func:`simulate_sensor_drive`, Hz (laser scanners run at 5-50 Hz)."""
 
 
 def _check_rng(rng, where: str) -> np.random.Generator:
@@ -97,6 +124,33 @@ def _check_count(where: str, **values: int) -> None:
     for name, v in values.items():
         if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0):
             raise ConfigError(f"{where}: {name} must be a non-negative integer, got {v!r}")
+
+
+def _check_at_most(where: str, limit: float, **values: float) -> None:
+    """Each value (a checked number) is at most ``limit``, else a ConfigError naming it."""
+    for name, v in values.items():
+        if v > limit:
+            raise ConfigError(f"{where}: {name} must be at most {limit:g}, got {v!r}")
+
+
+def _check_beams(where: str, n_beams) -> None:
+    _check_count(where, n_beams=n_beams)
+    _check_positive(where, n_beams=n_beams)
+    _check_at_most(where, MAX_BEAMS, n_beams=n_beams)
+
+
+def _check_origin(where: str, origin) -> tuple[float, float]:
+    """``origin`` as two finite numbers within MAX_POSE_COORDINATE of the frame's origin."""
+    try:
+        o = np.asarray(origin, dtype=float)
+    except (TypeError, ValueError):
+        o = None
+    if o is None or o.shape != (2,) or not np.all(np.abs(o) <= MAX_POSE_COORDINATE):
+        raise ConfigError(
+            f"{where}: origin must be two finite numbers (x, y) within "
+            f"{MAX_POSE_COORDINATE:g} m, got {origin!r}"
+        )
+    return float(o[0]), float(o[1])
 
 
 # ------------------------------------------------------------------------------------
@@ -246,6 +300,7 @@ class World:
         ndarray of bool, shape (M,)
         """
         p = _as_points(points, "World.is_free")
+        require_nonneg("World.is_free: ", clearance=clearance)
         reg = self.free_regions
         ok = (
             (p[:, None, 0] >= reg[None, :, 0])
@@ -470,6 +525,15 @@ class _Builder:
         )
 
 
+def _check_extent(where: str, **values: float) -> None:
+    """Each (positive) size is within [MIN_EXTENT, MAX_EXTENT] metres."""
+    for name, v in values.items():
+        if not MIN_EXTENT <= v <= MAX_EXTENT:
+            raise ConfigError(
+                f"{where}: {name} must be {MIN_EXTENT:g} to {MAX_EXTENT:g} m, got {v!r}"
+            )
+
+
 def room_world(
     width: float,
     height: float,
@@ -503,17 +567,27 @@ def room_world(
     -------
     World
 
+    Raises
+    ------
+    ConfigError
+        A size outside :data:`MIN_EXTENT` to :data:`MAX_EXTENT`, a count that is not an
+        integer of 0 to :data:`MAX_OBJECTS`, or an origin that is not two finite numbers
+        within :data:`~scanclique.scan.MAX_POSE_COORDINATE`.
+
     Examples
     --------
     >>> w = room_world(4.0, 3.0, rng=np.random.default_rng(0), doorways=0, pillars=0, clutter=0)
     >>> w.n_walls, w.free_regions.tolist()
     (4, [[0.0, 0.0, 4.0, 3.0]])
     """
-    _check_rng(rng, "room_world")
-    _check_positive("room_world", width=width, height=height)
-    _check_count("room_world", doorways=doorways, pillars=pillars, clutter=clutter)
+    where = "room_world"
+    _check_rng(rng, where)
+    _check_positive(where, width=width, height=height)
+    _check_extent(where, width=width, height=height)
+    _check_count(where, doorways=doorways, pillars=pillars, clutter=clutter)
+    _check_at_most(where, MAX_OBJECTS, doorways=doorways, pillars=pillars, clutter=clutter)
+    x0, y0 = _check_origin(where, origin)
     b = _Builder(rng)
-    x0, y0 = float(origin[0]), float(origin[1])
     x1, y1 = x0 + float(width), y0 + float(height)
     corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]  # counter-clockwise
     lengths = np.array([width, height, width, height], dtype=float)
@@ -570,13 +644,22 @@ def corridor_world(
     Raises
     ------
     ConfigError
-        If the side rooms (at least 3 m each) do not fit along the corridor.
+        If the side rooms (at least 3 m each) or the doorways (at least 0.8 m each) do not
+        fit along the corridor, a size is outside :data:`MIN_EXTENT` to
+        :data:`MAX_EXTENT`, or a count is more than :data:`MAX_OBJECTS`.
     """
     where = "corridor_world"
     _check_rng(rng, where)
     _check_positive(where, length=length, width=width)
+    _check_extent(where, length=length, width=width)
     _check_count(where, side_rooms=side_rooms, doorways=doorways, clutter=clutter)
     L, W = float(length), float(width)
+    if doorways * DOOR_WIDTH[0] > 2.0 * L:
+        raise ConfigError(
+            f"{where}: {doorways} doorways of at least {DOOR_WIDTH[0]} m do not fit along the "
+            f"two walls of a {L:.1f} m corridor"
+        )
+    _check_at_most(where, MAX_OBJECTS, side_rooms=side_rooms, doorways=doorways, clutter=clutter)
     b = _Builder(rng)
     # 1. Room spans along x, alternating between side 0 (below y=0) and side 1 (above y=W).
     first = int(rng.integers(2))
@@ -679,10 +762,19 @@ def office_world(
     W = float(rng.uniform(1.6, 2.6)) if corridor_width is None else float(corridor_width)
     depths = rng.uniform(3.5, 6.5, 2) if room_depths is None else np.asarray(room_depths, float)
     _check_positive(where, length=L, corridor_width=W)
-    if depths.shape != (2,) or not np.all(depths > 0):
-        raise ConfigError(f"{where}: room_depths must be two positive numbers, got {room_depths}")
+    _check_extent(where, length=L, corridor_width=W)
+    if depths.shape != (2,) or not np.all((depths > 0) & (depths <= MAX_EXTENT)):
+        raise ConfigError(
+            f"{where}: room_depths must be two positive numbers of at most {MAX_EXTENT:g} m, "
+            f"got {room_depths}"
+        )
     if L < 3.0:
         raise ConfigError(f"{where}: length must be at least 3 m (one room), got {L}")
+    if 2 * (L // 3.0) > MAX_OBJECTS:
+        raise ConfigError(
+            f"{where}: length {L:g} m makes up to {2 * (L // 3.0):.0f} rooms (two per 3 m), "
+            f"more than {MAX_OBJECTS}"
+        )
     if not 0.0 <= connecting_doors <= 1.0:
         raise ConfigError(f"{where}: connecting_doors must be in [0, 1], got {connecting_doors}")
     b = _Builder(rng)
@@ -714,10 +806,12 @@ def office_world(
     # 4. Furniture.
     n_pillars = int(rng.integers(2, 5)) if pillars is None else pillars
     _check_count(where, pillars=n_pillars)
+    _check_at_most(where, MAX_OBJECTS, pillars=n_pillars)
     per_room = rng.multinomial(n_pillars, np.full(len(rooms), 1.0 / len(rooms)))
     for rect, k in zip(rooms, per_room, strict=True):
         n_clutter = int(rng.integers(1, 5)) if clutter is None else clutter
         _check_count(where, clutter=n_clutter)
+        _check_at_most(where, MAX_OBJECTS, clutter=n_clutter)
         b.furnish(rect, pillars=int(k), clutter=n_clutter)
     return b.build(f"office: {len(rooms)} rooms off a {L:.1f} x {W:.1f} m corridor")
 
@@ -743,15 +837,23 @@ def ring_world(
     Raises
     ------
     ConfigError
-        A size that is not positive, or a corridor that leaves no block (``2 * corridor
-        >= min(length, width)``).
+        A size that is not positive or beyond :data:`MAX_EXTENT`, a corridor that leaves
+        no block (``2 * corridor >= min(length, width)``), or more than
+        :data:`MAX_OBJECTS` doors.
     """
     where = "ring_world"
     _check_rng(rng, where)
     _check_positive(where, length=length, width=width, corridor=corridor, door_every=door_every)
+    _check_extent(where, length=length, width=width)
     L, W, c = float(length), float(width), float(corridor)
     if 2.0 * c >= min(L, W):
         raise ConfigError(f"{where}: a {c} m corridor leaves no block in {L} x {W} m")
+    per_wall = [n / door_every for n in (L, W) * 2 + (L - 2.0 * c, W - 2.0 * c) * 2]
+    if max(per_wall) > MAX_OBJECTS or sum(max(1, int(k)) for k in per_wall) > MAX_OBJECTS:
+        raise ConfigError(
+            f"{where}: door_every {door_every!r} m makes more than {MAX_OBJECTS} doors in a "
+            f"{L:g} x {W:g} m ring"
+        )
     b = _Builder(rng)
     # outer walls recess outwards, the block's inwards: away from the corridor
     for (x0, y0, x1, y1), sign in (((0.0, 0.0, L, W), -1.0), ((c, c, L - c, W - c), 1.0)):
@@ -793,8 +895,10 @@ def campus_world(
     Raises
     ------
     ConfigError
-        A size that is not positive, a street narrower than 5 m (trees leave no lane), or
-        fewer than one block either way.
+        A size that is not positive, a street narrower than 5 m (trees leave no lane) or
+        wider than :data:`MAX_EXTENT`, blocks that are not two integers of at least 1
+        (:data:`MAX_OBJECTS` in all), or sizes that may plant more than
+        :data:`MAX_TREES` trees.
 
     Examples
     --------
@@ -805,11 +909,29 @@ def campus_world(
     where = "campus_world"
     _check_rng(rng, where)
     _check_positive(where, street=street, tree_spacing=tree_spacing)
+    if not (
+        isinstance(blocks, (tuple, list))
+        and len(blocks) == 2
+        and all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) for n in blocks)
+    ):
+        raise ConfigError(f"{where}: blocks must be two integers (columns, rows), got {blocks!r}")
     nx, ny = (int(b) for b in blocks)
     if nx < 1 or ny < 1:
         raise ConfigError(f"{where}: blocks must be at least (1, 1), got {blocks}")
+    _check_at_most(where, MAX_OBJECTS, **{"blocks (columns x rows)": nx * ny})
     if street < 5.0:
         raise ConfigError(f"{where}: a street of {street} m leaves no lane between its trees")
+    _check_at_most(where, MAX_EXTENT, street=street)
+    # at most one tree per half spacing along each edge of each street, the campus at its
+    # largest (buildings of 30 m)
+    w_max, h_max = nx * (30.0 + street) + street, ny * (30.0 + street) + street
+    trees = 2.0 * ((ny + 1) * (w_max / (0.5 * tree_spacing) + 1) + (nx + 1) * (
+        h_max / (0.5 * tree_spacing) + 1))  # fmt: skip
+    if trees > MAX_TREES:
+        raise ConfigError(
+            f"{where}: blocks {blocks}, street {street!r} m and tree_spacing {tree_spacing!r} m "
+            f"may plant up to {trees:.3g} trees, more than {MAX_TREES}"
+        )
     b = _Builder(rng)
     S = float(street)
     xs, ys = [S], [S]  # the blocks' lower-left corners: a street before each
@@ -945,7 +1067,8 @@ def cast_rays(world: World, origin, angles, *, max_range: float = np.inf, people
     angles : array_like, shape (N,)
         Ray directions in the world frame, radians, counter-clockwise from the x axis.
     max_range : float
-        Hits at or beyond this distance (metres) count as no hit.
+        Hits at or beyond this distance (metres) count as no hit; positive, ``inf`` for
+        no limit.
     people : (centres (Q, 2), radii (Q,)), optional
         Extra circles that exist only for this call.
 
@@ -955,14 +1078,30 @@ def cast_rays(world: World, origin, angles, *, max_range: float = np.inf, people
         Distance in metres to the first wall, circle or person hit. It is ``inf`` where
         nothing is hit within ``max_range``.
 
+    Raises
+    ------
+    ConfigError
+        An origin of another shape, an origin or angle that is not finite, or a
+        ``max_range`` that is not positive.
+
     Examples
     --------
     >>> world = room_world(4.0, 4.0, rng=np.random.default_rng(0), doorways=0, pillars=0, clutter=0)
     >>> cast_rays(world, (1.0, 2.0), np.array([0.0, np.pi / 2, np.pi]))
     array([3., 2., 1.])
     """
+    where = "cast_rays"
     ang = np.asarray(angles, dtype=float).reshape(-1)
     o = np.asarray(origin, dtype=float)
+    if o.size not in (2, 2 * ang.shape[0]):
+        raise ConfigError(
+            f"{where}: origin must be one point (2,) or one per ray ({ang.shape[0]}, 2), "
+            f"got shape {o.shape}"
+        )
+    if not (np.all(np.isfinite(o)) and np.all(np.isfinite(ang))):
+        raise ConfigError(f"{where}: origin and angles must be finite")
+    if not max_range > 0:
+        raise ConfigError(f"{where}: max_range must be positive (inf: no limit), got {max_range!r}")
     o = o.reshape(1, 2) if o.size == 2 else o.reshape(ang.shape[0], 2)  # (1 or N, 2)
     d = np.column_stack((np.cos(ang), np.sin(ang)))  # (N, 2) unit directions
     best = np.full(ang.shape[0], np.inf)
@@ -1038,7 +1177,7 @@ def simulate_scan(
         Pose of the sensor in the world. It maps sensor-frame points into the world frame
         and becomes the scan's ``reference``.
     n_beams : int
-        Number of beams.
+        Number of beams, at most :data:`MAX_BEAMS`.
     fov, angle_min : float
         Field of view and first beam angle, radians, in the sensor frame.
     max_range : float
@@ -1088,8 +1227,8 @@ def simulate_scan(
         raise ConfigError(
             f"{where}: pose_world_sensor must be a Pose2, got {type(pose_world_sensor).__name__}"
         )
-    _check_count(where, n_beams=n_beams)
-    _check_positive(where, n_beams=n_beams, fov=fov, max_range=max_range)
+    _check_beams(where, n_beams)
+    _check_positive(where, fov=fov, max_range=max_range)
     _check_nonneg(where, range_sigma=range_sigma, range_sigma_per_m=range_sigma_per_m)
     if not (math.isfinite(angle_min)):
         raise ConfigError(f"{where}: angle_min must be finite, got {angle_min}")
@@ -1281,7 +1420,8 @@ def simulate_pair(
     n_beams, range_sigma, dropout, fov, angle_min, max_range
         As in :func:`simulate_scan`.
     moving_people : int
-        Number of people. A person with no free spot is left out.
+        Number of people, at most :data:`MAX_PEOPLE`. A person with no free spot is left
+        out.
     clearance : float
         Minimum distance (metres) from either sensor to any wall or pillar.
     min_overlap : float
@@ -1313,7 +1453,9 @@ def simulate_pair(
     _check_nonneg(where, max_translation=max_translation, max_rotation=max_rotation)
     _check_nonneg(where, clearance=clearance, min_overlap=min_overlap)
     _check_count(where, moving_people=moving_people, max_attempts=max_attempts)
-    _check_positive(where, n_beams=n_beams, fov=fov, max_range=max_range)
+    _check_at_most(where, MAX_PEOPLE, moving_people=moving_people)
+    _check_beams(where, n_beams)
+    _check_positive(where, fov=fov, max_range=max_range)
     if world is None:
         world = random_world(rng)
     elif not isinstance(world, World):
@@ -1429,7 +1571,7 @@ def simulate_trajectory(
     world : World
         The building.
     n_scans : int
-        Number of scans (poses) in the drive.
+        Number of scans (poses) in the drive, 1 to :data:`MAX_SCANS`.
     step : float
         Distance between consecutive poses, metres.
     start : Pose2, optional
@@ -1460,6 +1602,9 @@ def simulate_trajectory(
 
     Raises
     ------
+    ConfigError
+        An argument out of range: ``n_scans`` below 1 or above :data:`MAX_SCANS`, more
+        than :data:`MAX_BEAMS` beams, a step that is not positive...
     ScanCliqueError
         If no free start pose is found, or the robot is boxed in.
     """
@@ -1468,6 +1613,10 @@ def simulate_trajectory(
     if not isinstance(world, World):
         raise ConfigError(f"{where}: world must be a World, got {type(world).__name__}")
     _check_count(where, n_scans=n_scans, max_attempts=max_attempts)
+    if n_scans < 1:
+        raise ConfigError(f"{where}: n_scans must be >= 1 (the drive starts with a scan), got 0")
+    _check_at_most(where, MAX_SCANS, n_scans=n_scans)
+    _check_beams(where, n_beams)
     _check_positive(where, step=step, dt=dt, lookahead=lookahead)
     _check_nonneg(where, turn_sigma=turn_sigma, clearance=clearance)
     _check_nonneg(
@@ -1603,7 +1752,7 @@ def simulate_sensor_drive(
     rng, world, n_steps, step
         As ``rng``, ``world``, ``n_scans`` and ``step`` of :func:`simulate_trajectory`.
     scan_rate, speed, turn_rate : float
-        Hz, m/s, rad/s.
+        Hz (at most :data:`MAX_SCAN_RATE`), m/s, rad/s.
     sweep : float
         Seconds a scan's beams take, at most one scan period (0: all at once).
     n_beams, range_sigma, range_sigma_per_m, dropout, **scan_kw
@@ -1614,6 +1763,12 @@ def simulate_sensor_drive(
     list of Scan
         Timestamps ``k / scan_rate``, exact ``reference`` poses, drifting ``odometry``.
 
+    Raises
+    ------
+    ConfigError
+        As :func:`simulate_trajectory`, and a drive of more than :data:`MAX_SCANS` scans
+        (a ``speed`` or ``turn_rate`` too low for the ``scan_rate``).
+
     Examples
     --------
     >>> rng = np.random.default_rng(0)
@@ -1622,7 +1777,11 @@ def simulate_sensor_drive(
     True
     """
     where = "simulate_sensor_drive"
+    _check_count(where, n_steps=n_steps)
+    if n_steps < 1:
+        raise ConfigError(f"{where}: n_steps must be >= 1 (the drive starts with a scan), got 0")
     _check_positive(where, scan_rate=scan_rate, speed=speed, turn_rate=turn_rate)
+    _check_at_most(where, MAX_SCAN_RATE, scan_rate=scan_rate)
     _check_nonneg(where, sweep=sweep)
     if sweep > 1.0 / scan_rate + 1e-12:
         raise ConfigError(f"{where}: sweep {sweep} s is longer than a scan period")
@@ -1636,11 +1795,24 @@ def simulate_sensor_drive(
     # scan i is ride[i][0] @ _ride(ride[i][1], ride[i][3] / ride[i][2]), and the ride
     # ride[i + 1] carries it to scan i + 1 (for the sweep)
     ride: list[tuple[Pose2, Pose2, int, int]] = []
+    legs = []  # (a, u, v, scans along the ride from a to b)
     for a, b in zip(coarse[:-1], coarse[1:], strict=True):
         u = a.reference.inverse() @ b.reference
         v = a.odometry.inverse() @ b.odometry
         seconds = max(math.hypot(u.x, u.y) / speed, abs(u.theta) / turn_rate)
-        n = max(1, math.ceil(seconds / dt - 1e-9))
+        if not seconds / dt <= MAX_SCANS:  # inf too: ceil would overflow
+            raise ConfigError(
+                f"{where}: a ride of {seconds:.3g} s at scan_rate {scan_rate!r} Hz makes more "
+                f"than {MAX_SCANS} scans (speed {speed!r} m/s, turn_rate {turn_rate!r} rad/s)"
+            )
+        legs.append((a, u, v, max(1, math.ceil(seconds / dt - 1e-9))))
+    total = 1 + sum(leg[3] for leg in legs)
+    if total > MAX_SCANS:
+        raise ConfigError(
+            f"{where}: the drive makes {total} scans at scan_rate {scan_rate!r} Hz, more than "
+            f"{MAX_SCANS} (speed {speed!r} m/s, turn_rate {turn_rate!r} rad/s)"
+        )
+    for a, u, v, n in legs:
         if not ride:
             ride.append((a.reference, u, n, 0))
         for k in range(1, n + 1):
@@ -1755,9 +1927,16 @@ def simulate_ring_drive(
     list of Scan
         With ``reference`` (true pose), ``odometry``, ``timestamp`` (``dt`` apart) and
         ``source`` ``"sim:<index>"``; the first reference pose is the loop's start.
+
+    Raises
+    ------
+    ConfigError
+        An argument out of range (as :func:`ring_world`'s), or ``loops`` and ``step``
+        that make more than :data:`MAX_SCANS` scans.
     """
     where = "simulate_ring_drive"
     _check_positive(where, loops=loops, step=step, dt=dt)
+    _check_beams(where, n_beams)
     _check_nonneg(
         where,
         trans_noise_per_m=trans_noise_per_m,
@@ -1772,6 +1951,11 @@ def simulate_ring_drive(
     world = ring_world(rng, length, width, corridor=corridor)
     r = min(0.8, 0.45 * corridor)
     perimeter = 2.0 * (length + width - 4.0 * corridor / 2.0 - 4.0 * r) + 2.0 * math.pi * r
+    if loops * perimeter / step > MAX_SCANS:
+        raise ConfigError(
+            f"{where}: {loops!r} loops of {perimeter:.1f} m, a scan every {step!r} m, make "
+            f"more than {MAX_SCANS} scans"
+        )
     s = np.arange(0.0, loops * perimeter, step)
     refs = [Pose2(*p) for p in _ring_centreline(length, width, corridor, s, r)]
     odom = _drifting_odometry(
