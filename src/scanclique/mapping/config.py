@@ -531,7 +531,8 @@ class OccupancyConfig:
     window or an open door would paint free space beyond the walls); other invalid beams
     (NaN, -inf, at or below ``range_min``: too close, or an error) always are; every
     ``scan_stride``-th scan is cast. ``log_odds_miss`` is at most 0 (0: passes leave a
-    cell alone), ``margin`` (m of unknown around the map) at least 0, ``resolution`` at
+    cell alone) and at least -100, ``log_odds_hit`` and ``clamp`` at most 100 (float32
+    cells), ``margin`` (m of unknown around the map) at least 0, ``resolution`` at
     least :data:`MIN_RESOLUTION` and ``max_range`` at most :data:`MAX_OCCUPANCY_RANGE`
     (cell indices stay exact integers; ``max_range=1e300`` with ``free_on_no_return``
     made the ray caster walk without end)."""
@@ -549,6 +550,9 @@ class OccupancyConfig:
         _check_types(self)
         _positive(self, "resolution", "log_odds_hit", "clamp", "max_range", "scan_stride")
         _nonneg(self, "margin")
+        # a log-odds of 100 is a probability within e^-100 of 1; 1e300 overflowed the
+        # float32 cells
+        _at_most(self, 100.0, "log_odds_hit", "clamp")
         if self.resolution < MIN_RESOLUTION:
             raise ConfigError(
                 f"OccupancyConfig.resolution must be at least {MIN_RESOLUTION:g} m, "
@@ -559,10 +563,10 @@ class OccupancyConfig:
                 f"OccupancyConfig.max_range must be at most {MAX_OCCUPANCY_RANGE:g} m, "
                 f"got {self.max_range!r}"
             )
-        if not (math.isfinite(self.log_odds_miss) and self.log_odds_miss <= 0):
+        if not (-100.0 <= self.log_odds_miss <= 0):
             raise ConfigError(
-                "OccupancyConfig.log_odds_miss must be a number <= 0 (a pass makes a cell "
-                f"less likely occupied), got {self.log_odds_miss!r}"
+                "OccupancyConfig.log_odds_miss must be a number in [-100, 0] (a pass makes a "
+                f"cell less likely occupied), got {self.log_odds_miss!r}"
             )
 
 

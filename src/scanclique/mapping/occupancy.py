@@ -148,15 +148,24 @@ def occupancy_grid(
     Raises
     ------
     ArgumentError
-        ``poses`` is not one per scan.
+        ``poses`` is not one per scan, a pose is not a :class:`~scanclique.geometry.Pose2`
+        or None, or a scan not a :class:`~scanclique.scan.Scan`.
     ConfigError
-        ``config`` is not an :class:`OccupancyConfig`.
+        ``config`` is not an :class:`OccupancyConfig`, or the grid would have more than
+        :data:`MAX_GRID_CELLS` cells (poses or returns far apart).
     """
     if len(poses) != len(scans):
         raise ArgumentError(
             f"occupancy_grid: {len(poses)} poses for {len(scans)} scans (one per scan, None "
             "for a scan that is not placed)"
         )
+    for k, (s, p) in enumerate(zip(scans, poses, strict=True)):
+        if not isinstance(s, Scan):
+            raise ArgumentError(f"occupancy_grid: scans[{k}] is a {type(s).__name__}, not a Scan")
+        if p is not None and not isinstance(p, Pose2):
+            raise ArgumentError(
+                f"occupancy_grid: poses[{k}] is a {type(p).__name__}, not a Pose2 or None"
+            )
     require_config("occupancy_grid: ", config, OccupancyConfig)
     cfg = config or OccupancyConfig()
     r = cfg.resolution
@@ -189,12 +198,16 @@ def occupancy_grid(
         pts = np.array([[poses[k].x, poses[k].y] for k in idx])
     lo = pts.min(axis=0) - cfg.margin
     hi = pts.max(axis=0) + cfg.margin
-    cols = int(math.ceil((hi[0] - lo[0]) / r)) + 1
-    rows = int(math.ceil((hi[1] - lo[1]) / r)) + 1
-    if rows * cols > MAX_GRID_CELLS:
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = hi - lo  # inf for poses 1e308 apart: ceil would overflow
+    size = extent / r
+    far = not np.all(size <= MAX_GRID_CELLS)
+    cols = int(math.ceil(size[0])) + 1 if not far else math.inf
+    rows = int(math.ceil(size[1])) + 1 if not far else math.inf
+    if far or rows * cols > MAX_GRID_CELLS:
         raise ConfigError(
-            f"occupancy grid of {cols} x {rows} cells ({hi[0] - lo[0]:.6g} x "
-            f"{hi[1] - lo[1]:.6g} m at OccupancyConfig.resolution={r:g} m, margin "
+            f"occupancy grid of {cols} x {rows} cells ({extent[0]:.6g} x "
+            f"{extent[1]:.6g} m at OccupancyConfig.resolution={r:g} m, margin "
             f"{cfg.margin:g} m): more than {MAX_GRID_CELLS} cells; use a coarser resolution"
         )
     grid = np.zeros((rows, cols), dtype=np.float32)

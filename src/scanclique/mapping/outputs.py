@@ -27,8 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from ..config import config_to_dict
+from ..errors import ArgumentError
 from ..geometry import Pose2
 from ..io.tum import write_tum
+from ..tools.jsonable import clean_json
 from .backend import tangent_covariance
 from .occupancy import OccupancyGrid, probabilities
 
@@ -49,12 +51,41 @@ OCCUPIED_THRESH = 0.65
 FREE_THRESH = 0.196
 
 
+def _check_lengths(where: str, n: int, **values) -> None:
+    """Each sequence has ``n`` items (one per pose), else :class:`ArgumentError`."""
+    for name, v in values.items():
+        if len(v) != n:
+            raise ArgumentError(f"{where}: {len(v)} {name} for {n} poses (one per pose)")
+
+
+def _check_grid(where: str, grid) -> None:
+    """``grid`` is an :class:`OccupancyGrid` with a 2-D grid, a finite positive resolution
+    and a finite origin, else :class:`ArgumentError`."""
+    if not isinstance(grid, OccupancyGrid):
+        raise ArgumentError(f"{where}: grid must be an OccupancyGrid, got {type(grid).__name__}")
+    r, o = grid.resolution, np.asarray(grid.origin, dtype=float)
+    if np.ndim(grid.log_odds) != 2 or not (math.isfinite(r) and r > 0):
+        raise ArgumentError(
+            f"{where}: grid must be 2-D with a finite positive resolution, got shape "
+            f"{np.shape(grid.log_odds)}, resolution {r!r}"
+        )
+    if o.shape != (2,) or not np.all(np.isfinite(o)):
+        raise ArgumentError(f"{where}: grid.origin must be two finite numbers, got {grid.origin!r}")
+
+
 def write_covariances(
     path: str | Path, poses: Sequence[Pose2 | None], covariances, timestamps
 ) -> int:
     """Write each scan's pose covariance as CSV (see the module docstring); scans without
     a pose are left out. Returns the rows written. Timestamps default to the scan index
-    when missing."""
+    when missing.
+
+    Raises
+    ------
+    ArgumentError
+        ``covariances`` or ``timestamps`` not one per pose.
+    """
+    _check_lengths("write_covariances", len(poses), covariances=covariances, timestamps=timestamps)
     lines = ["index,timestamp,xx,xy,xt,yy,yt,tt"]
     for k, (p, C) in enumerate(zip(poses, covariances, strict=True)):
         if p is None or C is None:
@@ -96,7 +127,14 @@ def write_g2o(path: str | Path, poses: Sequence[Pose2 | None], edges) -> tuple[i
 
 def write_map(pgm: str | Path, yaml: str | Path, grid: OccupancyGrid) -> tuple[int, int]:
     """Write ``map.pgm`` (binary P5, trinary values, top row first) and ``map.yaml`` (ROS
-    ``map_server``). Returns the image's ``(width, height)``."""
+    ``map_server``). Returns the image's ``(width, height)``.
+
+    Raises
+    ------
+    ArgumentError
+        ``grid`` is not a 2-D :class:`OccupancyGrid` with a finite resolution and origin.
+    """
+    _check_grid("write_map", grid)
     p = probabilities(grid.log_odds)
     img = np.full(p.shape, 205, dtype=np.uint8)
     img[p > OCCUPIED_THRESH] = 0
@@ -128,7 +166,26 @@ def write_png(
     """``map.png``: occupancy probabilities (white free, black occupied, grey unknown),
     the trajectory (blue) and the accepted loop closures (red segments); with
     ``covariances`` (one (3, 3) per pose), the 3-sigma ellipses of the positions of at
-    most :data:`MAX_ELLIPSES` poses evenly spaced along the log (green)."""
+    most :data:`MAX_ELLIPSES` poses evenly spaced along the log (green).
+
+    Raises
+    ------
+    ArgumentError
+        ``grid`` is not a 2-D :class:`OccupancyGrid` with a finite resolution and origin,
+        a closure's scan index is not one of ``poses``, or ``covariances`` are not one
+        per pose.
+    """
+    where = "write_png"
+    _check_grid(where, grid)
+    if covariances is not None:
+        _check_lengths(where, len(poses), covariances=covariances)
+    for c in closures:
+        for k in (c.i, c.j):
+            if not (isinstance(k, (int, np.integer)) and 0 <= k < len(poses)):
+                raise ArgumentError(
+                    f"{where}: closure {c.i} -> {c.j} names scan {k!r}, not one of the "
+                    f"{len(poses)} poses"
+                )
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -205,5 +262,5 @@ def _plain(obj):
 
 
 def write_report(path: str | Path, report: dict) -> None:
-    """Write ``report.json`` (non-finite numbers become null)."""
-    Path(path).write_text(json.dumps(_plain(report), indent=2, sort_keys=False) + "\n")
+    """Write ``report.json`` (non-finite numbers become null, NumPy arrays lists)."""
+    Path(path).write_text(json.dumps(clean_json(report), indent=2, sort_keys=False) + "\n")
