@@ -63,13 +63,36 @@ def write_tum(path: str | os.PathLike, poses, timestamps) -> int:
         ``x y theta`` (metres, radians).
     timestamps : sequence of float or None
         One per pose (seconds); a missing one is written as the pose's index.
+
+    Raises
+    ------
+    ArgumentError
+        Not one timestamp per pose, a pose that is not a Pose2, None or three numbers, or
+        a pose or timestamp that is not finite; nothing is written.
     """
+    if len(timestamps) != len(poses):
+        raise ArgumentError(
+            f"write_tum: {len(timestamps)} timestamps for {len(poses)} poses (one per pose)"
+        )
     lines = []
     for k, p in enumerate(poses):
         if p is None:
             continue
-        x, y, th = (p.x, p.y, p.theta) if isinstance(p, Pose2) else (float(v) for v in p)
+        if isinstance(p, Pose2):
+            x, y, th = p.x, p.y, p.theta
+        else:
+            try:
+                x, y, th = (float(v) for v in p)
+            except (TypeError, ValueError):
+                raise ArgumentError(
+                    f"write_tum: poses[{k}] must be a Pose2, None or x y theta, got {p!r}"
+                ) from None
         t = timestamps[k] if timestamps[k] is not None else float(k)
+        if not all(isinstance(v, (int, float, np.number)) and math.isfinite(v)
+                   for v in (t, x, y, th)):  # fmt: skip
+            raise ArgumentError(
+                f"write_tum: poses[{k}] ({x}, {y}, {th}) at timestamps[{k}] {t!r} must be finite"
+            )
         h = 0.5 * th
         lines.append(
             f"{t:.6f} {x:.6f} {y:.6f} 0.000000 0.000000 0.000000 {math.sin(h):.9f} "

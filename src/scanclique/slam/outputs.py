@@ -23,18 +23,48 @@ __all__ = ["write_tum", "write_landmarks", "write_report", "plot_maps", "write_l
 
 
 def write_tum(path, times, poses) -> Path:
-    """Write poses (N, 3) at ``times`` (N,) in TUM format (:func:`scanclique.io.write_tum`);
-    returns the path."""
+    """Write poses (N, 3) at ``times`` (N,) in TUM format (:func:`scanclique.io.write_tum`,
+    which refuses poses or times that are not finite, or not one time per pose, with an
+    :class:`~scanclique.errors.ArgumentError`); returns the path."""
     p = Path(path)
     _write_tum(p, np.asarray(poses, float), list(times))
     return p
 
 
 def write_landmarks(path, ids, landmarks, covariances, hits) -> Path:
+    """Write ``landmarks.csv``: one row per landmark, its integer id, position ``(x, y)``,
+    the upper triangle of its (2, 2) covariance and its hits; returns the path.
+
+    Raises
+    ------
+    ArgumentError
+        The four are not one per landmark, an id or a hit count is not an integer, or a
+        position or covariance is not finite (of shape (2,) and (2, 2)); nothing is
+        written.
+    """
+    from ..errors import ArgumentError  # noqa: PLC0415
+
+    where = "write_landmarks"
+    n = len(ids)
+    for name, v in (("landmarks", landmarks), ("covariances", covariances), ("hits", hits)):
+        if len(v) != n:
+            raise ArgumentError(f"{where}: {len(v)} {name} for {n} ids (one per landmark)")
+    try:
+        m_all = np.asarray(landmarks, dtype=float).reshape(n, 2)
+        c_all = np.asarray(covariances, dtype=float).reshape(n, 2, 2)
+        counts = np.asarray([ids, hits], dtype=float).reshape(2, n)
+    except (TypeError, ValueError):
+        raise ArgumentError(
+            f"{where}: landmarks must be (N, 2), covariances (N, 2, 2), ids and hits N numbers"
+        ) from None
+    if not (np.all(np.isfinite(m_all)) and np.all(np.isfinite(c_all))):
+        raise ArgumentError(f"{where}: landmarks and covariances must be finite")
+    if not np.all(np.isfinite(counts) & (counts == np.round(counts))):
+        raise ArgumentError(f"{where}: ids and hits must be integers, got {ids!r}, {hits!r}")
     p = Path(path)
     with open(p, "w") as fh:
         fh.write("id,x,y,var_x,cov_xy,var_y,hits\n")
-        for i, m, c, h in zip(ids, landmarks, covariances, hits, strict=False):
+        for i, m, c, h in zip(ids, landmarks, covariances, hits, strict=True):
             cov = f"{c[0, 0]:.6g},{c[0, 1]:.6g},{c[1, 1]:.6g}"
             fh.write(f"{int(i)},{m[0]:.4f},{m[1]:.4f},{cov},{int(h)}\n")
     return p
