@@ -30,7 +30,7 @@ import math
 import time
 from dataclasses import dataclass
 
-from ..config import require_flag
+from ..config import require_count, require_flag
 from ..errors import ArgumentError, PlaceDatabaseError, ScanError
 from ..geometry import Pose2
 from ..scan import Scan
@@ -101,6 +101,8 @@ class Localiser:
         No place of ``db`` has a map pose.
     ArgumentError
         ``db`` is not a :class:`PlaceDB`, or ``use_odometry`` is not a bool or None.
+    ConfigError
+        ``k`` or ``candidates`` is not an integer >= 0 (as :meth:`PlaceDB.query`).
 
     Examples
     --------
@@ -131,6 +133,9 @@ class Localiser:
         if not isinstance(db, PlaceDB):
             raise ArgumentError(f"Localiser: db must be an open PlaceDB, got {type(db).__name__}")
         require_flag("Localiser: ", track=track, use_odometry=use_odometry)
+        require_count("Localiser: ", k=k)
+        if candidates is not None:
+            require_count("Localiser: ", candidates=candidates)
         self.db, self.k, self.candidates = db, k, candidates
         self.map_poses = db.map_poses()
         if not self.map_poses:
@@ -170,9 +175,12 @@ class Localiser:
         ------
         ScanError
             ``scan`` is not a :class:`~scanclique.scan.Scan`.
+        ArgumentError
+            ``query`` is not True, False or None (a string such as ``"no"``).
         """
         if not isinstance(scan, Scan):
             raise ScanError(f"Localiser.add: scan must be a Scan, got {type(scan).__name__}")
+        require_flag("Localiser.add: ", query=query)
         index = self._n
         if self._mapper is not None:
             now = self._mapper.add(scan)

@@ -28,6 +28,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..config import require_count
+from ..errors import ArgumentError
 from ..geometry import Pose2
 from ..match import PreparedScan
 from .verify import ACCEPT_MIN_SCORE
@@ -79,7 +81,13 @@ class MapPoses:
 
     @classmethod
     def of(cls, poses: dict[int, Pose2]) -> MapPoses:
-        """From place id -> map pose (:meth:`PlaceDB.map_poses`)."""
+        """From place id -> map pose (:meth:`PlaceDB.map_poses`); ArgumentError for a
+        pose that is not a :class:`~scanclique.geometry.Pose2`."""
+        for pid, p in poses.items():
+            if not isinstance(p, Pose2):
+                raise ArgumentError(
+                    f"MapPoses.of: the pose of place {pid!r} must be a Pose2, got {p!r}"
+                )
         ids = np.fromiter(poses, dtype=np.int64, count=len(poses))
         xyt = np.array([p.as_array() for p in poses.values()], dtype=float).reshape(-1, 3)
         return cls(ids, xyt)
@@ -119,13 +127,25 @@ class TrackFix:
     tried: int
 
 
+def _finite(where: str, **values) -> None:
+    """Each value is a finite number, else :class:`ArgumentError` naming it (NaN gave the
+    floor sigma, as at the fix)."""
+    for name, v in values.items():
+        if isinstance(v, (bool, np.bool_)) or not (
+            isinstance(v, (int, float, np.number)) and math.isfinite(v)
+        ):
+            raise ArgumentError(f"{where}: {name} must be a finite number, got {v!r}")
+
+
 def track_std(path: float) -> tuple[float, float]:
     """The prediction's standard deviations ``(m, rad)`` after ``path`` metres from the
-    fix: :data:`TRACK_SIGMA` growing by :data:`TRACK_GROWTH` per metre.
+    fix: :data:`TRACK_SIGMA` growing by :data:`TRACK_GROWTH` per metre (ArgumentError
+    for a ``path`` that is not a finite number).
 
     >>> [round(v, 4) for v in track_std(2.0)]
     [0.25, 0.0436]
     """
+    _finite("track_std", path=path)
     d = max(0.0, float(path))
     return TRACK_SIGMA[0] + TRACK_GROWTH[0] * d, TRACK_SIGMA[1] + TRACK_GROWTH[1] * d
 
@@ -146,6 +166,7 @@ def predict(
     >>> round(p.x, 6), round(p.y, 6), [round(v, 3) for v in s]
     (10.0, 1.0, [0.2, 0.035])
     """
+    _finite("predict", path_now=path_now)
     pred = fix.pose @ (own_fix.inverse() @ own_now)
     return pred, track_std(abs(path_now - fix.path))
 
@@ -158,6 +179,7 @@ def near_places(places: MapPoses, pred: Pose2, radius: float, n: int) -> list[in
     ...             Pose2(0.9, 0, 0), 2.0, 5)
     [2, 1]
     """
+    require_count("near_places: ", n=n)
     if not len(places) or n <= 0:
         return []
     ids, a = places.ids, places.xyt
