@@ -128,7 +128,8 @@ def _log(tmp_path, observations="0.1 4.0 0.2\n", **files):
     ("observations", "files", "words"),
     [
         ("0.1 4.0 45.0\n", {}, ("observations.txt:1", "bearing", "radians", "0.785398")),
-        ("0.1 -4.0 0.2\n", {}, ("observations.txt:1", "range must be >= 0")),
+        ("0.1 -4.0 0.2\n", {}, ("observations.txt:1", "range must be above 0")),
+        ("0.1 4 0.2\n0.2 0 0.2\n", {}, ("observations.txt:2", "range must be above 0", "0.0")),
         ("# t r b a\n0.1 4 0.2 0.3\n0.2 4 0.2\n", {}, ("observations.txt:3", "expected 4")),
         ("0.1 4 nan\n", {}, ("observations.txt:1", "bearing", "not finite")),
         ("0.2 4 0.1\n0.1 4 0.1\n", {}, ("observations.txt:2", "time goes back")),

@@ -157,8 +157,15 @@ def test_associate_refuses_what_is_not_finite():
         says = "associate: z: observation 0" if name == "z" else f"associate: {name} is not finite"
         with pytest.raises(StepError, match=says):
             slam.associate(**args)
-    with pytest.raises(StepError, match="negative range"):
+    with pytest.raises(StepError, match="range not above 0"):
         slam.associate(-z, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4)
+    # a landmark at the sensor (range 0) has no bearing: the filter's Jacobian divides by it
+    at_sensor = np.array(z)
+    at_sensor[0, 0] = 0.0
+    with pytest.raises(StepError, match=r"observation 0 .* has a range not above 0"):
+        slam.associate(at_sensor, R, lm, cov, np.zeros(3), np.eye(3) * 1e-4)
+    with pytest.raises(StepError, match="range not above 0"):
+        slam.Step(1.0, (1.0, 0.0), [[0.0, 0.3]])
 
 
 @pytest.mark.parametrize(

@@ -88,7 +88,7 @@ class ArgumentError(ScanCliqueError, TypeError):
 
 class StepError(ScanCliqueError, ValueError):
     """An EKF-SLAM input (``scanclique.slam``) is inconsistent: a step's time, control,
-    observation or attribute that is not finite, a negative range, a shape that does not
+    observation or attribute that is not finite, a range not above 0, a shape that does not
     fit, steps out of time order, or an association's arrays that are not finite. The
     message names the step (its time, or its index in the sequence) and the field."""
 

@@ -827,7 +827,7 @@ def associate(
     ------
     StepError
         An array that is not finite numbers or not of its shape above, ``z`` not pairs,
-        a negative range, or a bearing beyond two turns (degrees given for radians).
+        a range not above 0, or a bearing beyond two turns (degrees given for radians).
 
     Examples
     --------

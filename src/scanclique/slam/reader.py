@@ -67,20 +67,21 @@ def as_numbers(values, where: str, field: str) -> np.ndarray:
 def as_observations(values, where: str, field: str) -> np.ndarray:
     """``values`` as a ``(k, 2)`` float array of range (m) and bearing (rad), or a
     :class:`StepError` saying ``where`` which of ``field``'s observations is not finite,
-    has a negative range or a bearing beyond two turns (:data:`scanclique.scan.MAX_ANGLE_SPAN`:
-    degrees given for radians) (the one check of a step's and ``associate``'s
-    observations)."""
+    has a range that is not above 0 (a landmark at the sensor has no bearing, and the
+    filter's observation Jacobian divides by its range) or a bearing beyond two turns
+    (:data:`scanclique.scan.MAX_ANGLE_SPAN`: degrees given for radians) (the one check of a
+    step's and ``associate``'s observations)."""
     obs = as_numbers(values, where, field)
     if obs.size % 2:
         raise StepError(f"{where}: {field} must be (k, 2) range and bearing, got shape {obs.shape}")
     obs = obs.reshape(-1, 2)
     if not obs.size or (
         np.isfinite(obs).all()
-        and obs[:, 0].min() >= 0.0
+        and obs[:, 0].min() > 0.0
         and np.abs(obs[:, 1]).max() <= MAX_ANGLE_SPAN
     ):
         return obs
-    if np.isfinite(obs).all() and obs[:, 0].min() >= 0.0:
+    if np.isfinite(obs).all() and obs[:, 0].min() > 0.0:
         i = int(np.flatnonzero(np.abs(obs[:, 1]) > MAX_ANGLE_SPAN)[0])
         b = float(obs[i, 1])
         raise StepError(
@@ -88,8 +89,8 @@ def as_observations(values, where: str, field: str) -> np.ndarray:
             f"bearings are radians (degrees? {b} deg is {math.radians(b):.6g} rad; or are "
             "the observations x, y and not range, bearing?)"
         )
-    i = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] >= 0.0))[0])
-    says = "is not finite" if not np.isfinite(obs[i]).all() else "has a negative range"
+    i = int(np.flatnonzero(~np.isfinite(obs).all(axis=1) | ~(obs[:, 0] > 0.0))[0])
+    says = "is not finite" if not np.isfinite(obs[i]).all() else "has a range not above 0"
     raise StepError(
         f"{where}: {field}: observation {i} (range, bearing) = {obs[i].tolist()} {says}"
     )
@@ -469,7 +470,7 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
     DataNotFoundError
         The directory, ``controls.txt`` or ``observations.txt`` is missing.
     ParseError
-        A malformed row (file, line and field named), a negative range, a bearing beyond
+        A malformed row (file, line and field named), a range not above 0, a bearing beyond
         two turns (degrees given for radians), observation rows of three and four numbers
         mixed, or a ``model.toml`` that is not TOML.
     ConfigError
@@ -509,13 +510,13 @@ def read_landmark_log(directory: str | os.PathLike) -> LandmarkLog:
         controls = read_table(d / "controls.txt", ("time", "c1", "c2"))
     obs_path = d / "observations.txt"
     meas = read_table(obs_path, ("time", "range", "bearing"), optional=("attribute",))
-    bad = np.flatnonzero((meas[:, 1] < 0) | (np.abs(meas[:, 2]) > MAX_ANGLE_SPAN))
+    bad = np.flatnonzero((meas[:, 1] <= 0) | (np.abs(meas[:, 2]) > MAX_ANGLE_SPAN))
     if len(bad):
         i = int(bad[0])
         r, b = meas[i, 1], meas[i, 2]
         what = (
-            f"range must be >= 0 m, found {r}"
-            if r < 0
+            f"range must be above 0 m, found {r}"
+            if r <= 0
             else f"bearing {b} is more than two turns: radians? ({b} deg is "
             f"{math.radians(b):.6g} rad)"
         )

@@ -92,10 +92,10 @@ def _frame(rng, x, landmarks, sensor, R, ranges, fov, p_detect, n_clutter, clutt
     zt = z[vis] + rng.multivariate_normal(np.zeros(2), R, len(vis))
     zt[:, 1] = wrap(zt[:, 1])
     ids = vis.astype(np.int64)
-    # a landmark nearer than its range noise can draw a negative range, which no sensor
+    # a landmark nearer than its range noise can draw a range not above 0, which no sensor
     # reports: that detection is missed (drawn all the same, so the draws that follow
     # are those of every other frame)
-    real = zt[:, 0] >= 0.0
+    real = zt[:, 0] > 0.0
     zt, ids = zt[real], ids[real]
     if n_clutter:
         zc = np.column_stack(
