@@ -806,6 +806,70 @@ def test_candidates_reach_as_far_as_the_front_end_may_have_drifted():
     assert candidates(3, xy, cum, np.inf, lc) == []  # 8 m away: beyond the path's radius
     front = np.array([3.0, 0.1, 0.1, 0.0])  # the front end was unsure since keyframe 0
     assert candidates(3, xy, cum, np.inf, lc, front_sigma=front) == [0]
+    among = np.array([False, True, True, True])  # keyframe 0 may not be a candidate
+    assert candidates(3, xy, cum, np.inf, lc, front_sigma=front, among=among) == []
+
+
+def _square_mapper(side=20):
+    """A mapper over keyframes 1 m apart round a ``side`` x ``side`` m square, its chain
+    (the front end) the truth, the last keyframe back at the first's place; loops on,
+    nothing verified (the tasks the loop search submits are kept in ``m.submitted``)."""
+    import dataclasses
+
+    from scanclique.mapping.pipeline import _Mapper
+
+    cfg = MapConfig()
+    off = dataclasses.replace(cfg.loops, enabled=False, appearance=False, pcm_batch=1000)
+    m = _Mapper(False, False, dataclasses.replace(cfg, loops=off))
+    n = 4 * side + 1
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 11)
+    m.scans = [Scan(np.full(11, 5.0), angles, source=f"square:{k}") for k in range(n)]
+    m.chain = [Pose2.identity()] + [None] * (n - 1)
+    tight = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    m.add_keyframe(0, None, None, None)
+    for k in range(1, n):
+        step = Pose2(1.0, 0.0, math.pi / 2 if k % side == 0 else 0.0)
+        m.chain[k] = m.chain[k - 1] @ step
+        m.add_keyframe(k, None, step, tight)
+    m.lc = dataclasses.replace(off, enabled=True)
+    m.submitted = []
+
+    class _Keep:
+        def submit(self, tasks, prepared, loop_prepared=None):
+            m.submitted.extend(tasks)
+
+    m.verifier = _Keep()
+    return m
+
+
+def test_loop_candidates_near_the_chain_when_the_estimate_is_pulled_off_it():
+    m = _square_mapper()
+    last = len(m.kf) - 1
+    c = m.chain[m.kf[last]]
+    assert math.hypot(c.x, c.y) < 1e-9  # the chain closes the square
+    loops = lambda: sorted(i for i, _, *_, local, _ in m.submitted if not local)  # noqa: E731
+    m.search(last)
+    assert 0 in loops()  # chain and estimate agree: the place itself
+    # local matches pulled the estimate 4 m along the first side: its nearest places are
+    # keyframes 4 and 9; the chain's claim, the square's corner, is searched as well
+    m.est_xy[last, :2] = (4.0, 0.0)
+    m.submitted = []
+    m.search(last)
+    assert {4, 9} <= set(loops()) and 0 in loops()
+    # within the candidate radius of each other, the estimate's alone
+    m.est_xy[last, :2] = (1.0, 0.0)
+    m.submitted = []
+    m.search(last)
+    assert loops() == [1, 6]
+    # a closure on the way has corrected the estimate there: the estimate's alone
+    truth = [Pose2.from_array(m.kf_chain[k]) for k in range(last + 1)]
+    m.batch, m.pending = [], [_closure(truth, 2, last - 1, "estimate")]
+    m.flush()
+    assert m.closures[-1].accepted
+    m.est_xy[last, :2] = (4.0, 0.0)
+    m.submitted = []
+    m.search(last)
+    assert loops() == [4]  # the drift path now runs through the closure: a short radius
 
 
 def _line_mapper(n=40, jump_at=20, jump=5.0, big_cov=True, loose_xy=0.35, **loops):

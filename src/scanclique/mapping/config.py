@@ -299,7 +299,10 @@ class LoopConfig:
     A keyframe ``j`` is tried against earlier keyframes ``i`` whose estimated position
     lies within ``radius + growth * D`` of its own, where ``D`` is the path travelled
     since the last accepted closure or since ``i``, whichever is shorter (the drift the
-    estimate may have accumulated), capped at ``max_radius``.
+    estimate may have accumulated), capped at ``max_radius``; and, where the front end's
+    chain puts ``j`` more than ``radius`` from where the estimate puts it relative to
+    ``i`` and no closure on the way has corrected the estimate there, within as much of
+    the chain's position (local matches can pull the estimate off a right chain).
 
     Attributes
     ----------

@@ -113,6 +113,7 @@ def candidates(
     cfg: LoopConfig,
     exclude: set[int] | frozenset[int] = frozenset(),
     front_sigma: np.ndarray | None = None,
+    among: np.ndarray | None = None,
 ) -> list[int]:
     """Loop candidates of keyframe ``j`` by the estimate (keyframe indices, nearest first).
 
@@ -129,8 +130,12 @@ def candidates(
         Path travelled since the last accepted closure (m; ``inf`` before the first), or
         per keyframe the path over which the estimate may have drifted from it (the
         mapper's ``drift_path``); the chain's path is used where shorter.
+    among : ndarray of bool (>= j,), optional
+        The keyframes that may be candidates (all when None).
     """
     far = np.flatnonzero(cum_path[j] - cum_path[:j] >= cfg.min_path)
+    if among is not None:
+        far = far[among[far]]
     if far.size == 0:
         return []
     since = np.asarray(since_closure)[far] if np.ndim(since_closure) else since_closure

@@ -7,7 +7,8 @@ The recipe (issue 12; the paper's first application, §2):
    constant-velocity prior (§7); else place it by the prior, flagged
    (:mod:`.frontend`);
 3. on each new keyframe: match it against ``local`` recent keyframes (ties the local chain)
-   and verify loop candidates by estimate and appearance (:mod:`.loops`);
+   and verify loop candidates by estimate (and by the chain where the two disagree) and
+   appearance (:mod:`.loops`);
 4. every ``pcm_batch`` keyframes: keep the largest pairwise-consistent set of the new
    closures (PCM, a maximum clique; :mod:`.pcm`), add the edges to the incremental
    optimiser (iSAM2) and update the estimate the next candidates are searched with;
@@ -393,6 +394,7 @@ class _Mapper:
         self.kf: list[int] = []
         self.kf_prep: list = []
         self.kf_path = _Rows()
+        self.kf_chain = _Rows(3)  # the keyframes' chain poses (x, y m, theta rad)
         self.kf_sig: _Rows | None = None  # (keyframes, signature size) when signatures exist
         self.kf_of: list[int] = []  # the keyframe each scan's edge hangs from
         self.rel_to_kf: list[Pose2] = []
@@ -664,6 +666,7 @@ class _Mapper:
             self.kf_loop_prep.append(prepared_again(prep, self.loop_match))
             self.seconds["prepare"] += time.perf_counter() - t
         self.kf_path.append(path)
+        self.kf_chain.append(self.chain[j].as_array())
         self.est_xy = np.vstack([self.est_xy, guess.as_array()[None]])
         if self.sig_mod is not None:
             sig = np.asarray(self.sig_mod.scan_signature(prep), dtype=float)
@@ -694,6 +697,21 @@ class _Mapper:
             since = self.drift_path(kidx)
             front = self.front_std_to(kidx)
             for i in _loops.candidates(kidx, self.est_xy[:, :2], cum, since, lc, tried, front):
+                jobs.append((i, False, "estimate"))
+                tried.add(i)
+            # where the front end's chain puts this keyframe relative to each earlier one,
+            # when that is further than the candidate radius from where the estimate puts
+            # it and no closure on the way has corrected the estimate there: the places
+            # nearest the chain's claim are candidates too. Local matches can pull the
+            # estimate off a chain that is right (a 200 x 120 m ring with 2 % long
+            # wheels, online: where the loop closes the estimate 3.1 m off, the chain
+            # 0.58 m; the places nearest the estimate were a door along, and that
+            # look-alike closed the loop: 3.750 -> 0.679 m)
+            chain = self.kf_chain.array
+            off = np.hypot(*(_relative(chain, kidx) - _relative(self.est_xy, kidx)).T)
+            along = cum[kidx] - cum[: kidx + 1]
+            apart = (off >= lc.radius) & (self.paths_from(kidx)[:, 2] >= 0.5 * along)
+            for i in _loops.candidates(kidx, chain[:, :2], cum, since, lc, tried, front, apart):
                 jobs.append((i, False, "estimate"))
                 tried.add(i)
             if self.kf_sig:
@@ -1381,6 +1399,15 @@ def check_iterable_of_scans(where: str, scans):
             f"first), got {type(scans).__name__}"
         )
     return scans
+
+
+def _relative(poses: np.ndarray, j: int) -> np.ndarray:
+    """Position (m) of pose ``j`` in the frame of each of ``poses[: j + 1]`` (rows ``x, y,
+    theta``), ``(j + 1, 2)``."""
+    a = poses[: j + 1]
+    d = poses[j, :2] - a[:, :2]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.stack([c * d[:, 0] + s * d[:, 1], c * d[:, 1] - s * d[:, 0]], axis=1)
 
 
 def _rotated(cov: np.ndarray | None, theta: float) -> np.ndarray | None:
