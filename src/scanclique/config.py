@@ -41,6 +41,7 @@ __all__ = [
     "check_types",
     "check_probability",
     "check_choice",
+    "require_at_most",
     "require_count",
     "require_callable",
     "require_config",
@@ -213,14 +214,19 @@ def check_nonneg(obj, *names: str, infinite: bool = False) -> None:
     require_nonneg(f"{type(obj).__name__}.", **_set(obj, names, infinite))
 
 
-def check_at_most(obj, limit: float, *names: str) -> None:
-    """Each named field of ``obj`` (checked a number first) is at most ``limit``, the
+def require_at_most(where: str, limit: float, **values) -> None:
+    """Each value (a number, checked so first; None skipped) is at most ``limit``, the
     documented bound beyond which the value means nothing more and breaks the arithmetic
-    (an array of that size, a count past a solver's integers, a square past float)."""
-    for n in names:
-        v = getattr(obj, n)
+    (an array of that size, a count past a solver's integers, a square past float), else
+    :class:`ConfigError` (see :func:`require_positive`)."""
+    for name, v in values.items():
         if v is not None and v > limit:
-            raise ConfigError(f"{type(obj).__name__}.{n} must be at most {limit:g}, got {v!r}")
+            raise ConfigError(f"{where}{name} must be at most {limit:g}, got {v!r}")
+
+
+def check_at_most(obj, limit: float, *names: str) -> None:
+    """Each named field of ``obj`` is at most ``limit`` (:func:`require_at_most`)."""
+    require_at_most(f"{type(obj).__name__}.", limit, **{n: getattr(obj, n) for n in names})
 
 
 def check_below_inf(obj, *names: str) -> None:

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._records import readonly as _readonly
-from .config import require_nonneg, require_positive
+from .config import require_at_most, require_nonneg, require_positive
 from .errors import ConfigError, ScanCliqueError
 from .geometry import Pose2
 from .scan import MAX_POSE_COORDINATE, Scan, beam_angles
@@ -127,10 +127,7 @@ def _check_count(where: str, **values: int) -> None:
 
 
 def _check_at_most(where: str, limit: float, **values: float) -> None:
-    """Each value (a checked number) is at most ``limit``, else a ConfigError naming it."""
-    for name, v in values.items():
-        if v > limit:
-            raise ConfigError(f"{where}: {name} must be at most {limit:g}, got {v!r}")
+    require_at_most(f"{where}: ", limit, **values)
 
 
 def _check_beams(where: str, n_beams) -> None:
