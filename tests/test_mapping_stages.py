@@ -856,6 +856,13 @@ def test_loop_candidates_near_the_chain_when_the_estimate_is_pulled_off_it():
     m.submitted = []
     m.search(last)
     assert {4, 9} <= set(loops()) and 0 in loops()
+    strict = {task[0]: task[-1] for task in m.submitted}
+    assert strict[0] and not strict[4]  # the chain's, as strictly as appearance ones
+    # a chain further off than the drift model allows (beyond loops.max_radius): not searched
+    m.est_xy[last, :2] = (m.lc.max_radius + 1.0, 0.0)
+    m.submitted = []
+    m.search(last)
+    assert 0 not in loops()
     # within the candidate radius of each other, the estimate's alone
     m.est_xy[last, :2] = (1.0, 0.0)
     m.submitted = []

@@ -301,8 +301,9 @@ class LoopConfig:
     since the last accepted closure or since ``i``, whichever is shorter (the drift the
     estimate may have accumulated), capped at ``max_radius``; and, where the front end's
     chain puts ``j`` more than ``radius`` from where the estimate puts it relative to
-    ``i`` and no closure on the way has corrected the estimate there, within as much of
-    the chain's position (local matches can pull the estimate off a right chain).
+    ``i`` but within that drift radius, and no closure on the way has corrected the
+    estimate there, within as much of the chain's position, verified as strictly as
+    appearance candidates (local matches can pull the estimate off a right chain).
 
     Attributes
     ----------

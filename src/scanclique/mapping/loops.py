@@ -68,7 +68,8 @@ class LoopClosure:
     ``"degenerate"`` (the raw scans do not fix the pose in one direction, a corridor;
     :func:`scanclique.refine.weak_direction`); ``accepted`` whether it
     entered the pose graph; ``local`` True for a match with a nearby keyframe on the
-    local chain (not a loop); ``source`` ``"estimate"`` or ``"appearance"``; ``score``
+    local chain (not a loop); ``source`` ``"estimate"``, ``"chain"`` (near where the front
+    end's chain puts ``j``, where it and the estimate disagree) or ``"appearance"``; ``score``
     the raw-scan agreement; ``reason`` in words."""
 
     i: int

@@ -7,8 +7,7 @@ The recipe (issue 12; the paper's first application, §2):
    constant-velocity prior (§7); else place it by the prior, flagged
    (:mod:`.frontend`);
 3. on each new keyframe: match it against ``local`` recent keyframes (ties the local chain)
-   and verify loop candidates by estimate (and by the chain where the two disagree) and
-   appearance (:mod:`.loops`);
+   and verify loop candidates by estimate and appearance (:mod:`.loops`);
 4. every ``pcm_batch`` keyframes: keep the largest pairwise-consistent set of the new
    closures (PCM, a maximum clique; :mod:`.pcm`), add the edges to the incremental
    optimiser (iSAM2) and update the estimate the next candidates are searched with;
@@ -701,18 +700,23 @@ class _Mapper:
                 tried.add(i)
             # where the front end's chain puts this keyframe relative to each earlier one,
             # when that is further than the candidate radius from where the estimate puts
-            # it and no closure on the way has corrected the estimate there: the places
-            # nearest the chain's claim are candidates too. Local matches can pull the
-            # estimate off a chain that is right (a 200 x 120 m ring with 2 % long
-            # wheels, online: where the loop closes the estimate 3.1 m off, the chain
-            # 0.58 m; the places nearest the estimate were a door along, and that
-            # look-alike closed the loop: 3.750 -> 0.679 m)
+            # it, yet within the drift model's reach of it, and no closure on the way has
+            # corrected the estimate there: the places nearest the chain's claim are
+            # candidates too (source "chain"), verified as strictly as appearance ones.
+            # Local matches can pull the estimate off a chain that is right (a 200 x 120 m
+            # ring with 2 % long wheels, online: where the loop closes the estimate 3.1 m
+            # off, the chain 0.58 m; the places nearest the estimate were a door along, and
+            # that look-alike closed the loop: 3.750 -> 0.679 m). A chain further off than
+            # the drift model allows (the LDS-01 outdoors, 25 m: a block along) is not
+            # searched, and a loose one's look-alikes must match without the prior
             chain = self.kf_chain.array
             off = np.hypot(*(_relative(chain, kidx) - _relative(self.est_xy, kidx)).T)
             along = cum[kidx] - cum[: kidx + 1]
-            apart = (off >= lc.radius) & (self.paths_from(kidx)[:, 2] >= 0.5 * along)
+            reach = np.minimum(lc.radius + lc.growth * np.minimum(along, since), lc.max_radius)
+            uncorrected = self.paths_from(kidx)[:, 2] >= 0.5 * along
+            apart = (off >= lc.radius) & (off <= reach) & uncorrected
             for i in _loops.candidates(kidx, chain[:, :2], cum, since, lc, tried, front, apart):
-                jobs.append((i, False, "estimate"))
+                jobs.append((i, False, "chain"))
                 tried.add(i)
             if self.kf_sig:
                 for i in _loops.appearance_candidates(kidx, self.kf_sig.array, cum, lc):
@@ -724,7 +728,7 @@ class _Mapper:
             est_i = self.estimate_of(i)
             sigma = self.prior_sigma(i, kidx, local, source)
             tasks.append(
-                (self.kf[i], self.kf[kidx], est_i, est_j, sigma, local, source == "appearance")
+                (self.kf[i], self.kf[kidx], est_i, est_j, sigma, local, source != "estimate")
             )
             meta.append((i, local, source))
         if tasks:
@@ -743,10 +747,10 @@ class _Mapper:
     def prior_sigma(self, i: int, kidx: int, local: bool, source: str) -> tuple[float, float]:
         """``(sigma_xy m, sigma_theta rad)`` of the prior with which keyframe ``kidx`` is
         verified against the earlier keyframe ``i``: a local neighbour (``local``) by the
-        well-known chain; a loop candidate (``source`` ``"estimate"`` or ``"appearance"``)
-        by the drift the estimate may have accumulated since the last closure, widened to
-        the front end's own uncertainty there (:meth:`front_std`); an appearance candidate
-        by twice both."""
+        well-known chain; a loop candidate (``source`` ``"estimate"``, ``"chain"`` or
+        ``"appearance"``) by the drift the estimate may have accumulated since the last
+        closure, widened to the front end's own uncertainty there (:meth:`front_std`); an
+        appearance candidate by twice both."""
         if local:
             drift = self.kf_path[kidx] - self.kf_path[i]
             return (0.05 + 0.02 * drift, math.radians(1.0) + math.radians(0.5) * drift)
