@@ -245,20 +245,8 @@ def map_config_dict(cfg) -> dict:
         if f.name == "match":
             out[f.name] = config_to_dict(v)
         else:
-            out[f.name] = _plain(dataclasses.asdict(v))
+            out[f.name] = clean_json(dataclasses.asdict(v))
     return out
-
-
-def _plain(obj):
-    if isinstance(obj, dict):
-        return {k: _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, np.generic):
-        return obj.item()
-    return obj
 
 
 def write_report(path: str | Path, report: dict) -> None:
